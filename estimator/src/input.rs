@@ -1,0 +1,255 @@
+//! The sensor contract: what any data source delivers to the estimator.
+//!
+//! Frames: the LiDAR frame is the ego frame (x forward, y left, z up).
+//! Times are seconds on one clock shared by all streams. Units are SI.
+
+use nalgebra::{Isometry3, Vector3};
+use std::fmt;
+
+/// One IMU sample in the IMU body frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuSample {
+    pub t_s: f64,
+    /// Specific force (acceleration minus gravity), body frame.
+    pub accel_mps2: Vector3<f64>,
+    /// Angular rate, body frame.
+    pub gyro_radps: Vector3<f64>,
+}
+
+/// One LiDAR return, in the LiDAR frame at the time the point was measured
+/// (raw, not motion-compensated).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LidarPoint {
+    pub x: f32,
+    pub y: f32,
+    pub z: f32,
+    pub intensity: f32,
+    /// Laser index, 0 = lowest beam.
+    pub ring: u16,
+    /// Time of the measurement relative to [`LidarScan::t_s`], in seconds.
+    pub time_offset_s: f32,
+}
+
+impl LidarPoint {
+    pub fn position(&self) -> Vector3<f64> {
+        Vector3::new(self.x as f64, self.y as f64, self.z as f64)
+    }
+}
+
+/// One LiDAR sweep.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LidarScan {
+    /// Sweep start time; every point's own time is `t_s + time_offset_s`.
+    pub t_s: f64,
+    /// Nominal sweep duration (0.1 s for a 10 Hz spinning LiDAR).
+    pub sweep_duration_s: f64,
+    /// Number of lasers (rings) of the sensor.
+    pub num_rings: u16,
+    pub points: Vec<LidarPoint>,
+}
+
+/// Object classes shared by detector, tracker and evaluation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ObjectClass {
+    Car,
+    Truck,
+    Cyclist,
+    Pedestrian,
+}
+
+impl ObjectClass {
+    pub const ALL: [ObjectClass; 4] = [
+        ObjectClass::Car,
+        ObjectClass::Truck,
+        ObjectClass::Cyclist,
+        ObjectClass::Pedestrian,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ObjectClass::Car => "Car",
+            ObjectClass::Truck => "Truck",
+            ObjectClass::Cyclist => "Cyclist",
+            ObjectClass::Pedestrian => "Pedestrian",
+        }
+    }
+
+    /// Parses the class names used by KITTI and by our own files
+    /// (case-insensitive; KITTI's `Van` counts as a car).
+    pub fn parse(name: &str) -> Option<ObjectClass> {
+        match name.to_ascii_lowercase().as_str() {
+            "car" | "van" => Some(ObjectClass::Car),
+            "truck" => Some(ObjectClass::Truck),
+            "cyclist" => Some(ObjectClass::Cyclist),
+            "pedestrian" | "person" | "person_sitting" => Some(ObjectClass::Pedestrian),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ObjectClass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A 3D bounding box detection in the LiDAR frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection {
+    /// Geometric centre of the box, LiDAR frame.
+    pub center_lidar: Vector3<f64>,
+    /// Length (along the heading), width, height.
+    pub size_lwh: Vector3<f64>,
+    /// Heading about the LiDAR z axis, radians, 0 = along +x.
+    pub yaw_rad: f64,
+    pub class: ObjectClass,
+    /// Detector confidence in [0, 1].
+    pub score: f64,
+    /// When the sweep saw the object, relative to the scan's `t_s`
+    /// (the box is where the raw points put it, in the LiDAR frame at that time).
+    pub time_offset_s: f64,
+}
+
+/// Everything that arrives with one LiDAR sweep.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Frame {
+    pub scan: LidarScan,
+    pub detections: Vec<Detection>,
+}
+
+/// Fixed sensor extrinsics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extrinsics {
+    /// Maps IMU-frame points into the LiDAR frame.
+    pub t_lidar_imu: Isometry3<f64>,
+}
+
+impl Default for Extrinsics {
+    fn default() -> Self {
+        Extrinsics {
+            t_lidar_imu: Isometry3::identity(),
+        }
+    }
+}
+
+/// Why a piece of input was rejected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InputError {
+    #[error("IMU sample at t={t_s}: field `{field}` is not finite")]
+    ImuNotFinite { t_s: f64, field: &'static str },
+    #[error("IMU sample at t={t_s} is not after the previous one at t={previous_t_s}")]
+    ImuTimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    #[error("scan at t={t_s}: field `{field}` is not finite")]
+    ScanNotFinite { t_s: f64, field: &'static str },
+    #[error("scan at t={t_s} is not after the previous scan at t={previous_t_s}")]
+    ScanTimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    #[error("detection {index} of the scan at t={t_s}: field `{field}` is invalid ({why})")]
+    BadDetection {
+        t_s: f64,
+        index: usize,
+        field: &'static str,
+        why: &'static str,
+    },
+}
+
+impl ImuSample {
+    /// Rejects non-finite values.
+    pub fn validate(&self) -> Result<(), InputError> {
+        let t_s = self.t_s;
+        if !t_s.is_finite() {
+            return Err(InputError::ImuNotFinite { t_s, field: "t_s" });
+        }
+        if !self.accel_mps2.iter().all(|v| v.is_finite()) {
+            return Err(InputError::ImuNotFinite {
+                t_s,
+                field: "accel_mps2",
+            });
+        }
+        if !self.gyro_radps.iter().all(|v| v.is_finite()) {
+            return Err(InputError::ImuNotFinite {
+                t_s,
+                field: "gyro_radps",
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Detection {
+    /// Rejects boxes no detector can produce: non-finite values, non-positive
+    /// sizes, scores outside [0, 1].
+    pub fn validate(&self, t_s: f64, index: usize) -> Result<(), InputError> {
+        let bad = |field, why| InputError::BadDetection {
+            t_s,
+            index,
+            field,
+            why,
+        };
+        if !self.center_lidar.iter().all(|v| v.is_finite()) {
+            return Err(bad("center_lidar", "not finite"));
+        }
+        if !self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(bad("size_lwh", "not finite and positive"));
+        }
+        if !self.yaw_rad.is_finite() {
+            return Err(bad("yaw_rad", "not finite"));
+        }
+        if !(0.0..=1.0).contains(&self.score) {
+            return Err(bad("score", "outside [0, 1]"));
+        }
+        if !self.time_offset_s.is_finite() {
+            return Err(bad("time_offset_s", "not finite"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn class_names_round_trip() {
+        for class in ObjectClass::ALL {
+            assert_eq!(ObjectClass::parse(class.name()), Some(class));
+        }
+        assert_eq!(ObjectClass::parse("Van"), Some(ObjectClass::Car));
+        assert_eq!(ObjectClass::parse("DontCare"), None);
+    }
+
+    #[test]
+    fn detection_validation_names_the_field() {
+        let mut det = Detection {
+            center_lidar: Vector3::new(10.0, 0.0, 0.0),
+            size_lwh: Vector3::new(4.0, 1.8, 1.5),
+            yaw_rad: 0.0,
+            class: ObjectClass::Car,
+            score: 0.9,
+            time_offset_s: 0.05,
+        };
+        assert!(det.validate(0.0, 0).is_ok());
+        det.size_lwh.x = -1.0;
+        let err = det.validate(1.5, 3).unwrap_err();
+        assert!(err.to_string().contains("size_lwh"), "{err}");
+        det.size_lwh.x = 4.0;
+        det.center_lidar.y = f64::NAN;
+        let err = det.validate(1.5, 3).unwrap_err();
+        assert!(err.to_string().contains("center_lidar"), "{err}");
+    }
+
+    #[test]
+    fn imu_validation_rejects_nan() {
+        let sample = ImuSample {
+            t_s: 0.0,
+            accel_mps2: Vector3::new(0.0, f64::NAN, 9.8),
+            gyro_radps: Vector3::zeros(),
+        };
+        assert!(matches!(
+            sample.validate(),
+            Err(InputError::ImuNotFinite {
+                field: "accel_mps2",
+                ..
+            })
+        ));
+    }
+}

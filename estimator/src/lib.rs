@@ -1,0 +1,6 @@
+//! LIMOT estimator: pure estimation, no simulator, no file formats.
+//!
+//! Everything a source (simulator or KITTI reader) delivers is described by
+//! [`input`]; the estimator never knows which source fed it.
+
+pub mod input;

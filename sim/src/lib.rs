@@ -1,0 +1,6 @@
+//! LIMOT simulation testbed: scenario generation, traffic, a rolling 64-beam
+//! LiDAR ray-cast against a rapier3d world, a noisy IMU, a detector model and
+//! exact ground truth. Knows nothing about estimation.
+
+pub mod scene;
+pub mod trajectory;

@@ -1,0 +1,309 @@
+//! C2-smooth rigid-body trajectories sampled at uniform knots.
+//!
+//! Every scalar channel (x, y, z, yaw, pitch, roll) is stored at each knot with
+//! its first and second time derivatives and interpolated by quintic Hermite
+//! polynomials, so position, velocity and acceleration are continuous and the
+//! IMU can be derived analytically at any time.
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+/// A scalar value with its first and second time derivatives.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Jet {
+    pub value: f64,
+    pub rate: f64,
+    pub accel: f64,
+}
+
+impl Jet {
+    pub const fn new(value: f64, rate: f64, accel: f64) -> Jet {
+        Jet { value, rate, accel }
+    }
+}
+
+/// Vehicle state at one knot: position of the body origin in the world and
+/// intrinsic z-y-x Euler angles (yaw, pitch, roll), each with derivatives.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Knot {
+    pub position: [Jet; 3],
+    /// [yaw, pitch, roll]; R = Rz(yaw) * Ry(pitch) * Rx(roll).
+    pub euler: [Jet; 3],
+}
+
+/// The full kinematic state of a body at one instant, in the world frame
+/// unless the name says otherwise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KinematicState {
+    pub t_world_body: Isometry3<f64>,
+    pub velocity_world_mps: Vector3<f64>,
+    pub accel_world_mps2: Vector3<f64>,
+    pub angular_velocity_body_radps: Vector3<f64>,
+    pub angular_accel_body_radps2: Vector3<f64>,
+}
+
+/// A trajectory over `[t0_s, t0_s + (n - 1) * dt_s]`; queries outside are
+/// clamped to the end knots (the body holds still there).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    pub t0_s: f64,
+    pub dt_s: f64,
+    pub knots: Vec<Knot>,
+}
+
+impl Trajectory {
+    pub fn new(t0_s: f64, dt_s: f64, knots: Vec<Knot>) -> Trajectory {
+        assert!(dt_s > 0.0 && !knots.is_empty());
+        Trajectory { t0_s, dt_s, knots }
+    }
+
+    /// A body at rest at one pose.
+    pub fn stationary(t0_s: f64, t1_s: f64, pose: &Isometry3<f64>) -> Trajectory {
+        let (roll, pitch, yaw) = pose.rotation.euler_angles();
+        let p = pose.translation.vector;
+        let knot = Knot {
+            position: [
+                Jet::new(p.x, 0.0, 0.0),
+                Jet::new(p.y, 0.0, 0.0),
+                Jet::new(p.z, 0.0, 0.0),
+            ],
+            euler: [
+                Jet::new(yaw, 0.0, 0.0),
+                Jet::new(pitch, 0.0, 0.0),
+                Jet::new(roll, 0.0, 0.0),
+            ],
+        };
+        Trajectory::new(t0_s, (t1_s - t0_s).max(1e-3), vec![knot, knot])
+    }
+
+    pub fn start_s(&self) -> f64 {
+        self.t0_s
+    }
+
+    pub fn end_s(&self) -> f64 {
+        self.t0_s + (self.knots.len() - 1) as f64 * self.dt_s
+    }
+
+    /// Interpolated knot (values and derivatives) at time `t_s`.
+    pub fn knot_at(&self, t_s: f64) -> Knot {
+        let n = self.knots.len();
+        if n == 1 || t_s <= self.t0_s {
+            return at_rest(&self.knots[0]);
+        }
+        if t_s >= self.end_s() {
+            return at_rest(&self.knots[n - 1]);
+        }
+        let u = (t_s - self.t0_s) / self.dt_s;
+        let i = (u.floor() as usize).min(n - 2);
+        let s = u - i as f64;
+        let (a, b) = (&self.knots[i], &self.knots[i + 1]);
+        let h = self.dt_s;
+        let mut out = Knot::default();
+        for c in 0..3 {
+            out.position[c] = quintic_hermite(&a.position[c], &b.position[c], s, h);
+            out.euler[c] = quintic_hermite(&a.euler[c], &b.euler[c], s, h);
+        }
+        out
+    }
+
+    pub fn pose_at(&self, t_s: f64) -> Isometry3<f64> {
+        let k = self.knot_at(t_s);
+        pose_of(&k)
+    }
+
+    pub fn state_at(&self, t_s: f64) -> KinematicState {
+        let k = self.knot_at(t_s);
+        let [yaw, pitch, roll] = k.euler;
+        let rates = Vector3::new(yaw.rate, pitch.rate, roll.rate);
+        let accels = Vector3::new(yaw.accel, pitch.accel, roll.accel);
+        let e = euler_rate_matrix(pitch.value, roll.value);
+        let de = euler_rate_matrix_dot(pitch, roll);
+        KinematicState {
+            t_world_body: pose_of(&k),
+            velocity_world_mps: Vector3::new(
+                k.position[0].rate,
+                k.position[1].rate,
+                k.position[2].rate,
+            ),
+            accel_world_mps2: Vector3::new(
+                k.position[0].accel,
+                k.position[1].accel,
+                k.position[2].accel,
+            ),
+            angular_velocity_body_radps: e * rates,
+            angular_accel_body_radps2: e * accels + de * rates,
+        }
+    }
+}
+
+fn at_rest(k: &Knot) -> Knot {
+    let still = |j: &Jet| Jet::new(j.value, 0.0, 0.0);
+    Knot {
+        position: k.position.each_ref().map(still),
+        euler: k.euler.each_ref().map(still),
+    }
+}
+
+fn pose_of(k: &Knot) -> Isometry3<f64> {
+    let [yaw, pitch, roll] = k.euler;
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_euler_angles(
+        roll.value,
+        pitch.value,
+        yaw.value,
+    ));
+    let t = Translation3::new(
+        k.position[0].value,
+        k.position[1].value,
+        k.position[2].value,
+    );
+    Isometry3::from_parts(t, rotation)
+}
+
+/// Maps (yaw, pitch, roll) rates to the body angular velocity for
+/// R = Rz(yaw) Ry(pitch) Rx(roll).
+pub fn euler_rate_matrix(pitch: f64, roll: f64) -> Matrix3<f64> {
+    let (sp, cp) = pitch.sin_cos();
+    let (sr, cr) = roll.sin_cos();
+    // columns: d/d yaw, d/d pitch, d/d roll
+    Matrix3::new(
+        -sp,
+        0.0,
+        1.0, //
+        cp * sr,
+        cr,
+        0.0, //
+        cp * cr,
+        -sr,
+        0.0,
+    )
+}
+
+fn euler_rate_matrix_dot(pitch: Jet, roll: Jet) -> Matrix3<f64> {
+    let (sp, cp) = pitch.value.sin_cos();
+    let (sr, cr) = roll.value.sin_cos();
+    let (dp, dr) = (pitch.rate, roll.rate);
+    Matrix3::new(
+        -cp * dp,
+        0.0,
+        0.0,
+        -sp * dp * sr + cp * cr * dr,
+        -sr * dr,
+        0.0,
+        -sp * dp * cr - cp * sr * dr,
+        -cr * dr,
+        0.0,
+    )
+}
+
+/// Quintic Hermite interpolation on one segment of length `h` at the
+/// normalised parameter `s` in [0, 1]; matches value, rate and accel at both ends.
+fn quintic_hermite(a: &Jet, b: &Jet, s: f64, h: f64) -> Jet {
+    let (s2, s3) = (s * s, s * s * s);
+    let (s4, s5) = (s3 * s, s3 * s2);
+    // basis functions and their derivatives with respect to s
+    let h0 = [
+        1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5,
+        -30.0 * s2 + 60.0 * s3 - 30.0 * s4,
+        -60.0 * s + 180.0 * s2 - 120.0 * s3,
+    ];
+    let h1 = [
+        s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5,
+        1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4,
+        -36.0 * s + 96.0 * s2 - 60.0 * s3,
+    ];
+    let h2 = [
+        0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5,
+        s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4,
+        1.0 - 9.0 * s + 18.0 * s2 - 10.0 * s3,
+    ];
+    let h3 = [
+        10.0 * s3 - 15.0 * s4 + 6.0 * s5,
+        30.0 * s2 - 60.0 * s3 + 30.0 * s4,
+        60.0 * s - 180.0 * s2 + 120.0 * s3,
+    ];
+    let h4 = [
+        -4.0 * s3 + 7.0 * s4 - 3.0 * s5,
+        -12.0 * s2 + 28.0 * s3 - 15.0 * s4,
+        -24.0 * s + 84.0 * s2 - 60.0 * s3,
+    ];
+    let h5 = [
+        0.5 * s3 - s4 + 0.5 * s5,
+        1.5 * s2 - 4.0 * s3 + 2.5 * s4,
+        3.0 * s - 12.0 * s2 + 10.0 * s3,
+    ];
+    let coef = [
+        a.value,
+        a.rate * h,
+        a.accel * h * h,
+        b.value,
+        b.rate * h,
+        b.accel * h * h,
+    ];
+    let basis = [h0, h1, h2, h3, h4, h5];
+    let mut d = [0.0; 3];
+    for (c, bf) in coef.iter().zip(basis.iter()) {
+        for k in 0..3 {
+            d[k] += c * bf[k];
+        }
+    }
+    Jet::new(d[0], d[1] / h, d[2] / (h * h))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn jet_of_cubic(t: f64) -> Jet {
+        // x(t) = 1 + 2t - 0.5t^2 + 0.3t^3
+        Jet::new(
+            1.0 + 2.0 * t - 0.5 * t * t + 0.3 * t * t * t,
+            2.0 - t + 0.9 * t * t,
+            -1.0 + 1.8 * t,
+        )
+    }
+
+    #[test]
+    fn quintic_hermite_reproduces_cubics_exactly() {
+        let h = 0.1;
+        for seg in 0..5 {
+            let t0 = seg as f64 * h;
+            let (a, b) = (jet_of_cubic(t0), jet_of_cubic(t0 + h));
+            for i in 0..=10 {
+                let s = i as f64 / 10.0;
+                let got = quintic_hermite(&a, &b, s, h);
+                let want = jet_of_cubic(t0 + s * h);
+                assert!((got.value - want.value).abs() < 1e-12);
+                assert!((got.rate - want.rate).abs() < 1e-10);
+                assert!((got.accel - want.accel).abs() < 1e-8);
+            }
+        }
+    }
+
+    #[test]
+    fn angular_velocity_matches_finite_difference_of_rotation() {
+        let knots: Vec<Knot> = (0..20)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                Knot {
+                    position: [Jet::new(t, 1.0, 0.0), Jet::default(), Jet::default()],
+                    euler: [
+                        Jet::new(0.3 * t * t, 0.6 * t, 0.6),
+                        Jet::new(0.1 * t.sin(), 0.1 * t.cos(), -0.1 * t.sin()),
+                        Jet::new(0.05 * t, 0.05, 0.0),
+                    ],
+                }
+            })
+            .collect();
+        let traj = Trajectory::new(0.0, 0.1, knots);
+        let (t, eps) = (0.73, 1e-5);
+        let r0 = traj.pose_at(t - eps).rotation;
+        let r1 = traj.pose_at(t + eps).rotation;
+        let omega_fd = (r0.inverse() * r1).scaled_axis() / (2.0 * eps);
+        let omega = traj.state_at(t).angular_velocity_body_radps;
+        assert!((omega - omega_fd).norm() < 1e-6, "{omega} vs {omega_fd}");
+        let w0 = traj.state_at(t - eps).angular_velocity_body_radps;
+        let w1 = traj.state_at(t + eps).angular_velocity_body_radps;
+        let alpha_fd = (w1 - w0) / (2.0 * eps);
+        let alpha = traj.state_at(t).angular_accel_body_radps2;
+        assert!((alpha - alpha_fd).norm() < 1e-5, "{alpha} vs {alpha_fd}");
+    }
+}
