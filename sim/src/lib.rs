@@ -2,5 +2,8 @@
 //! LiDAR ray-cast against a rapier3d world, a noisy IMU, a detector model and
 //! exact ground truth. Knows nothing about estimation.
 
+pub mod detector;
+pub mod imu;
+pub mod lidar;
 pub mod scene;
 pub mod trajectory;
