@@ -5,5 +5,6 @@
 pub mod detector;
 pub mod imu;
 pub mod lidar;
+pub mod record;
 pub mod scene;
 pub mod trajectory;
