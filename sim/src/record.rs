@@ -18,6 +18,7 @@
 //! Numbers are written in Rust's shortest round-trip form, so a dataset is
 //! byte-identical whenever the simulation is.
 
+use crate::detector::DetectionWithTruth;
 use limot_estimator::input::{Detection, ImuSample, LidarPoint, LidarScan, ObjectClass};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -88,14 +89,6 @@ impl Meta {
     }
 }
 
-/// A detection together with the id of the object it came from.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LabelledDetection {
-    pub detection: Detection,
-    /// `None` for a false positive.
-    pub truth_id: Option<u32>,
-}
-
 /// Ground-truth ego state at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoTruth {
@@ -131,7 +124,7 @@ pub struct RecordedFrame {
     pub scan: LidarScan,
     /// Ground-truth instance id per point (0 = static scene).
     pub labels: Vec<u32>,
-    pub detections: Vec<LabelledDetection>,
+    pub detections: Vec<DetectionWithTruth>,
 }
 
 pub fn pose_to_array(pose: &Isometry3<f64>) -> [f64; 7] {
@@ -528,7 +521,7 @@ pub struct Dataset {
     pub meta: Meta,
     pub imu: Vec<ImuSample>,
     /// Detections per frame.
-    pub detections: Vec<Vec<LabelledDetection>>,
+    pub detections: Vec<Vec<DetectionWithTruth>>,
 }
 
 impl Dataset {
@@ -671,7 +664,7 @@ fn read_imu(path: &Path) -> Result<Vec<ImuSample>, RecordError> {
 fn read_detections(
     path: &Path,
     frame_count: usize,
-) -> Result<Vec<Vec<LabelledDetection>>, RecordError> {
+) -> Result<Vec<Vec<DetectionWithTruth>>, RecordError> {
     let columns = [
         "frame",
         "time_offset_s",
@@ -714,7 +707,7 @@ fn read_detections(
         detection
             .validate(0.0, index)
             .map_err(|e| r.error(3, e.to_string()))?;
-        out[frame].push(LabelledDetection {
+        out[frame].push(DetectionWithTruth {
             detection,
             truth_id,
         });

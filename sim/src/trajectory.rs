@@ -86,10 +86,11 @@ impl Trajectory {
     /// Interpolated knot (values and derivatives) at time `t_s`.
     pub fn knot_at(&self, t_s: f64) -> Knot {
         let n = self.knots.len();
-        if n == 1 || t_s <= self.t0_s {
+        // strictly outside: a query exactly at an end knot keeps its motion
+        if n == 1 || t_s < self.t0_s {
             return at_rest(&self.knots[0]);
         }
-        if t_s >= self.end_s() {
+        if t_s > self.end_s() {
             return at_rest(&self.knots[n - 1]);
         }
         let u = (t_s - self.t0_s) / self.dt_s;
@@ -276,6 +277,20 @@ mod tests {
                 assert!((got.accel - want.accel).abs() < 1e-8);
             }
         }
+    }
+
+    #[test]
+    fn end_knots_keep_their_motion() {
+        let knots = (0..3)
+            .map(|i| Knot {
+                position: [Jet::new(i as f64, 10.0, 0.0), Jet::default(), Jet::default()],
+                euler: [Jet::default(); 3],
+            })
+            .collect();
+        let traj = Trajectory::new(0.0, 0.1, knots);
+        assert_eq!(traj.state_at(0.0).velocity_world_mps.x, 10.0);
+        assert_eq!(traj.state_at(0.2).velocity_world_mps.x, 10.0);
+        assert_eq!(traj.state_at(0.3).velocity_world_mps.x, 0.0);
     }
 
     #[test]
