@@ -4,3 +4,4 @@
 //! [`input`]; the estimator never knows which source fed it.
 
 pub mod input;
+pub mod lie;
