@@ -1,0 +1,206 @@
+//! KITTI tracking readers and writers.
+//!
+//! Frames used throughout:
+//! - `cam` / `rect`: the rectified camera-0 frame of KITTI (x right, y down,
+//!   z forward); label and detection boxes live here (bottom centre of the box).
+//! - `velo` / `lidar`: the Velodyne frame (x forward, y left, z up) = our ego
+//!   LiDAR frame.
+//! - `imu`: the OXTS frame (x forward, y left, z up).
+//!
+//! Every parser takes the text (or bytes) and the path it came from, so that
+//! every [`KittiError`] names the file, the 1-based line and the field.
+
+pub mod calib;
+pub mod detections;
+pub mod labels;
+pub mod oxts;
+pub mod poses;
+pub mod results;
+pub mod seqmap;
+pub mod velodyne;
+
+use std::path::{Path, PathBuf};
+
+/// Why a KITTI file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum KittiError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}:{line}: column {column} (`{field}`): {why}", path.display())]
+    Field {
+        path: PathBuf,
+        line: usize,
+        /// 1-based column (whitespace- or comma-separated token).
+        column: usize,
+        field: &'static str,
+        why: String,
+    },
+    #[error("{}:{line}: expected {expected} columns, found {found}", path.display())]
+    ColumnCount {
+        path: PathBuf,
+        line: usize,
+        expected: String,
+        found: usize,
+    },
+    #[error("{}:{line}: {why}", path.display())]
+    Line {
+        path: PathBuf,
+        line: usize,
+        why: String,
+    },
+    #[error("{}: missing key `{key}`", path.display())]
+    MissingKey { path: PathBuf, key: &'static str },
+    #[error("{}: byte offset {byte_offset}: {why}", path.display())]
+    Binary {
+        path: PathBuf,
+        byte_offset: u64,
+        why: String,
+    },
+    #[error("{}: {why}", path.display())]
+    Invalid { path: PathBuf, why: String },
+}
+
+pub type Result<T> = std::result::Result<T, KittiError>;
+
+/// Reads a whole text file, mapping I/O errors to [`KittiError::Io`].
+pub fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|source| KittiError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Writes a whole text file, mapping I/O errors to [`KittiError::Io`].
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|source| KittiError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Where a token came from, for error messages.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LineCtx<'a> {
+    pub path: &'a Path,
+    /// 1-based line number.
+    pub line: usize,
+}
+
+impl<'a> LineCtx<'a> {
+    pub fn new(path: &'a Path, line: usize) -> Self {
+        LineCtx { path, line }
+    }
+
+    pub fn field_error(&self, column: usize, field: &'static str, why: String) -> KittiError {
+        KittiError::Field {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            column,
+            field,
+            why,
+        }
+    }
+
+    pub fn line_error(&self, why: String) -> KittiError {
+        KittiError::Line {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            why,
+        }
+    }
+
+    pub fn column_count(&self, expected: &str, found: usize) -> KittiError {
+        KittiError::ColumnCount {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            expected: expected.to_string(),
+            found,
+        }
+    }
+
+    /// Parses a finite f64 (NaN and infinities are errors).
+    pub fn f64(&self, token: &str, column: usize, field: &'static str) -> Result<f64> {
+        let value: f64 = token
+            .parse()
+            .map_err(|_| self.field_error(column, field, format!("`{token}` is not a number")))?;
+        if !value.is_finite() {
+            return Err(self.field_error(column, field, format!("`{token}` is not finite")));
+        }
+        Ok(value)
+    }
+
+    /// Parses an integer; also accepts a float with an integral value ("4.0").
+    pub fn i64(&self, token: &str, column: usize, field: &'static str) -> Result<i64> {
+        if let Ok(v) = token.parse::<i64>() {
+            return Ok(v);
+        }
+        match token.parse::<f64>() {
+            Ok(v) if v.is_finite() && v.fract() == 0.0 && v.abs() < 9.0e15 => Ok(v as i64),
+            _ => Err(self.field_error(column, field, format!("`{token}` is not an integer"))),
+        }
+    }
+
+    /// Parses a non-negative integer that fits in u32.
+    pub fn u32(&self, token: &str, column: usize, field: &'static str) -> Result<u32> {
+        let v = self.i64(token, column, field)?;
+        u32::try_from(v).map_err(|_| {
+            self.field_error(column, field, format!("`{token}` is not in 0..=4294967295"))
+        })
+    }
+}
+
+/// Non-empty lines of a text file with their 1-based line numbers
+/// (blank lines and trailing `\r` are skipped).
+pub(crate) fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+        .filter(|(_, l)| !l.trim().is_empty())
+}
+
+/// Wraps an angle to (-pi, pi].
+pub fn wrap_angle_rad(angle_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let mut a = angle_rad.rem_euclid(TAU);
+    if a > PI {
+        a -= TAU;
+    }
+    a
+}
+
+/// Path of a per-sequence file, e.g. `root/training/calib/0001.txt`.
+pub fn sequence_file(dir: &Path, sequence: u32) -> PathBuf {
+    dir.join(format!("{sequence:04}.txt"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_stays_in_range() {
+        use std::f64::consts::PI;
+        for k in -20..=20 {
+            let a = 0.3 + k as f64 * 2.0 * PI;
+            assert!((wrap_angle_rad(a) - 0.3).abs() < 1e-9);
+        }
+        assert_eq!(wrap_angle_rad(PI), PI);
+        assert!((wrap_angle_rad(-PI) - PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn number_parsing_rejects_nan_and_names_the_field() {
+        let path = Path::new("x.txt");
+        let ctx = LineCtx::new(path, 7);
+        let err = ctx.f64("nan", 3, "ry").unwrap_err().to_string();
+        assert!(err.contains("x.txt:7") && err.contains("column 3") && err.contains("ry"));
+        assert!(ctx.f64("inf", 1, "a").is_err());
+        assert_eq!(ctx.i64("4.0", 1, "n").unwrap(), 4);
+        assert!(ctx.i64("4.5", 1, "n").is_err());
+        assert!(ctx.u32("-1", 1, "n").is_err());
+    }
+}

@@ -1,0 +1,3 @@
+//! `limot`: data sources, file formats and evaluation around the estimator.
+
+pub mod kitti;
