@@ -3,8 +3,11 @@
 //! exact ground truth. Knows nothing about estimation.
 
 pub mod detector;
+pub mod hdl64;
 pub mod imu;
 pub mod lidar;
+pub mod lidar_scan;
 pub mod record;
 pub mod scene;
 pub mod trajectory;
+pub mod world;
