@@ -1,3 +1,4 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 
+pub mod eval;
 pub mod kitti;
