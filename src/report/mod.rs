@@ -1,0 +1,269 @@
+//! Evaluation reports: markdown tables shaped like the paper's (`table`) and
+//! SVG plots (`plot`), gathered into a directory with a `README.md` by
+//! `write_report`. Everything works on plain data, so the evaluation runner
+//! only has to fill the row structs and series.
+
+pub mod plot;
+pub mod table;
+
+pub use plot::{
+    LineKind, Series2D, Style, plot_error_over_time, plot_object_tracks, plot_speed,
+    plot_trajectories_xy,
+};
+pub use table::{
+    Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
+    TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
+};
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+/// Why a report, table or plot could not be produced.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error("unknown variant {name:?} (expected lio, allfilt, dynafilt or limot)")]
+    UnknownVariant { name: String },
+    #[error("table {table:?}: row {row} has {found} cells, the header has {expected}")]
+    TableShape {
+        table: String,
+        row: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("table {table:?}: bold rule names column {column}, the table has {columns}")]
+    TableColumn {
+        table: String,
+        column: usize,
+        columns: usize,
+    },
+    #[error("{path}: no series to plot")]
+    NoSeries { path: PathBuf },
+    #[error("{path}: series {label:?} has no points")]
+    EmptySeries { path: PathBuf, label: String },
+    #[error("{path}: series {label:?} point {index} is not finite ({x}, {y})")]
+    NonFinite {
+        path: PathBuf,
+        label: String,
+        index: usize,
+        x: f64,
+        y: f64,
+    },
+    #[error("{path}: plotting failed: {message}")]
+    Plot { path: PathBuf, message: String },
+    #[error("{path}: plot file name {name:?} must be a plain `*.svg` file name")]
+    BadPlotName { path: PathBuf, name: String },
+    #[error("{path}: plot file {name:?} appears twice in the report")]
+    DuplicatePlot { path: PathBuf, name: String },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// The four system variants compared in the paper's ablation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Variant {
+    /// LiDAR-inertial odometry without object handling (LIO-SAM-like).
+    Lio,
+    /// LIO dropping every point inside any detected box.
+    Allfilt,
+    /// LIO dropping points of objects judged dynamic.
+    Dynafilt,
+    /// Full system: dynamic filtering plus joint ego/object optimisation.
+    Limot,
+}
+
+impl Variant {
+    pub const ALL: [Variant; 4] = [
+        Variant::Lio,
+        Variant::Allfilt,
+        Variant::Dynafilt,
+        Variant::Limot,
+    ];
+
+    /// Machine name, as on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Lio => "lio",
+            Variant::Allfilt => "allfilt",
+            Variant::Dynafilt => "dynafilt",
+            Variant::Limot => "limot",
+        }
+    }
+
+    /// Display name, as in the paper's tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Variant::Lio => "LIO",
+            Variant::Allfilt => "LIO-Allfilt",
+            Variant::Dynafilt => "LIO-Dynafilt",
+            Variant::Limot => "LIMOT",
+        }
+    }
+
+    /// Accepts the machine name or the display name, in any case.
+    pub fn parse(s: &str) -> Result<Variant, ReportError> {
+        let t = s.trim();
+        Variant::ALL
+            .into_iter()
+            .find(|v| t.eq_ignore_ascii_case(v.name()) || t.eq_ignore_ascii_case(v.label()))
+            .ok_or_else(|| ReportError::UnknownVariant {
+                name: s.to_string(),
+            })
+    }
+}
+
+impl fmt::Display for Variant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Variant {
+    type Err = ReportError;
+    fn from_str(s: &str) -> Result<Variant, ReportError> {
+        Variant::parse(s)
+    }
+}
+
+/// What a plot shows; each maps to one function of `plot`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlotKind {
+    /// Ego trajectories, top view (`plot_trajectories_xy`).
+    TrajectoriesXy { series: Vec<Series2D> },
+    /// Object tracks vs truth, top view (`plot_object_tracks`).
+    ObjectTracks {
+        truth: Vec<Series2D>,
+        est: Vec<Series2D>,
+    },
+    /// Speed over time (`plot_speed`).
+    Speed { series: Vec<Series2D> },
+    /// An error over time (`plot_error_over_time`); `y_desc` names it and its unit.
+    ErrorOverTime {
+        y_desc: String,
+        series: Vec<Series2D>,
+    },
+}
+
+/// One plot of a section, written as `file_name` inside the report directory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plot {
+    /// A plain file name ending in `.svg` (no directories).
+    pub file_name: String,
+    pub title: String,
+    pub kind: PlotKind,
+}
+
+impl Plot {
+    /// Draws the plot to `path`.
+    pub fn draw(&self, path: &Path) -> Result<(), ReportError> {
+        match &self.kind {
+            PlotKind::TrajectoriesXy { series } => plot_trajectories_xy(path, &self.title, series),
+            PlotKind::ObjectTracks { truth, est } => {
+                plot_object_tracks(path, &self.title, truth, est)
+            }
+            PlotKind::Speed { series } => plot_speed(path, &self.title, series),
+            PlotKind::ErrorOverTime { y_desc, series } => {
+                plot_error_over_time(path, &self.title, y_desc, series)
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Section {
+    pub heading: String,
+    /// Markdown paragraph(s) placed under the heading; may be empty.
+    pub text: String,
+    pub tables: Vec<Table>,
+    pub plots: Vec<Plot>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Report {
+    pub title: String,
+    pub sections: Vec<Section>,
+}
+
+/// A plot file name must stay inside the report directory and be an SVG.
+fn check_plot_name(dir: &Path, name: &str) -> Result<(), ReportError> {
+    let plain = !name.is_empty()
+        && name.ends_with(".svg")
+        && name.len() > ".svg".len()
+        && !name.contains(['/', '\\'])
+        && name != ".."
+        && !name.starts_with('.');
+    if plain {
+        Ok(())
+    } else {
+        Err(ReportError::BadPlotName {
+            path: dir.join(name),
+            name: name.to_string(),
+        })
+    }
+}
+
+/// Spaces and parentheses would break a markdown link target.
+fn link_target(name: &str) -> String {
+    name.replace(' ', "%20")
+        .replace('(', "%28")
+        .replace(')', "%29")
+}
+
+/// The README text; plots are linked by file name, relative to the README.
+pub fn render_readme(report: &Report) -> Result<String, ReportError> {
+    let mut out = format!("# {}\n", report.title);
+    for section in &report.sections {
+        out.push_str(&format!("\n## {}\n", section.heading));
+        if !section.text.trim().is_empty() {
+            out.push_str(&format!("\n{}\n", section.text.trim_end()));
+        }
+        for table in &section.tables {
+            out.push('\n');
+            out.push_str(&table.to_markdown()?);
+        }
+        for plot in &section.plots {
+            out.push_str(&format!(
+                "\n![{}]({})\n",
+                plot.title.replace(['[', ']'], ""),
+                link_target(&plot.file_name)
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// Writes every plot of `report` as an SVG into `dir` (created if needed) and
+/// then `dir/README.md` with the tables and links to the plots. Names and
+/// tables are checked before anything is written, so a bad report leaves no
+/// half-written README. Returns the README path.
+pub fn write_report(dir: &Path, report: &Report) -> Result<PathBuf, ReportError> {
+    let mut seen = BTreeSet::new();
+    for plot in report.sections.iter().flat_map(|s| &s.plots) {
+        check_plot_name(dir, &plot.file_name)?;
+        if !seen.insert(plot.file_name.as_str()) {
+            return Err(ReportError::DuplicatePlot {
+                path: dir.join(&plot.file_name),
+                name: plot.file_name.clone(),
+            });
+        }
+    }
+    let readme = render_readme(report)?;
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    for plot in report.sections.iter().flat_map(|s| &s.plots) {
+        plot.draw(&dir.join(&plot.file_name))?;
+    }
+    let readme_path = dir.join("README.md");
+    std::fs::write(&readme_path, readme).map_err(|source| ReportError::Io {
+        path: readme_path.clone(),
+        source,
+    })?;
+    Ok(readme_path)
+}

@@ -1,0 +1,394 @@
+//! SVG plots of trajectories, object tracks, speeds and errors, drawn with
+//! plotters' SVG backend (no font feature: the backend writes `<text>`
+//! elements and leaves glyphs to the viewer).
+//!
+//! Every data series is drawn as one `<polyline>` of stroke width
+//! `SERIES_STROKE_PX` (axes and ticks are 1 px) and its legend marker is a
+//! filled rectangle, so a series is easy to find in the file.
+
+use super::ReportError;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Canvas size in pixels.
+pub const CANVAS_PX: (u32, u32) = (900, 700);
+/// Stroke width of data series (axes and mesh are thinner).
+pub const SERIES_STROKE_PX: u32 = 2;
+const MARKER_RADIUS_PX: i32 = 3;
+const MARGIN_PX: u32 = 15;
+const X_LABEL_AREA_PX: u32 = 45;
+const Y_LABEL_AREA_PX: u32 = 70;
+const CAPTION_FONT_PX: u32 = 22;
+const LABEL_FONT_PX: u32 = 15;
+
+/// Colours for series without their own (Tableau 10, minus grey which is kept
+/// for ground truth).
+const PALETTE: [(u8, u8, u8); 9] = [
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (188, 189, 34),
+    (23, 190, 207),
+];
+
+/// Ground truth is black so estimates stand out against it.
+pub const TRUTH_RGB: (u8, u8, u8) = (0, 0, 0);
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineKind {
+    Line,
+    Markers,
+    LineMarkers,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Style {
+    pub kind: LineKind,
+    /// `None` picks the next palette colour.
+    pub rgb: Option<(u8, u8, u8)>,
+}
+
+impl Default for Style {
+    fn default() -> Style {
+        Style {
+            kind: LineKind::Line,
+            rgb: None,
+        }
+    }
+}
+
+/// One labelled series of (x, y) points, e.g. (x_m, y_m) of a trajectory in
+/// the world frame or (t_s, speed_mps).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series2D {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    pub style: Style,
+}
+
+impl Series2D {
+    /// A line in the next palette colour.
+    pub fn line(label: impl Into<String>, points: Vec<(f64, f64)>) -> Series2D {
+        Series2D {
+            label: label.into(),
+            points,
+            style: Style::default(),
+        }
+    }
+
+    /// A black line, for ground truth.
+    pub fn truth(label: impl Into<String>, points: Vec<(f64, f64)>) -> Series2D {
+        Series2D::line(label, points).with_rgb(TRUTH_RGB)
+    }
+
+    pub fn with_rgb(mut self, rgb: (u8, u8, u8)) -> Series2D {
+        self.style.rgb = Some(rgb);
+        self
+    }
+
+    pub fn with_kind(mut self, kind: LineKind) -> Series2D {
+        self.style.kind = kind;
+        self
+    }
+}
+
+/// Data bounds: (x_min, x_max, y_min, y_max).
+type Bounds = (f64, f64, f64, f64);
+
+/// Checks every series is non-empty and finite; returns the data bounds.
+fn validate(path: &Path, series: &[Series2D]) -> Result<Bounds, ReportError> {
+    if series.is_empty() {
+        return Err(ReportError::NoSeries {
+            path: path.to_path_buf(),
+        });
+    }
+    let mut b = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for s in series {
+        if s.points.is_empty() {
+            return Err(ReportError::EmptySeries {
+                path: path.to_path_buf(),
+                label: s.label.clone(),
+            });
+        }
+        for (index, &(x, y)) in s.points.iter().enumerate() {
+            if !x.is_finite() || !y.is_finite() {
+                return Err(ReportError::NonFinite {
+                    path: path.to_path_buf(),
+                    label: s.label.clone(),
+                    index,
+                    x,
+                    y,
+                });
+            }
+            b = (b.0.min(x), b.1.max(x), b.2.min(y), b.3.max(y));
+        }
+    }
+    // Spans must be finite too, or plotters' coordinate maps overflow.
+    if !(b.1 - b.0).is_finite() || !(b.3 - b.2).is_finite() {
+        return Err(ReportError::Plot {
+            path: path.to_path_buf(),
+            message: format!(
+                "data range too large to plot: x {:e}..{:e}, y {:e}..{:e}",
+                b.0, b.1, b.2, b.3
+            ),
+        });
+    }
+    Ok(b)
+}
+
+/// Widens [lo, hi] by 5 % per side; a zero span gets ±1 so a constant series
+/// (a parked object, zero error) still has an axis.
+fn padded(lo: f64, hi: f64) -> (f64, f64) {
+    let span = hi - lo;
+    if span <= 0.0 {
+        let pad = 1.0_f64.max(lo.abs() * 0.05);
+        (lo - pad, hi + pad)
+    } else {
+        (lo - 0.05 * span, hi + 0.05 * span)
+    }
+}
+
+/// Expands the padded ranges so one metre spans the same number of pixels on
+/// both axes of a `w_px` × `h_px` plotting area (a top view must not distort
+/// turns).
+fn equal_scale_ranges(b: Bounds, w_px: u32, h_px: u32) -> ((f64, f64), (f64, f64)) {
+    let (x0, x1) = padded(b.0, b.1);
+    let (y0, y1) = padded(b.2, b.3);
+    let (w, h) = (f64::from(w_px.max(1)), f64::from(h_px.max(1)));
+    let m_per_px = ((x1 - x0) / w).max((y1 - y0) / h);
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let (hx, hy) = (0.5 * m_per_px * w, 0.5 * m_per_px * h);
+    ((cx - hx, cx + hx), (cy - hy, cy + hy))
+}
+
+fn plot_err<E: std::error::Error + Send + Sync>(
+    path: &Path,
+) -> impl Fn(DrawingAreaErrorKind<E>) -> ReportError + '_ {
+    move |e| ReportError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Builds the chart frame with fixed margins, so the plotting area's pixel size
+/// does not depend on the data ranges.
+fn chart_builder<'a, 'b>(
+    root: &'a DrawingArea<SVGBackend<'b>, Shift>,
+    title: &str,
+) -> ChartBuilder<'a, 'b, SVGBackend<'b>> {
+    let mut builder = ChartBuilder::on(root);
+    builder
+        .caption(title, ("sans-serif", CAPTION_FONT_PX))
+        .margin(MARGIN_PX)
+        .x_label_area_size(X_LABEL_AREA_PX)
+        .y_label_area_size(Y_LABEL_AREA_PX);
+    builder
+}
+
+/// Pixel size of the plotting area of a chart titled `title` (a throw-away
+/// layout pass on an in-memory canvas).
+fn plotting_area_px(path: &Path, title: &str) -> Result<(u32, u32), ReportError> {
+    let mut scratch = String::new();
+    let root = SVGBackend::with_string(&mut scratch, CANVAS_PX).into_drawing_area();
+    let chart = chart_builder(&root, title)
+        .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+        .map_err(plot_err(path))?;
+    Ok(chart.plotting_area().dim_in_pixel())
+}
+
+/// Draws `series` into an SVG string. `equal_scale` makes one x unit as long
+/// as one y unit on screen.
+fn render(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series2D],
+    equal_scale: bool,
+) -> Result<String, ReportError> {
+    let bounds = validate(path, series)?;
+    let (x_range, y_range) = if equal_scale {
+        let (w, h) = plotting_area_px(path, title)?;
+        equal_scale_ranges(bounds, w, h)
+    } else {
+        (padded(bounds.0, bounds.1), padded(bounds.2, bounds.3))
+    };
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, CANVAS_PX).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err(path))?;
+        let mut chart = chart_builder(&root, title)
+            .build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)
+            .map_err(plot_err(path))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .label_style(("sans-serif", LABEL_FONT_PX))
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(plot_err(path))?;
+
+        let mut palette = PALETTE.iter().cycle();
+        for s in series {
+            let (r, g, b) = s
+                .style
+                .rgb
+                .unwrap_or_else(|| *palette.next().unwrap_or(&PALETTE[0]));
+            let color = RGBColor(r, g, b);
+            let line_style = color.stroke_width(SERIES_STROKE_PX);
+            let pts = s.points.iter().copied();
+            let legend = move |(x, y): (i32, i32)| {
+                Rectangle::new([(x, y - 4), (x + 18, y + 4)], color.filled())
+            };
+            match s.style.kind {
+                LineKind::Line => chart
+                    .draw_series(LineSeries::new(pts, line_style))
+                    .map_err(plot_err(path))?
+                    .label(s.label.as_str())
+                    .legend(legend),
+                LineKind::Markers => chart
+                    .draw_series(pts.map(|p| Circle::new(p, MARKER_RADIUS_PX, color.filled())))
+                    .map_err(plot_err(path))?
+                    .label(s.label.as_str())
+                    .legend(legend),
+                LineKind::LineMarkers => {
+                    chart
+                        .draw_series(
+                            s.points
+                                .iter()
+                                .map(|&p| Circle::new(p, MARKER_RADIUS_PX, color.filled())),
+                        )
+                        .map_err(plot_err(path))?;
+                    chart
+                        .draw_series(LineSeries::new(pts, line_style))
+                        .map_err(plot_err(path))?
+                        .label(s.label.as_str())
+                        .legend(legend)
+                }
+            };
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", LABEL_FONT_PX))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(plot_err(path))?;
+        root.present().map_err(plot_err(path))?;
+    }
+    Ok(svg)
+}
+
+/// Renders, then writes the file (errors name `path`).
+fn render_to_file(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series2D],
+    equal_scale: bool,
+) -> Result<(), ReportError> {
+    let svg = render(path, title, x_desc, y_desc, series, equal_scale)?;
+    std::fs::write(path, svg).map_err(|source| ReportError::Io {
+        path: PathBuf::from(path),
+        source,
+    })
+}
+
+/// Top view (x_m, y_m) of ego trajectories, e.g. every variant's estimate and
+/// the truth (`Series2D::truth`), with equal metres per pixel on both axes.
+pub fn plot_trajectories_xy(
+    path: &Path,
+    title: &str,
+    series: &[Series2D],
+) -> Result<(), ReportError> {
+    render_to_file(path, title, "x [m]", "y [m]", series, true)
+}
+
+/// Top view of object tracks: truth tracks drawn black unless they carry a
+/// colour, estimated tracks in palette colours; equal axis scale.
+pub fn plot_object_tracks(
+    path: &Path,
+    title: &str,
+    truth: &[Series2D],
+    est: &[Series2D],
+) -> Result<(), ReportError> {
+    let all: Vec<Series2D> = truth
+        .iter()
+        .map(|s| {
+            let mut s = s.clone();
+            s.style.rgb.get_or_insert(TRUTH_RGB);
+            s
+        })
+        .chain(est.iter().cloned())
+        .collect();
+    render_to_file(path, title, "x [m]", "y [m]", &all, true)
+}
+
+/// Speed over time: points are (t_s, speed_mps).
+pub fn plot_speed(path: &Path, title: &str, series: &[Series2D]) -> Result<(), ReportError> {
+    render_to_file(path, title, "t [s]", "speed [m/s]", series, false)
+}
+
+/// An error over time: points are (t_s, error) with `y_desc` naming the error
+/// and its unit, e.g. "translation error [m]".
+pub fn plot_error_over_time(
+    path: &Path,
+    title: &str,
+    y_desc: &str,
+    series: &[Series2D],
+) -> Result<(), ReportError> {
+    render_to_file(path, title, "t [s]", y_desc, series, false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn equal_scale_ranges_have_equal_metres_per_pixel() {
+        let ((x0, x1), (y0, y1)) = equal_scale_ranges((0.0, 100.0, -5.0, 5.0), 800, 400);
+        let mx = (x1 - x0) / 800.0;
+        let my = (y1 - y0) / 400.0;
+        assert!((mx - my).abs() < 1e-12, "{mx} vs {my}");
+        // Data still inside, and the wider axis keeps its 5 % padding.
+        assert!(x0 <= 0.0 && x1 >= 100.0 && y0 <= -5.0 && y1 >= 5.0);
+        assert!((x1 - x0 - 110.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn constant_series_gets_a_nonzero_range() {
+        let (lo, hi) = padded(3.0, 3.0);
+        assert!(lo < 3.0 && hi > 3.0);
+    }
+
+    #[test]
+    fn validation_names_series_and_index() {
+        let p = Path::new("out/x.svg");
+        let s = [Series2D::line("a", vec![(0.0, 0.0), (1.0, f64::INFINITY)])];
+        match validate(p, &s) {
+            Err(ReportError::NonFinite { label, index, .. }) => {
+                assert_eq!((label.as_str(), index), ("a", 1));
+            }
+            other => panic!("expected NonFinite, got {other:?}"),
+        }
+        let e = validate(p, &[Series2D::line("b", vec![])]).unwrap_err();
+        assert!(matches!(e, ReportError::EmptySeries { .. }));
+        assert!(e.to_string().contains("out/x.svg"), "{e}");
+        let huge = [Series2D::line("h", vec![(-f64::MAX, 0.0), (f64::MAX, 0.0)])];
+        assert!(matches!(validate(p, &huge), Err(ReportError::Plot { .. })));
+    }
+}
