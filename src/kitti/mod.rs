@@ -15,6 +15,7 @@ pub mod detections;
 pub mod labels;
 pub mod oxts;
 pub mod poses;
+pub mod raw;
 pub mod results;
 pub mod seqmap;
 pub mod velodyne;
