@@ -11,3 +11,4 @@ pub mod record;
 pub mod scene;
 pub mod trajectory;
 pub mod world;
+pub mod traffic;

@@ -283,7 +283,11 @@ mod tests {
     fn end_knots_keep_their_motion() {
         let knots = (0..3)
             .map(|i| Knot {
-                position: [Jet::new(i as f64, 10.0, 0.0), Jet::default(), Jet::default()],
+                position: [
+                    Jet::new(i as f64, 10.0, 0.0),
+                    Jet::default(),
+                    Jet::default(),
+                ],
                 euler: [Jet::default(); 3],
             })
             .collect();
