@@ -1,0 +1,658 @@
+//! Urban generator: a straight main street with 1 or 2 lanes per direction,
+//! a bike lane and a parking strip on each side, sidewalks, cross streets
+//! every block with signalised stop lines (stop-and-go), buildings set back
+//! behind the sidewalks, poles, trees, parked cars along both kerbs, moving
+//! cars in both directions, cyclists in the bike lanes and pedestrians on the
+//! sidewalks.
+//!
+//! Cross-section (the ego drives along +x on the right, y < 0 side; the
+//! street is mirror-symmetric about y = 0):
+//!
+//! ```text
+//! y = 0 | lanes (n x lane_width) | bike lane | parking | sidewalk | setback | buildings
+//! ```
+//!
+//! Sidewalk: street furniture (poles, tree trunks) in a strip next to the kerb;
+//! pedestrians walk in two lines further out, one per walking direction.
+
+use super::common::{
+    draw_body, ego_vehicle, generate_ground, parked_agent, run_traffic, uniform, upright_static,
+};
+use super::{
+    ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
+    URBAN_PEDESTRIAN_SPACING_M, UrbanParams, traffic_error, urban_spawn_length_m,
+};
+use crate::scene::{Agent, Ground, Scene, Shape, StaticKind, StaticObject};
+use crate::traffic::{LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec};
+use limot_estimator::input::ObjectClass;
+use nalgebra::{Point2, Vector3};
+use rand::RngExt;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+/// Street beyond the farthest point any agent can reach (agents brake for
+/// the end of their lane), m.
+const END_MARGIN_M: f64 = 100.0;
+/// Statics and parked cars are generated where the LiDAR can see them from
+/// anywhere the ego can drive: this far beyond its reach, plus the LiDAR range.
+const VIEW_MARGIN_M: f64 = 30.0;
+/// The first cross street ahead of the ego is at least this far away, so the
+/// ego can reach speed before it has to stop.
+const FIRST_STOP_MIN_M: f64 = 60.0;
+const FIRST_STOP_SPREAD_M: f64 = 30.0;
+/// The crossing behind the ego ends at least this far behind it, m.
+const EGO_CLEAR_OF_CROSSING_M: f64 = 10.0;
+/// Stop lines sit this far before the cross street's edge.
+const STOP_LINE_SETBACK_M: f64 = 1.5;
+/// Parked cars, trees and poles keep this far from a cross street's edge.
+const CORNER_CLEARANCE_M: f64 = 4.0;
+/// Length of one parking place.
+const PARKING_PLACE_M: f64 = 6.5;
+/// Street furniture stands this far from the kerb (pole / trunk axis).
+const FURNITURE_FROM_KERB_M: f64 = 0.6;
+/// Pedestrian lines, as fractions of the sidewalk width from the kerb.
+const WALK_LINES: [f64; 2] = [0.45, 0.75];
+/// Buildings: frontage length, depth, height, gap between, setback from the
+/// sidewalk, m.
+const BUILDING_LENGTH_M: (f64, f64) = (10.0, 40.0);
+const BUILDING_DEPTH_M: (f64, f64) = (10.0, 25.0);
+const BUILDING_HEIGHT_M: (f64, f64) = (6.0, 30.0);
+const BUILDING_GAP_M: (f64, f64) = (0.0, 4.0);
+const BUILDING_SETBACK_M: (f64, f64) = (1.0, 3.0);
+/// Buildings reach this far below the lowest ground point of their footprint.
+const BUILDING_SINK_M: f64 = 0.5;
+const POLE_RADIUS_M: f64 = 0.12;
+const POLE_HEIGHT_M: f64 = 7.0;
+const SIGNAL_POLE_HEIGHT_M: f64 = 5.0;
+/// Tree trunks: radius and height; crowns: radius; the crown centre is half a
+/// radius above the trunk top, so its lowest point is >= 2 m above ground.
+const TRUNK_RADIUS_M: (f64, f64) = (0.12, 0.25);
+const TRUNK_HEIGHT_M: (f64, f64) = (3.0, 4.0);
+const CROWN_RADIUS_M: (f64, f64) = (1.2, 2.0);
+/// Trees keep this far from poles along the sidewalk.
+const TREE_POLE_CLEARANCE_M: f64 = 2.5;
+/// In the ego's lane, nobody starts within this far behind / ahead of it.
+const EGO_FREE_BEHIND_M: f64 = 50.0;
+const EGO_FREE_AHEAD_M: f64 = 25.0;
+/// The red phase at the ego's first intersection starts this long before the
+/// ego could arrive there at the earliest, so it must stop.
+const EGO_RED_LEAD_S: f64 = 4.0;
+/// No red phase starts before this (everyone has time to see it).
+const EARLIEST_RED_S: f64 = 2.0;
+
+/// What kind of path a traffic lane is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LaneKind {
+    Car,
+    Bike,
+    Walk,
+}
+
+/// One traffic lane: its kind, direction (+x or -x) and path.
+struct Lane {
+    kind: LaneKind,
+    forward: bool,
+    path: LanePath,
+}
+
+/// The street layout shared by all placement steps.
+struct Street {
+    u: UrbanParams,
+    /// The street runs from x_min to x_max along y = 0.
+    x_min: f64,
+    x_max: f64,
+    /// Statics and parked cars are generated in [view_lo, view_hi].
+    view_lo: f64,
+    view_hi: f64,
+    /// Cross street centres, increasing.
+    crossings: Vec<f64>,
+    /// Index of the first crossing ahead of the ego.
+    ego_crossing: usize,
+    lanes: Vec<Lane>,
+}
+
+impl Street {
+    /// |y| of the kerb (sidewalk's inner edge).
+    fn kerb_m(&self) -> f64 {
+        let u = &self.u;
+        u.lanes_per_direction as f64 * u.lane_width_m + u.bike_lane_width_m + u.parking_width_m
+    }
+
+    /// Arc length on a lane of the given direction at world x.
+    fn s_of(&self, forward: bool, x: f64) -> f64 {
+        if forward {
+            x - self.x_min
+        } else {
+            self.x_max - x
+        }
+    }
+
+    /// True if [x0, x1] comes within `clearance_m` of a cross street.
+    fn near_crossing(&self, x0: f64, x1: f64, clearance_m: f64) -> bool {
+        let half = 0.5 * self.u.cross_street_width_m + clearance_m;
+        self.crossings
+            .iter()
+            .any(|&c| x1 > c - half && x0 < c + half)
+    }
+
+    /// World point at x on the side `side` (-1 = right of the ego, y < 0;
+    /// +1 = left), `from_axis_m` from the street's centre line.
+    fn at(&self, x: f64, side: f64, from_axis_m: f64) -> Point2<f64> {
+        Point2::new(x, side * from_axis_m)
+    }
+}
+
+/// The whole urban scene for a validated spec.
+pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, ScenarioError> {
+    let u = spec.urban_params();
+    let ground = generate_ground(rng, &spec.ground);
+    let ego_speed = spec.ego_speed_mps();
+    let street = layout(spec, &u, ego_speed, rng).map_err(|e| traffic_error(spec, e))?;
+
+    let mut statics = buildings(&street, &ground, rng);
+    statics.extend(furniture(&street, &ground, rng));
+
+    let mut vehicles = moving_agents(&street, spec.ego.lane, rng);
+    let ego_lane = spec.ego.lane;
+    let ego_s = street.s_of(true, 0.0);
+    let stop_lines = stop_lines(&street, spec, ego_speed, rng);
+    vehicles.push(ego_vehicle(&spec.ego, ego_lane, ego_s, ego_speed));
+    let first_parked_id = vehicles.len() as u32; // moving ids are 1..=N, the ego is last
+    let traffic = TrafficSpec {
+        lanes: street.lanes.iter().map(|l| l.path.clone()).collect(),
+        vehicles,
+        stop_lines,
+        duration_s: spec.duration_s,
+    };
+    let (mut agents, ego) = run_traffic(spec, &ground, &traffic)?;
+    agents.extend(parked_cars(
+        &street,
+        &ground,
+        first_parked_id,
+        spec.duration_s,
+        rng,
+    ));
+    Ok(Scene {
+        duration_s: spec.duration_s,
+        ground,
+        statics,
+        agents,
+        ego,
+    })
+}
+
+/// Street extent, cross streets and lanes. The ego starts at x = 0; moving
+/// agents start in [-spawn/4, 3 spawn/4] and the street extends far enough
+/// both ways that nobody reaches its end.
+fn layout(
+    spec: &ScenarioSpec,
+    u: &UrbanParams,
+    ego_speed_mps: f64,
+    rng: &mut ChaCha8Rng,
+) -> Result<Street, crate::traffic::TrafficError> {
+    let spawn = urban_spawn_length_m(u, spec.duration_s);
+    let (spawn_lo, spawn_hi) = (-0.25 * spawn, 0.75 * spawn);
+    let reach = u.car_speed_max_mps.max(ego_speed_mps) * spec.duration_s;
+    let x_min = spawn_lo - reach - END_MARGIN_M;
+    let x_max = spawn_hi + reach + END_MARGIN_M;
+    let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
+    let ego_reach = ego_speed_mps * (spec.duration_s - spec.ego.depart_s).max(0.0);
+    let view_lo = (-view).max(x_min);
+    let view_hi = (ego_reach + view).min(x_max);
+
+    // cross streets: the first one ahead of the ego, then every block both ways
+    let ego_front = 0.5 * spec.ego.size_lwh_m[0];
+    let first = ego_front
+        + 0.5 * u.cross_street_width_m
+        + STOP_LINE_SETBACK_M
+        + FIRST_STOP_MIN_M
+        + uniform(rng, 0.0, FIRST_STOP_SPREAD_M);
+    let mut crossings = vec![first];
+    let mut x = first;
+    while x < x_max {
+        x += uniform(rng, u.block_length_min_m, u.block_length_max_m);
+        crossings.push(x);
+    }
+    // behind: the ego (at x = 0) never starts on a crossing, so the block it
+    // starts in may come out longer than block_length_max_m
+    let mut x = (first - uniform(rng, u.block_length_min_m, u.block_length_max_m))
+        .min(-(0.5 * u.cross_street_width_m + EGO_CLEAR_OF_CROSSING_M));
+    crossings.insert(0, x);
+    while x > x_min {
+        x -= uniform(rng, u.block_length_min_m, u.block_length_max_m);
+        crossings.insert(0, x);
+    }
+    let ego_crossing = crossings.len() - crossings.iter().filter(|&&c| c >= first).count();
+
+    let length = x_max - x_min;
+    let piece = [PathPiece::Straight { length_m: length }];
+    let path = |forward: bool, offset_m: f64| {
+        let (start, heading) = if forward {
+            (Point2::new(x_min, 0.0), 0.0)
+        } else {
+            (Point2::new(x_max, 0.0), PI)
+        };
+        LanePath::from_pieces(start, heading, &piece, offset_m)
+    };
+    let n = u.lanes_per_direction;
+    let w = u.lane_width_m;
+    let kerb = n as f64 * w + u.bike_lane_width_m + u.parking_width_m;
+    let mut lanes = Vec::new();
+    // lanes 0..n: the ego's direction, 0 = kerb side (the ego's lane index)
+    for forward in [true, false] {
+        for i in 0..n {
+            let offset = -((n - i) as f64 - 0.5) * w;
+            lanes.push(Lane {
+                kind: LaneKind::Car,
+                forward,
+                path: path(forward, offset)?,
+            });
+        }
+    }
+    for forward in [true, false] {
+        lanes.push(Lane {
+            kind: LaneKind::Bike,
+            forward,
+            path: path(forward, -(n as f64 * w + 0.5 * u.bike_lane_width_m))?,
+        });
+    }
+    // pedestrians: on each sidewalk the inner line walks with the traffic on
+    // that side, the outer line against it
+    for forward in [true, false] {
+        let with = kerb + WALK_LINES[0] * u.sidewalk_width_m;
+        let against = kerb + WALK_LINES[1] * u.sidewalk_width_m;
+        for offset in [-with, against] {
+            lanes.push(Lane {
+                kind: LaneKind::Walk,
+                forward,
+                path: path(forward, offset)?,
+            });
+        }
+    }
+    Ok(Street {
+        u: u.clone(),
+        x_min,
+        x_max,
+        view_lo,
+        view_hi,
+        crossings,
+        ego_crossing,
+        lanes,
+    })
+}
+
+/// Signal phases per intersection and stop lines on every car and bike lane
+/// before it. Phases are random, except at the ego's first intersection,
+/// which turns red shortly before the ego could arrive there at the earliest
+/// and stays red for `red_s`, so every run has a stop-and-go of the ego.
+fn stop_lines(
+    street: &Street,
+    spec: &ScenarioSpec,
+    ego_speed_mps: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<StopLine> {
+    let u = &street.u;
+    let half = 0.5 * u.cross_street_width_m;
+    let mut out = Vec::new();
+    for (k, &c) in street.crossings.iter().enumerate() {
+        let first_red = if k == street.ego_crossing {
+            let distance = c - half - STOP_LINE_SETBACK_M - 0.5 * spec.ego.size_lwh_m[0];
+            let arrival = spec.ego.depart_s
+                + earliest_travel_time_s(
+                    distance,
+                    ego_speed_mps,
+                    crate::traffic::DriverParams::car().max_accel_mps2,
+                );
+            (arrival - EGO_RED_LEAD_S).max(EARLIEST_RED_S)
+        } else {
+            uniform(rng, EARLIEST_RED_S, EARLIEST_RED_S + u.signal_cycle_s)
+        };
+        let red = red_intervals(first_red, u.red_s, u.signal_cycle_s, spec.duration_s);
+        if red.is_empty() {
+            continue;
+        }
+        for (index, lane) in street.lanes.iter().enumerate() {
+            if lane.kind == LaneKind::Walk {
+                continue;
+            }
+            let line_x = if lane.forward {
+                c - half - STOP_LINE_SETBACK_M
+            } else {
+                c + half + STOP_LINE_SETBACK_M
+            };
+            let s = street.s_of(lane.forward, line_x);
+            if s > 0.0 && s < lane.path.length_m() {
+                out.push(StopLine {
+                    lane: index,
+                    s_m: s,
+                    red_intervals_s: red.clone(),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Red intervals [first + j cycle, first + j cycle + red) inside [0, duration].
+fn red_intervals(first_s: f64, red_s: f64, cycle_s: f64, duration_s: f64) -> Vec<(f64, f64)> {
+    if red_s <= 0.0 {
+        return Vec::new();
+    }
+    (0..)
+        .map(|j| first_s + j as f64 * cycle_s)
+        .take_while(|&t| t < duration_s)
+        .map(|t| (t, (t + red_s).min(duration_s)))
+        .collect()
+}
+
+/// Time to cover `distance_m` from rest accelerating at `accel` up to `speed`.
+fn earliest_travel_time_s(distance_m: f64, speed_mps: f64, accel_mps2: f64) -> f64 {
+    let accel_distance = speed_mps * speed_mps / (2.0 * accel_mps2);
+    if distance_m <= accel_distance {
+        (2.0 * distance_m / accel_mps2).sqrt()
+    } else {
+        speed_mps / accel_mps2 + (distance_m - accel_distance) / speed_mps
+    }
+}
+
+/// Moving cars, cyclists and pedestrians in spawn slots: every lane of a kind
+/// is cut into slots of the kind's spacing over the spawn zone; each agent
+/// takes a random slot (jittered inside it), half of each kind in each
+/// direction. The ego's lane stays free around the ego. Ids 1..=N.
+fn moving_agents(street: &Street, ego_lane: usize, rng: &mut ChaCha8Rng) -> Vec<VehicleSpec> {
+    let u = &street.u;
+    let spawn = urban_spawn_length_m(u, 0.0);
+    let spawn_lo = -0.25 * spawn;
+    let kinds = [
+        (
+            LaneKind::Car,
+            ObjectClass::Car,
+            u.moving_cars,
+            URBAN_CAR_SPACING_M,
+            (u.car_speed_min_mps, u.car_speed_max_mps),
+        ),
+        (
+            LaneKind::Bike,
+            ObjectClass::Cyclist,
+            u.cyclists,
+            URBAN_CYCLIST_SPACING_M,
+            (u.cyclist_speed_min_mps, u.cyclist_speed_max_mps),
+        ),
+        (
+            LaneKind::Walk,
+            ObjectClass::Pedestrian,
+            u.pedestrians,
+            URBAN_PEDESTRIAN_SPACING_M,
+            (u.pedestrian_speed_min_mps, u.pedestrian_speed_max_mps),
+        ),
+    ];
+    let mut agents = Vec::new();
+    for (kind, class, count, spacing, (v_min, v_max)) in kinds {
+        let per_lane = (spawn / spacing).floor() as usize;
+        let slot_len = spawn / per_lane.max(1) as f64;
+        // random phase per lane: agents do not line up across lanes
+        let phase: Vec<f64> = (0..street.lanes.len())
+            .map(|_| uniform(rng, 0.0, 1.0))
+            .collect();
+        let centre = |lane: usize, i: usize| spawn_lo + (i as f64 + phase[lane]) * slot_len;
+        let jitter = 0.5 * (slot_len - spacing).max(0.0);
+        // half of each kind goes each way (the odd one with the ego)
+        for (forward, n_dir) in [(true, count.div_ceil(2)), (false, count / 2)] {
+            let mut slots: Vec<(usize, usize)> = street
+                .lanes
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| l.kind == kind && l.forward == forward)
+                .flat_map(|(lane, _)| (0..per_lane).map(move |i| (lane, i)))
+                .filter(|&(lane, i)| {
+                    let x = centre(lane, i);
+                    lane != ego_lane || !(-EGO_FREE_BEHIND_M..=EGO_FREE_AHEAD_M).contains(&x)
+                })
+                .collect();
+            slots.shuffle(rng);
+            for &(lane, i) in slots.iter().take(n_dir) {
+                let x = centre(lane, i) + uniform(rng, -jitter, jitter);
+                let (size, driver) = draw_body(rng, class);
+                let speed = uniform(rng, v_min, v_max);
+                agents.push(VehicleSpec {
+                    id: agents.len() as u32 + 1,
+                    class,
+                    size_lwh_m: size,
+                    lane,
+                    start_s_m: street.s_of(forward, x),
+                    start_speed_mps: speed,
+                    desired_speed_mps: speed,
+                    depart_s: 0.0,
+                    lane_changes: Vec::new(),
+                    driver,
+                });
+            }
+        }
+    }
+    agents
+}
+
+/// Parked cars in the parking strips on both sides, facing the traffic on
+/// their side, in places of `PARKING_PLACE_M` away from the crossings.
+fn parked_cars(
+    street: &Street,
+    ground: &Ground,
+    first_id: u32,
+    duration_s: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Agent> {
+    let u = &street.u;
+    let from_axis = street.kerb_m() - 0.5 * u.parking_width_m;
+    let mut cars = Vec::new();
+    for side in [-1.0, 1.0] {
+        let yaw = if side < 0.0 { 0.0 } else { PI };
+        let mut x = street.view_lo;
+        while x + PARKING_PLACE_M <= street.view_hi {
+            let (x0, x1) = (x, x + PARKING_PLACE_M);
+            x = x1;
+            if street.near_crossing(x0, x1, CORNER_CLEARANCE_M)
+                || !rng.random_bool(u.parking_occupancy)
+            {
+                continue;
+            }
+            let (size, _) = draw_body(rng, ObjectClass::Car);
+            let slack = 0.5 * (PARKING_PLACE_M - size.x - 0.6).max(0.0);
+            let cx = 0.5 * (x0 + x1) + uniform(rng, -slack, slack);
+            let lateral = uniform(rng, -0.1, 0.1);
+            cars.push(parked_agent(
+                ground,
+                first_id + cars.len() as u32,
+                ObjectClass::Car,
+                size,
+                street.at(cx, side, from_axis + lateral),
+                yaw,
+                duration_s,
+            ));
+        }
+    }
+    cars
+}
+
+/// Rows of buildings behind both sidewalks, block by block.
+fn buildings(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<StaticObject> {
+    let u = &street.u;
+    let back_of_sidewalk = street.kerb_m() + u.sidewalk_width_m;
+    let half = 0.5 * u.cross_street_width_m;
+    let mut out = Vec::new();
+    for side in [-1.0, 1.0] {
+        for pair in street.crossings.windows(2) {
+            let start = (pair[0] + half + 1.0).max(street.view_lo);
+            let end = (pair[1] - half - 1.0).min(street.view_hi);
+            let mut x = start;
+            while end - x >= BUILDING_LENGTH_M.0 {
+                let length = uniform(rng, BUILDING_LENGTH_M.0, BUILDING_LENGTH_M.1).min(end - x);
+                let depth = uniform(rng, BUILDING_DEPTH_M.0, BUILDING_DEPTH_M.1);
+                let height = uniform(rng, BUILDING_HEIGHT_M.0, BUILDING_HEIGHT_M.1);
+                let setback = uniform(rng, BUILDING_SETBACK_M.0, BUILDING_SETBACK_M.1);
+                let near = back_of_sidewalk + setback;
+                let centre = street.at(x + 0.5 * length, side, near + 0.5 * depth);
+                // base below the lowest corner of the footprint
+                let lowest = [x, x + length]
+                    .iter()
+                    .flat_map(|&cx| [near, near + depth].map(|d| street.at(cx, side, d)))
+                    .map(|p| ground.height(p.x, p.y))
+                    .fold(f64::INFINITY, f64::min);
+                let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
+                out.push(upright_static(
+                    ground,
+                    StaticKind::Building,
+                    Shape::Cuboid {
+                        half_extents_m: Vector3::new(
+                            0.5 * length,
+                            0.5 * depth,
+                            0.5 * (height + BUILDING_SINK_M),
+                        ),
+                    },
+                    centre,
+                    base,
+                    0.0,
+                ));
+                x += length + uniform(rng, BUILDING_GAP_M.0, BUILDING_GAP_M.1);
+            }
+        }
+    }
+    out
+}
+
+/// Signal poles at every corner, light poles at a regular spacing and trees
+/// in between, all in the furniture strip next to the kerb.
+fn furniture(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<StaticObject> {
+    let u = &street.u;
+    let from_axis = street.kerb_m() + FURNITURE_FROM_KERB_M;
+    let half = 0.5 * u.cross_street_width_m;
+    let pole = |height_m: f64| Shape::Cylinder {
+        radius_m: POLE_RADIUS_M,
+        half_height_m: 0.5 * height_m,
+    };
+    let mut out = Vec::new();
+    for side in [-1.0, 1.0] {
+        let mut pole_xs = Vec::new();
+        for &c in &street.crossings {
+            for x in [c - half - 1.0, c + half + 1.0] {
+                if (street.view_lo..=street.view_hi).contains(&x) {
+                    pole_xs.push(x);
+                    let at = street.at(x, side, from_axis);
+                    out.push(upright_static(
+                        ground,
+                        StaticKind::Pole,
+                        pole(SIGNAL_POLE_HEIGHT_M),
+                        at,
+                        -0.2,
+                        0.0,
+                    ));
+                }
+            }
+        }
+        let mut x = street.view_lo + uniform(rng, 0.0, u.pole_spacing_m);
+        while x < street.view_hi {
+            if !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
+                pole_xs.push(x);
+                let at = street.at(x, side, from_axis);
+                out.push(upright_static(
+                    ground,
+                    StaticKind::Pole,
+                    pole(POLE_HEIGHT_M),
+                    at,
+                    -0.2,
+                    0.0,
+                ));
+            }
+            x += u.pole_spacing_m;
+        }
+        let mut x = street.view_lo + uniform(rng, 0.0, u.tree_spacing_m);
+        while x < street.view_hi {
+            let clear = pole_xs
+                .iter()
+                .all(|&p| (p - x).abs() >= TREE_POLE_CLEARANCE_M);
+            if clear && !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
+                out.extend(tree(ground, street.at(x, side, from_axis), rng));
+            }
+            x += u.tree_spacing_m * uniform(rng, 0.7, 1.3);
+        }
+    }
+    out
+}
+
+/// A trunk cylinder and a crown ball half a crown radius above its top.
+fn tree(ground: &Ground, at: Point2<f64>, rng: &mut ChaCha8Rng) -> [StaticObject; 2] {
+    let trunk_height = uniform(rng, TRUNK_HEIGHT_M.0, TRUNK_HEIGHT_M.1);
+    let trunk_radius = uniform(rng, TRUNK_RADIUS_M.0, TRUNK_RADIUS_M.1);
+    let crown_radius = uniform(rng, CROWN_RADIUS_M.0, CROWN_RADIUS_M.1);
+    let trunk = upright_static(
+        ground,
+        StaticKind::TreeTrunk,
+        Shape::Cylinder {
+            radius_m: trunk_radius,
+            half_height_m: 0.5 * (trunk_height + 0.2),
+        },
+        at,
+        -0.2,
+        0.0,
+    );
+    let crown = upright_static(
+        ground,
+        StaticKind::TreeCrown,
+        Shape::Ball {
+            radius_m: crown_radius,
+        },
+        at,
+        trunk_height - 0.5 * crown_radius,
+        0.0,
+    );
+    [trunk, crown]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn red_intervals_repeat_inside_the_run() {
+        let red = red_intervals(5.0, 15.0, 40.0, 100.0);
+        assert_eq!(red, vec![(5.0, 20.0), (45.0, 60.0), (85.0, 100.0)]);
+        assert!(red_intervals(5.0, 0.0, 40.0, 100.0).is_empty());
+    }
+
+    #[test]
+    fn earliest_travel_time_is_continuous_at_cruise_speed() {
+        let (v, a) = (10.0, 2.0);
+        let d = v * v / (2.0 * a);
+        let t0 = earliest_travel_time_s(d - 1e-9, v, a);
+        let t1 = earliest_travel_time_s(d + 1e-9, v, a);
+        assert!((t0 - t1).abs() < 1e-6 && (t0 - v / a).abs() < 1e-6);
+        assert!((earliest_travel_time_s(d + 50.0, v, a) - (v / a + 5.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn layout_keeps_the_ego_off_crossings_and_blocks_in_range() {
+        let spec = ScenarioSpec::builtin("urban").unwrap();
+        let u = spec.urban_params();
+        for seed in 0..20 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
+            let half = 0.5 * u.cross_street_width_m;
+            let first = street.crossings[street.ego_crossing];
+            assert!(first - half > FIRST_STOP_MIN_M);
+            assert!(street.crossings[street.ego_crossing - 1] + half <= -EGO_CLEAR_OF_CROSSING_M);
+            for (k, pair) in street.crossings.windows(2).enumerate() {
+                let block = pair[1] - pair[0];
+                if k + 1 != street.ego_crossing {
+                    assert!((u.block_length_min_m..=u.block_length_max_m).contains(&block));
+                }
+            }
+            assert!(
+                street.crossings[0] <= street.x_min
+                    && *street.crossings.last().unwrap() >= street.x_max
+            );
+            // 2 x 2 car lanes, 2 bike lanes, 4 pedestrian lines
+            assert_eq!(street.lanes.len(), 10);
+        }
+    }
+}

@@ -1,0 +1,391 @@
+//! Scenario specs and generators: files vs builtins, located errors, and
+//! properties of generated scenes over seeds (counts, speeds, no overlaps,
+//! determinism, stop-and-go, ground contact).
+
+use limot_estimator::input::ObjectClass;
+use limot_sim::scenario::{Family, ScenarioError, ScenarioSpec};
+use limot_sim::scene::{Scene, Shape, StaticKind};
+use limot_sim::traffic::first_overlap;
+use proptest::prelude::*;
+use std::path::{Path, PathBuf};
+
+fn scenario_file(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scenarios")
+        .join(format!("{name}.toml"))
+}
+
+#[test]
+fn scenario_files_equal_builtins() {
+    for name in ScenarioSpec::builtin_names() {
+        let loaded = ScenarioSpec::load(&scenario_file(name)).unwrap();
+        assert_eq!(Some(loaded), ScenarioSpec::builtin(name), "{name}");
+    }
+}
+
+#[test]
+fn to_toml_round_trips() {
+    for name in ScenarioSpec::builtin_names() {
+        let mut spec = ScenarioSpec::builtin(name).unwrap();
+        spec.seed = 123_456_789_012;
+        spec.ego.speed_mps = Some(7.25);
+        let back = ScenarioSpec::parse(&spec.to_toml(), Path::new("mem.toml")).unwrap();
+        assert_eq!(back, spec);
+    }
+}
+
+/// Writes `text` into a scratch file and loads it.
+fn load_text(tag: &str, text: &str) -> (PathBuf, ScenarioError) {
+    let dir = std::env::temp_dir().join(format!("limot_scenario_props_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{tag}.toml"));
+    std::fs::write(&path, text).unwrap();
+    let err = ScenarioSpec::load(&path).unwrap_err();
+    (path, err)
+}
+
+/// The highway file with `key = value` replaced (or appended to `[highway]`).
+fn highway_with(key: &str, value: &str) -> String {
+    let text = std::fs::read_to_string(scenario_file("highway")).unwrap();
+    let mut out = String::new();
+    let mut replaced = false;
+    for line in text.lines() {
+        if line.starts_with(&format!("{key} ")) && !replaced {
+            out.push_str(&format!("{key} = {value}\n"));
+            replaced = true;
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    assert!(replaced, "{key} not in highway.toml");
+    out
+}
+
+fn line_of(text: &str, key: &str) -> usize {
+    text.lines()
+        .position(|l| l.starts_with(&format!("{key} ")))
+        .unwrap()
+        + 1
+}
+
+#[test]
+fn bad_files_name_file_line_and_field() {
+    let cases = [
+        ("nan_speed", "speed_max_mps", "nan", "highway.speed_max_mps"),
+        (
+            "negative_speed",
+            "speed_min_mps",
+            "-5.0",
+            "highway.speed_min_mps",
+        ),
+        (
+            "min_gt_max",
+            "speed_min_mps",
+            "40.0",
+            "highway.speed_min_mps",
+        ),
+        ("seven_lanes", "lanes", "7", "highway.lanes"),
+        ("crowded", "vehicles", "190", "highway.vehicles"),
+        (
+            "tight_curve",
+            "curve_radius_min_m",
+            "50.0",
+            "highway.curve_radius_min_m",
+        ),
+        ("inf_duration", "duration_s", "inf", "duration_s"),
+        ("tall_ego", "lidar_height_m", "0.5", "ego.lidar_height_m"),
+        (
+            "wrong_type",
+            "lane_changes",
+            "\"many\"",
+            "highway.lane_changes",
+        ),
+    ];
+    for (tag, key, value, field) in cases {
+        let text = highway_with(key, value);
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{}", path.display(), line_of(&text, key));
+        assert!(msg.contains(&want), "{tag}: {msg} lacks {want}");
+        assert!(msg.contains(field), "{tag}: {msg} lacks {field}");
+    }
+    // unknown key
+    let text = highway_with("lanes", "4\nwheels = 18");
+    let (path, err) = load_text("unknown_key", &text);
+    let msg = err.to_string();
+    let want = format!("{}:{}", path.display(), line_of(&text, "wheels"));
+    assert!(
+        msg.contains(&want) && msg.contains("highway.wheels"),
+        "{msg}"
+    );
+    // urban: too many cars for the street
+    let text = std::fs::read_to_string(scenario_file("urban"))
+        .unwrap()
+        .replace("moving_cars = 14", "moving_cars = 150");
+    let (path, err) = load_text("urban_crowded", &text);
+    let msg = err.to_string();
+    let want = format!("{}:{}", path.display(), line_of(&text, "moving_cars"));
+    assert!(
+        msg.contains(&want) && msg.contains("urban.moving_cars"),
+        "{msg}"
+    );
+    // a table of the other family
+    let text = format!(
+        "{}\n[urban]\nlanes_per_direction = 1\n",
+        std::fs::read_to_string(scenario_file("highway")).unwrap()
+    );
+    let (_, err) = load_text("wrong_family", &text);
+    assert!(err.to_string().contains("`urban`"), "{err}");
+}
+
+fn speed_at(scene: &Scene, id: u32, t_s: f64) -> f64 {
+    let agent = scene.agents.iter().find(|a| a.id == id).unwrap();
+    agent.trajectory.state_at(t_s).velocity_world_mps.norm()
+}
+
+fn ego_speed_at(scene: &Scene, t_s: f64) -> f64 {
+    scene.ego.trajectory.state_at(t_s).velocity_world_mps.norm()
+}
+
+fn sample_times(scene: &Scene, dt_s: f64) -> Vec<f64> {
+    let n = (scene.duration_s / dt_s).floor() as usize;
+    (0..=n).map(|k| k as f64 * dt_s).collect()
+}
+
+/// Properties every generated scene has.
+fn check_common(spec: &ScenarioSpec, scene: &Scene) {
+    // ids 1..=N, unique
+    let mut ids: Vec<u32> = scene.agents.iter().map(|a| a.id).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, (1..=scene.agents.len() as u32).collect::<Vec<_>>());
+    assert!(
+        first_overlap(scene, 0.05).is_none(),
+        "overlap in {}",
+        spec.name
+    );
+    // the ego stands still until it departs and its LiDAR is at the set height
+    for k in 0..=10 {
+        let t = spec.ego.depart_s * k as f64 / 10.0;
+        assert!(ego_speed_at(scene, t) < 1e-3, "ego moves at {t}");
+        let p = scene.ego.trajectory.pose_at(t).translation.vector;
+        let above = p.z - scene.ground.height(p.x, p.y);
+        assert!(
+            (above - spec.ego.lidar_height_m).abs() < 0.05,
+            "LiDAR {above} m above ground"
+        );
+    }
+    // gentle ground
+    for t in sample_times(scene, 5.0) {
+        let p = scene.ego.trajectory.pose_at(t).translation.vector;
+        assert!(scene.ground.gradient(p.x, p.y).norm() < 0.07);
+    }
+    // statics stand on the ground: bottoms at or a little below it
+    for s in &scene.statics {
+        let half_height = match s.shape {
+            Shape::Cuboid { half_extents_m } => half_extents_m.z,
+            Shape::Cylinder { half_height_m, .. } => half_height_m,
+            Shape::Ball { radius_m } => radius_m,
+        };
+        let c = s.t_world_object.translation.vector;
+        let bottom = c.z - half_height - scene.ground.height(c.x, c.y);
+        match s.kind {
+            StaticKind::TreeCrown => assert!(bottom > 1.9, "{s:?}"),
+            StaticKind::Sign => assert!(bottom > 3.0, "{s:?}"),
+            // buildings reach 0.5 m below their lowest footprint corner
+            StaticKind::Building => {
+                let Shape::Cuboid { half_extents_m: e } = s.shape else {
+                    panic!("{s:?}")
+                };
+                let sink = 0.5 + 0.07 * e.x.hypot(e.y);
+                assert!((-sink..0.05).contains(&bottom), "{s:?} bottom {bottom}");
+            }
+            _ => assert!((-1.0..0.05).contains(&bottom), "{s:?} bottom {bottom}"),
+        }
+    }
+}
+
+fn check_highway(spec: &ScenarioSpec, scene: &Scene) {
+    let h = spec.highway.clone().unwrap_or_default();
+    assert_eq!(scene.agents.len(), h.vehicles);
+    assert!(scene.agents.iter().all(|a| !a.parked));
+    assert!(
+        scene
+            .statics
+            .iter()
+            .filter(|s| s.kind == StaticKind::GuardRail)
+            .count()
+            > 100
+    );
+    let times = sample_times(scene, 0.5);
+    for agent in &scene.agents {
+        assert!(matches!(agent.class, ObjectClass::Car | ObjectClass::Truck));
+        let speeds: Vec<f64> = times
+            .iter()
+            .map(|&t| speed_at(scene, agent.id, t))
+            .collect();
+        let max = speeds.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            (h.speed_min_mps - 0.5..=h.speed_max_mps + 0.5).contains(&max),
+            "vehicle {} max speed {max}",
+            agent.id
+        );
+    }
+    // nobody runs out of road: at the end everyone still drives
+    for agent in &scene.agents {
+        let v = speed_at(scene, agent.id, scene.duration_s - 0.5);
+        assert!(v > 5.0, "vehicle {} at {v} m/s at the end", agent.id);
+    }
+    assert!(ego_speed_at(scene, scene.duration_s - 0.5) > 5.0);
+}
+
+fn check_urban(spec: &ScenarioSpec, scene: &Scene) {
+    let u = spec.urban.clone().unwrap_or_default();
+    let count = |class, parked| {
+        scene
+            .agents
+            .iter()
+            .filter(|a| a.class == class && a.parked == parked)
+            .count()
+    };
+    assert_eq!(count(ObjectClass::Car, false), u.moving_cars);
+    assert_eq!(count(ObjectClass::Cyclist, false), u.cyclists);
+    assert_eq!(count(ObjectClass::Pedestrian, false), u.pedestrians);
+    assert!(count(ObjectClass::Car, true) > 0);
+    // moving cars in both directions (+x and -x)
+    for sign in [1.0, -1.0] {
+        let cars = scene
+            .agents
+            .iter()
+            .filter(|a| a.class == ObjectClass::Car && !a.parked)
+            .filter(|a| {
+                let heading = a.trajectory.pose_at(0.0).rotation * nalgebra::Vector3::x();
+                heading.x * sign > 0.9
+            })
+            .count();
+        assert!(cars >= u.moving_cars / 2, "{cars} cars along {sign} x");
+    }
+    let times = sample_times(scene, 0.5);
+    for agent in scene.agents.iter().filter(|a| !a.parked) {
+        let limit = match agent.class {
+            ObjectClass::Pedestrian => u.pedestrian_speed_max_mps,
+            ObjectClass::Cyclist => u.cyclist_speed_max_mps,
+            _ => u.car_speed_max_mps,
+        } + 0.3;
+        for &t in &times {
+            let v = speed_at(scene, agent.id, t);
+            assert!(v <= limit, "{:?} {} at {v} m/s", agent.class, agent.id);
+        }
+    }
+    for agent in scene.agents.iter().filter(|a| a.parked) {
+        assert_eq!(speed_at(scene, agent.id, 0.5 * scene.duration_s), 0.0);
+    }
+    for kind in [
+        StaticKind::Building,
+        StaticKind::Pole,
+        StaticKind::TreeTrunk,
+        StaticKind::TreeCrown,
+    ] {
+        assert!(scene.statics.iter().any(|s| s.kind == kind), "{kind:?}");
+    }
+}
+
+/// The ego stops after departing and drives on again.
+fn ego_stop_and_go(spec: &ScenarioSpec, scene: &Scene) -> bool {
+    let times = sample_times(scene, 0.1);
+    let stop = times
+        .iter()
+        .position(|&t| t > spec.ego.depart_s + 3.0 && ego_speed_at(scene, t) < 0.05);
+    stop.is_some_and(|i| times[i..].iter().any(|&t| ego_speed_at(scene, t) > 3.0))
+}
+
+#[test]
+fn default_urban_has_everything_and_stop_and_go() {
+    let spec = ScenarioSpec::builtin("urban").unwrap();
+    let scene = spec.build().unwrap();
+    check_common(&spec, &scene);
+    check_urban(&spec, &scene);
+    assert!(
+        ego_stop_and_go(&spec, &scene),
+        "the ego never stops and goes"
+    );
+}
+
+#[test]
+fn default_highway_is_valid() {
+    let spec = ScenarioSpec::builtin("highway").unwrap();
+    let scene = spec.build().unwrap();
+    check_common(&spec, &scene);
+    check_highway(&spec, &scene);
+    // the ego reaches highway speed
+    assert!(ego_speed_at(&scene, spec.duration_s - 1.0) > 20.0);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 3, failure_persistence: None, max_shrink_iters: 0, ..ProptestConfig::default() })]
+
+    #[test]
+    fn highway_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, vehicles in 20usize..=32) {
+        let mut spec = ScenarioSpec::builtin("highway").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 20.0;
+        let h = spec.highway.as_mut().unwrap();
+        h.lanes = lanes;
+        h.vehicles = vehicles;
+        spec.ego.lane = lanes / 2;
+        spec.validate().unwrap();
+        let scene = spec.build().unwrap();
+        check_common(&spec, &scene);
+        check_highway(&spec, &scene);
+        prop_assert_eq!(spec.family, Family::Highway);
+    }
+
+    #[test]
+    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2) {
+        let mut spec = ScenarioSpec::builtin("urban").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 30.0;
+        spec.urban.as_mut().unwrap().lanes_per_direction = lanes;
+        spec.ego.lane = lanes - 1;
+        let scene = spec.build().unwrap();
+        check_common(&spec, &scene);
+        check_urban(&spec, &scene);
+        prop_assert!(ego_stop_and_go(&spec, &scene));
+    }
+}
+
+#[test]
+fn building_is_deterministic_and_seed_dependent() {
+    for name in ScenarioSpec::builtin_names() {
+        let mut spec = ScenarioSpec::builtin(name).unwrap();
+        spec.duration_s = 10.0;
+        let a = spec.build().unwrap();
+        let b = spec.build().unwrap();
+        assert!(a == b, "{name}: two builds differ");
+        spec.seed += 1;
+        let c = spec.build().unwrap();
+        assert!(a != c, "{name}: seed has no effect");
+    }
+}
+
+/// Full-length scenes for a few more seeds (about a minute in release).
+#[test]
+#[ignore = "slow: full-length scenes over several seeds"]
+fn full_length_scenes_over_seeds() {
+    for seed in 10..13 {
+        for name in ScenarioSpec::builtin_names() {
+            let mut spec = ScenarioSpec::builtin(name).unwrap();
+            spec.seed = seed;
+            let scene = spec.build().unwrap();
+            check_common(&spec, &scene);
+            match spec.family {
+                Family::Highway => check_highway(&spec, &scene),
+                Family::Urban => {
+                    check_urban(&spec, &scene);
+                    assert!(ego_stop_and_go(&spec, &scene), "seed {seed}");
+                }
+            }
+        }
+    }
+}
