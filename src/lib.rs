@@ -1,5 +1,8 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 
+pub mod demo;
 pub mod eval;
 pub mod kitti;
+pub mod kitti_export;
 pub mod report;
+pub mod simulate;

@@ -1,0 +1,44 @@
+//! `limot demo` end to end on a shortened default scenario.
+
+use limot::demo::run_demo;
+use limot::simulate::resolve_scenario;
+use std::fs;
+
+#[test]
+fn demo_simulates_scores_and_writes_a_report() {
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = 3.0;
+    let out = std::env::temp_dir().join(format!("limot-demo-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&out);
+    let s = run_demo(&spec, &out, false).unwrap();
+    assert_eq!(s.frames, 30);
+    assert!(
+        s.mean_points_per_scan > 50_000.0,
+        "{}",
+        s.mean_points_per_scan
+    );
+    assert!(s.moving_agents > 0 && s.parked_agents > 0);
+    // the ego waits ~1 s, then pulls away
+    assert!(s.ego_path_length_m > 0.5 && s.ego_path_length_m < 40.0);
+    for (threshold, r) in &s.detector {
+        let mota = r.mota.unwrap();
+        // the detector is good but imperfect: misses, false positives, box noise
+        assert!(mota > 0.3 && mota < 1.0, "MOTA {mota} at {threshold}");
+        assert!(r.false_negatives > 0);
+        assert_eq!(r.id_switches, 0, "oracle ids cannot switch");
+    }
+    let readme = fs::read_to_string(&s.report_readme).unwrap();
+    for needle in [
+        "MOTA %",
+        "ego_trajectory.svg",
+        "ego_speed.svg",
+        "objects.svg",
+    ] {
+        assert!(readme.contains(needle), "report lacks {needle}");
+    }
+    for svg in ["ego_trajectory.svg", "ego_speed.svg", "objects.svg"] {
+        let text = fs::read_to_string(out.join("report").join(svg)).unwrap();
+        assert!(text.starts_with("<svg"), "{svg}");
+    }
+    let _ = fs::remove_dir_all(&out);
+}
