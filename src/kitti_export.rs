@@ -71,8 +71,8 @@ fn create_dir(path: &Path) -> Result<(), ExportError> {
     })
 }
 
-/// A KITTI-like calibration: the left colour camera 0.27 m behind and 0.08 m
-/// below the LiDAR looking forward, KITTI's intrinsics, no rectification,
+/// A KITTI-like calibration: the left colour camera 0.27 m ahead of and 0.08 m
+/// below the LiDAR looking forward (as on KITTI's car), KITTI's intrinsics, no rectification,
 /// and our LiDAR-IMU extrinsics.
 pub fn synthetic_calib(t_lidar_imu: &Isometry3<f64>) -> Calib {
     let (f, cx, cy) = (721.5377, 609.5593, 172.854);
@@ -80,8 +80,9 @@ pub fn synthetic_calib(t_lidar_imu: &Isometry3<f64>) -> Calib {
     // camera axes (x right, y down, z forward) expressed in LiDAR axes
     let r_cam_lidar = Matrix3::new(0.0, -1.0, 0.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0);
     let t_cam_velo = Isometry3::from_parts(
-        Translation3::from(r_cam_lidar * -Vector3::new(-0.27, 0.0, -0.08)),
-        UnitQuaternion::from_matrix(&r_cam_lidar),
+        Translation3::from(r_cam_lidar * -Vector3::new(0.27, 0.0, -0.08)),
+        // Shepperd's method is exact for this axis permutation
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r_cam_lidar)),
     );
     Calib {
         p0: p(0.0),
