@@ -1,14 +1,18 @@
-//! CLEAR-MOT tracking metrics (Bernardin & Stiefelhagen 2008) on 3D boxes, as
-//! the KITTI tracking devkit / AB3DMOT 3D evaluation and TrackEval compute them.
+//! CLEAR-MOT tracking metrics (Bernardin & Stiefelhagen 2008) on 3D boxes
+//! ([`Box3`], BEV or 3D IoU) or image boxes ([`Box2`](super::iou::Box2)), as
+//! the KITTI tracking devkit / AB3DMOT 3D evaluation and TrackEval compute
+//! them. One matching core serves both geometries through [`MotBox`].
 //!
 //! Per frame:
 //! 1. A ground-truth object keeps the tracker id it was matched to in the
 //!    previous frame if that track is present and still overlaps with
 //!    IoU ≥ threshold (the CLEAR-MOT rule; TrackEval implements it with a
-//!    +1000 score bonus, which is equivalent).
-//! 2. The remaining objects and tracks are matched by the Hungarian algorithm
-//!    on cost 1 − IoU, pairs with IoU < threshold forbidden (maximum number of
-//!    matches, then maximum summed IoU).
+//!    +1000 score bonus, which is equivalent: these pairs are disjoint, so
+//!    all of them are kept). "Previous frame" depends on [`MatchingRule`].
+//! 2. The remaining objects and tracks are matched by the Hungarian algorithm,
+//!    pairs with IoU < threshold forbidden: maximum number of matches, then
+//!    maximum summed IoU (KITTI devkit), or maximum summed IoU only
+//!    (TrackEval), see [`MatchingRule`].
 //! 3. Unmatched tracks are false positives, except those whose bird's-eye
 //!    footprint lies more than `dont_care_min_fraction` inside a DontCare
 //!    region (KITTI's rule for DontCare areas, applied to BEV boxes here);
@@ -20,14 +24,20 @@
 //! devkit reports MOTP as the mean overlap of true positives, which for 3D
 //! evaluation is the mean 3D IoU; higher is better). Fragmentations count how
 //! often a ground-truth trajectory resumes being tracked after an interruption
-//! (tracked segments − 1, counted over the frames in which the object appears,
-//! as the KITTI devkit walks each trajectory; a frame in which the object is
-//! absent from the ground truth does not interrupt it, unlike TrackEval). MT/PT/ML: objects tracked in > 80 %, 20–80 %,
-//! < 20 % of the frames they appear in.
+//! (tracked segments − 1). With [`MatchingRule::MaxMatches`] segments are
+//! counted over the frames in which the object appears, as the KITTI devkit
+//! walks each trajectory (a frame in which the object is absent from the
+//! ground truth does not interrupt it); with [`MatchingRule::TrackEval`] as
+//! TrackEval does (absence interrupts, frames without any ground truth or
+//! without any track are skipped). MT/PT/ML: objects tracked in > 80 %,
+//! 20–80 %, < 20 % of the frames they appear in.
+//!
+//! The IoU threshold test is `IoU ≥ threshold − ε` (ε = machine epsilon) as in
+//! TrackEval, so that a pair computed a rounding error below 0.5 still matches.
 
 use super::EvalError;
 use super::assignment::min_cost_assignment;
-use super::iou::{Box3, IouKind, bev_fraction_inside, iou};
+use super::iou::{AREA_EPS, Box3, IouKind, MotBox};
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::BoxTruth;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -36,14 +46,15 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 pub const PAPER_IOU_THRESHOLDS: [f64; 2] = [0.25, 0.5];
 
 /// A box with an identity: a ground-truth object or a tracker output.
+/// `B` is [`Box3`] (3D evaluation) or [`Box2`](super::iou::Box2) (image).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrackedBox {
+pub struct TrackedBox<B = Box3> {
     pub id: u64,
     pub class: ObjectClass,
-    pub bbox: Box3,
+    pub bbox: B,
 }
 
-impl TrackedBox {
+impl TrackedBox<Box3> {
     /// A simulator ground-truth box (world frame; roll and pitch dropped).
     pub fn from_box_truth(truth: &BoxTruth) -> TrackedBox {
         TrackedBox {
@@ -54,13 +65,24 @@ impl TrackedBox {
     }
 }
 
-/// Everything compared in one frame (boxes in one common frame, e.g. world or LiDAR).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct MotFrame {
-    pub gt: Vec<TrackedBox>,
-    pub tracks: Vec<TrackedBox>,
+/// Everything compared in one frame (boxes in one common frame, e.g. world,
+/// LiDAR or the image).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotFrame<B = Box3> {
+    pub gt: Vec<TrackedBox<B>>,
+    pub tracks: Vec<TrackedBox<B>>,
     /// Regions in which unmatched tracker boxes are not counted as false positives.
-    pub dont_care: Vec<Box3>,
+    pub dont_care: Vec<B>,
+}
+
+impl<B> Default for MotFrame<B> {
+    fn default() -> Self {
+        MotFrame {
+            gt: Vec::new(),
+            tracks: Vec::new(),
+            dont_care: Vec::new(),
+        }
+    }
 }
 
 /// When a change of tracker id counts as an identity switch.
@@ -75,12 +97,31 @@ pub enum IdSwitchRule {
     Consecutive,
 }
 
+/// How the per-frame matching treats competing pairs and empty frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MatchingRule {
+    /// The largest number of matches, then the largest summed IoU (as the
+    /// KITTI devkit's Munkres with a huge cost for forbidden pairs; unlike
+    /// the devkit, which matches every frame independently, previous-frame
+    /// correspondences are kept first, as CLEAR-MOT prescribes). The previous
+    /// frame is the frame just before, whatever it contains.
+    #[default]
+    MaxMatches,
+    /// TrackEval's `CLEAR.eval_sequence`: the largest summed IoU (fewer but
+    /// tighter matches can win); frames without any ground truth or without
+    /// any track neither break the previous-frame correspondences nor count
+    /// for fragmentation, and an object absent from a frame loses them.
+    TrackEval,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClearMotConfig {
     /// A pair matches when IoU ≥ this (paper: 0.25 and 0.5).
     pub iou_threshold: f64,
+    /// BEV or 3D IoU for [`Box3`]; image boxes ignore it.
     pub iou_kind: IouKind,
     pub id_switch_rule: IdSwitchRule,
+    pub matching: MatchingRule,
     /// Unmatched tracks more than this fraction inside a DontCare region are ignored.
     pub dont_care_min_fraction: f64,
 }
@@ -91,6 +132,7 @@ impl Default for ClearMotConfig {
             iou_threshold: 0.5,
             iou_kind: IouKind::ThreeD,
             id_switch_rule: IdSwitchRule::LastMatched,
+            matching: MatchingRule::MaxMatches,
             dont_care_min_fraction: 0.5,
         }
     }
@@ -102,6 +144,25 @@ impl ClearMotConfig {
             iou_threshold,
             ..ClearMotConfig::default()
         }
+    }
+
+    /// TrackEval's `CLEAR` metric as its KITTI 2D box benchmark runs it:
+    /// image IoU ≥ 0.5, ID switches against the last matched id, TrackEval's
+    /// matching. DontCare handling is part of its preprocessing (see
+    /// `eval::kitti_mot`), so frames fed with this config carry no regions.
+    pub fn trackeval() -> ClearMotConfig {
+        ClearMotConfig {
+            iou_threshold: 0.5,
+            iou_kind: IouKind::ThreeD,
+            id_switch_rule: IdSwitchRule::LastMatched,
+            matching: MatchingRule::TrackEval,
+            dont_care_min_fraction: 0.5,
+        }
+    }
+
+    /// The matching threshold test (TrackEval's `sim ≥ threshold − eps`).
+    fn passes(&self, overlap: f64) -> bool {
+        overlap >= self.iou_threshold - AREA_EPS
     }
 }
 
@@ -143,7 +204,7 @@ pub struct ClearMotResult {
     pub per_frame: Vec<Vec<FrameMatch>>,
 }
 
-fn validate_frame(index: usize, frame: &MotFrame) -> Result<(), EvalError> {
+fn validate_frame<B: MotBox>(index: usize, frame: &MotFrame<B>) -> Result<(), EvalError> {
     for (what, boxes) in [
         ("frame gt box", &frame.gt),
         ("frame track box", &frame.tracks),
@@ -199,8 +260,8 @@ fn validate_config(cfg: &ClearMotConfig) -> Result<(), EvalError> {
 }
 
 /// Matches one frame: previous correspondences first, Hungarian for the rest.
-fn match_frame(
-    frame: &MotFrame,
+fn match_frame<B: MotBox>(
+    frame: &MotFrame<B>,
     cfg: &ClearMotConfig,
     prev_frame_match: &HashMap<u64, u64>,
 ) -> Result<Vec<FrameMatch>, EvalError> {
@@ -208,7 +269,7 @@ fn match_frame(
     let mut ious = vec![0.0; n_gt * n_tr];
     for (i, g) in frame.gt.iter().enumerate() {
         for (j, t) in frame.tracks.iter().enumerate() {
-            ious[i * n_tr + j] = iou(&g.bbox, &t.bbox, cfg.iou_kind);
+            ious[i * n_tr + j] = g.bbox.overlap(&t.bbox, cfg.iou_kind);
         }
     }
     let track_index: HashMap<u64, usize> = frame
@@ -225,7 +286,7 @@ fn match_frame(
             .get(&g.id)
             .and_then(|tid| track_index.get(tid).copied());
         if let Some(j) = kept
-            && ious[i * n_tr + j] >= cfg.iou_threshold
+            && cfg.passes(ious[i * n_tr + j])
         {
             gt_taken[i] = true;
             track_taken[j] = true;
@@ -238,16 +299,23 @@ fn match_frame(
     for &i in &free_gt {
         for &j in &free_tr {
             let o = ious[i * n_tr + j];
-            cost.push(if o >= cfg.iou_threshold {
-                1.0 - o
-            } else {
-                f64::INFINITY
+            cost.push(match (cfg.matching, cfg.passes(o)) {
+                // Forbidden pairs: the assignment maximises their complement first.
+                (MatchingRule::MaxMatches, true) => 1.0 - o,
+                (MatchingRule::MaxMatches, false) => f64::INFINITY,
+                // Pure maximum IoU sum (scipy's linear_sum_assignment on −score
+                // with failing pairs zeroed); zero pairs are dropped below.
+                (MatchingRule::TrackEval, true) => -o,
+                (MatchingRule::TrackEval, false) => 0.0,
             });
         }
     }
     let assignment = min_cost_assignment(free_gt.len(), free_tr.len(), &cost)?;
     for (r, c) in assignment.pairs {
-        matches.push((free_gt[r], free_tr[c]));
+        let (i, j) = (free_gt[r], free_tr[c]);
+        if cfg.passes(ious[i * n_tr + j]) {
+            matches.push((i, j));
+        }
     }
     matches.sort_unstable();
     Ok(matches
@@ -277,31 +345,18 @@ struct GtHistory {
 
 /// Class-agnostic CLEAR-MOT over a sequence of frames (classes are ignored;
 /// use [`clear_mot_per_class`] for the per-class figures).
-pub fn clear_mot(frames: &[MotFrame], cfg: &ClearMotConfig) -> Result<ClearMotResult, EvalError> {
+pub fn clear_mot<B: MotBox>(
+    frames: &[MotFrame<B>],
+    cfg: &ClearMotConfig,
+) -> Result<ClearMotResult, EvalError> {
     validate_config(cfg)?;
     for (i, f) in frames.iter().enumerate() {
         validate_frame(i, f)?;
     }
     let mut history: BTreeMap<u64, GtHistory> = BTreeMap::new();
     let mut prev_frame_match: HashMap<u64, u64> = HashMap::new();
-    let mut r = ClearMotResult {
-        mota: None,
-        motp: None,
-        matches: 0,
-        false_positives: 0,
-        false_negatives: 0,
-        id_switches: 0,
-        fragmentations: 0,
-        gt_count: 0,
-        track_count: 0,
-        ignored_tracks: 0,
-        gt_objects: 0,
-        mostly_tracked: 0,
-        partially_tracked: 0,
-        mostly_lost: 0,
-        iou_sum: 0.0,
-        per_frame: Vec::with_capacity(frames.len()),
-    };
+    let mut r = combine_sequences(&[]);
+    r.per_frame.reserve(frames.len());
     for frame in frames {
         let matches = match_frame(frame, cfg, &prev_frame_match)?;
         r.gt_count += frame.gt.len();
@@ -320,7 +375,7 @@ pub fn clear_mot(frames: &[MotFrame], cfg: &ClearMotConfig) -> Result<ClearMotRe
             let in_dont_care = frame
                 .dont_care
                 .iter()
-                .any(|d| bev_fraction_inside(&t.bbox, d) > cfg.dont_care_min_fraction);
+                .any(|d| t.bbox.fraction_inside(d) > cfg.dont_care_min_fraction);
             if in_dont_care {
                 r.ignored_tracks += 1;
             } else {
@@ -342,15 +397,25 @@ pub fn clear_mot(frames: &[MotFrame], cfg: &ClearMotConfig) -> Result<ClearMotRe
                 if reference.is_some_and(|prev| prev != tid) {
                     r.id_switches += 1;
                 }
-                // A new tracked segment starts unless matched at the previous appearance.
-                if h.previous_appearance.is_none() {
+                // A new tracked segment starts unless tracked just before.
+                let tracked_before = match cfg.matching {
+                    MatchingRule::MaxMatches => h.previous_appearance.is_some(),
+                    MatchingRule::TrackEval => prev_frame_match.contains_key(&g.id),
+                };
+                if !tracked_before {
                     h.segments += 1;
                 }
                 h.last_matched = Some(tid);
             }
             h.previous_appearance = now;
         }
-        prev_frame_match = matched_track;
+        // TrackEval skips frames without ground truth or without tracks when
+        // it carries correspondences forward.
+        let skip = cfg.matching == MatchingRule::TrackEval
+            && (frame.gt.is_empty() || frame.tracks.is_empty());
+        if !skip {
+            prev_frame_match = matched_track;
+        }
         r.per_frame.push(matches);
     }
     r.gt_objects = history.len();
@@ -365,20 +430,67 @@ pub fn clear_mot(frames: &[MotFrame], cfg: &ClearMotConfig) -> Result<ClearMotRe
             r.partially_tracked += 1;
         }
     }
-    if r.gt_count > 0 {
-        let errors = (r.false_negatives + r.false_positives + r.id_switches) as f64;
-        r.mota = Some(1.0 - errors / r.gt_count as f64);
-    }
-    if r.matches > 0 {
-        r.motp = Some(r.iou_sum / r.matches as f64);
-    }
+    r.finish_ratios();
     Ok(r)
+}
+
+impl ClearMotResult {
+    /// Sets MOTA and MOTP from the counts.
+    fn finish_ratios(&mut self) {
+        self.mota = (self.gt_count > 0).then(|| {
+            let errors = (self.false_negatives + self.false_positives + self.id_switches) as f64;
+            1.0 - errors / self.gt_count as f64
+        });
+        self.motp = (self.matches > 0).then(|| self.iou_sum / self.matches as f64);
+    }
+}
+
+/// Combines the results of independent sequences as the KITTI devkit and
+/// TrackEval do: counts (and the IoU sum) add up, MOTA and MOTP are
+/// recomputed from the sums; `per_frame` is the concatenation.
+pub fn combine_sequences(results: &[ClearMotResult]) -> ClearMotResult {
+    let mut total = ClearMotResult {
+        mota: None,
+        motp: None,
+        matches: 0,
+        false_positives: 0,
+        false_negatives: 0,
+        id_switches: 0,
+        fragmentations: 0,
+        gt_count: 0,
+        track_count: 0,
+        ignored_tracks: 0,
+        gt_objects: 0,
+        mostly_tracked: 0,
+        partially_tracked: 0,
+        mostly_lost: 0,
+        iou_sum: 0.0,
+        per_frame: Vec::new(),
+    };
+    for r in results {
+        total.matches += r.matches;
+        total.false_positives += r.false_positives;
+        total.false_negatives += r.false_negatives;
+        total.id_switches += r.id_switches;
+        total.fragmentations += r.fragmentations;
+        total.gt_count += r.gt_count;
+        total.track_count += r.track_count;
+        total.ignored_tracks += r.ignored_tracks;
+        total.gt_objects += r.gt_objects;
+        total.mostly_tracked += r.mostly_tracked;
+        total.partially_tracked += r.partially_tracked;
+        total.mostly_lost += r.mostly_lost;
+        total.iou_sum += r.iou_sum;
+        total.per_frame.extend(r.per_frame.iter().cloned());
+    }
+    total.finish_ratios();
+    total
 }
 
 /// CLEAR-MOT for every class that occurs in the ground truth or the tracks:
 /// boxes of other classes are dropped, DontCare regions apply to all classes.
-pub fn clear_mot_per_class(
-    frames: &[MotFrame],
+pub fn clear_mot_per_class<B: MotBox>(
+    frames: &[MotFrame<B>],
     cfg: &ClearMotConfig,
 ) -> Result<BTreeMap<ObjectClass, ClearMotResult>, EvalError> {
     let classes: BTreeSet<ObjectClass> = frames
@@ -387,9 +499,9 @@ pub fn clear_mot_per_class(
         .collect();
     let mut out = BTreeMap::new();
     for class in classes {
-        let filtered: Vec<MotFrame> = frames
+        let filtered: Vec<MotFrame<B>> = frames
             .iter()
-            .map(|f| MotFrame {
+            .map(|f| MotFrame::<B> {
                 gt: f.gt.iter().filter(|b| b.class == class).copied().collect(),
                 tracks: f
                     .tracks
@@ -568,6 +680,81 @@ mod tests {
         assert_eq!(b.bbox.size_lwh, truth.size_lwh_m);
     }
 
+    fn img(id: u64, left: f64) -> TrackedBox<crate::eval::iou::Box2> {
+        TrackedBox {
+            id,
+            class: ObjectClass::Car,
+            bbox: crate::eval::iou::Box2::from_ltrb([left, 0.0, left + 10.0, 10.0]),
+        }
+    }
+
+    #[test]
+    fn trackeval_rule_maximises_iou_sum_not_match_count() {
+        // Boxes 10 px wide; a 3 px shift gives IoU 7/13 ≥ 0.5, 6 px fails.
+        // Three matches of 7/13 are possible (g3-t1, g1-t2, g2-t3), but two
+        // exact matches (g1-t1, g2-t2) sum to more.
+        let f = MotFrame {
+            gt: vec![img(3, 0.0), img(1, 3.0), img(2, 6.0)],
+            tracks: vec![img(11, 3.0), img(12, 6.0), img(13, 9.0)],
+            dont_care: vec![],
+        };
+        let frames = std::slice::from_ref(&f);
+        let devkit = clear_mot(frames, &ClearMotConfig::default()).unwrap();
+        assert_eq!(devkit.matches, 3);
+        assert!((devkit.motp.unwrap() - 7.0 / 13.0).abs() < 1e-12);
+        let te = clear_mot(frames, &ClearMotConfig::trackeval()).unwrap();
+        assert_eq!(
+            (te.matches, te.false_negatives, te.false_positives),
+            (2, 1, 1)
+        );
+        assert_eq!(te.motp, Some(1.0));
+    }
+
+    #[test]
+    fn trackeval_rule_carries_correspondence_over_empty_frames() {
+        // Frame 1 has no tracks. In frame 2, track 10 still overlaps (IoU 7/13)
+        // but 11 fits exactly.
+        let frames = vec![
+            frame(vec![car(1, 0.0)], vec![car(10, 0.0)]),
+            frame(vec![car(1, 0.0)], vec![]),
+            frame(vec![car(1, 0.0)], vec![car(10, 1.0), car(11, 0.0)]),
+        ];
+        let te = clear_mot(&frames, &ClearMotConfig::trackeval()).unwrap();
+        assert_eq!(te.per_frame[2][0].track_id, 10);
+        assert_eq!((te.id_switches, te.fragmentations), (0, 0));
+        let devkit = clear_mot(&frames, &ClearMotConfig::default()).unwrap();
+        assert_eq!(devkit.per_frame[2][0].track_id, 11);
+        assert_eq!((devkit.id_switches, devkit.fragmentations), (1, 1));
+        // Absence from the ground truth interrupts a TrackEval segment only.
+        let gap = vec![
+            frame(
+                vec![car(1, 0.0), car(2, 20.0)],
+                vec![car(10, 0.0), car(20, 20.0)],
+            ),
+            frame(vec![car(2, 20.0)], vec![car(20, 20.0)]),
+            frame(
+                vec![car(1, 0.0), car(2, 20.0)],
+                vec![car(10, 0.0), car(20, 20.0)],
+            ),
+        ];
+        let te = clear_mot(&gap, &ClearMotConfig::trackeval()).unwrap();
+        assert_eq!((te.fragmentations, te.id_switches), (1, 0));
+        let devkit = clear_mot(&gap, &ClearMotConfig::default()).unwrap();
+        assert_eq!(devkit.fragmentations, 0);
+    }
+
+    #[test]
+    fn combine_sequences_sums_counts() {
+        let a = clear_mot(&hand_sequence(), &ClearMotConfig::default()).unwrap();
+        let both = combine_sequences(&[a.clone(), a.clone()]);
+        assert_eq!(both.gt_count, 2 * a.gt_count);
+        assert_eq!(both.id_switches, 2 * a.id_switches);
+        assert_eq!(both.mota, a.mota);
+        assert!((both.motp.unwrap() - a.motp.unwrap()).abs() < 1e-15);
+        assert_eq!(both.per_frame.len(), 6);
+        assert_eq!(combine_sequences(&[]).mota, None);
+    }
+
     #[test]
     fn bad_inputs_are_errors() {
         let twice = frame(vec![car(1, 0.0), car(1, 5.0)], vec![]);
@@ -578,8 +765,8 @@ mod tests {
         let mut nan = car(1, 0.0);
         nan.bbox.yaw_rad = f64::NAN;
         assert!(clear_mot(&[frame(vec![], vec![nan])], &ClearMotConfig::default()).is_err());
-        assert!(clear_mot(&[], &ClearMotConfig::with_threshold(0.0)).is_err());
-        let empty = clear_mot(&[], &ClearMotConfig::default()).unwrap();
+        assert!(clear_mot::<Box3>(&[], &ClearMotConfig::with_threshold(0.0)).is_err());
+        let empty = clear_mot::<Box3>(&[], &ClearMotConfig::default()).unwrap();
         assert_eq!((empty.mota, empty.motp), (None, None));
     }
 }

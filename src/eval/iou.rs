@@ -5,6 +5,10 @@
 //! (convex polygon clipping, Sutherland–Hodgman) over the union area.
 //! 3D IoU: BEV intersection area × overlap of the z intervals, over the union
 //! volume. Both are exact for yaw-rotated boxes.
+//!
+//! Image IoU: axis-aligned 2D boxes in pixels ([`Box2`]), as the KITTI 2D
+//! tracking benchmark and TrackEval's `Kitti2DBox` evaluate them. The
+//! CLEAR-MOT matching core is generic over [`MotBox`], implemented by both.
 
 use nalgebra::{Isometry3, Vector2, Vector3};
 
@@ -189,6 +193,140 @@ pub fn iou_3d(a: &Box3, b: &Box3) -> f64 {
     ratio(inter, a.volume() + b.volume() - inter)
 }
 
+/// An axis-aligned box in the image (pixels; x right, y down), stored as
+/// KITTI stores `bbox_2d`: left, top, right, bottom.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Box2 {
+    pub left_px: f64,
+    pub top_px: f64,
+    pub right_px: f64,
+    pub bottom_px: f64,
+}
+
+/// TrackEval's guard for empty areas and near-threshold comparisons
+/// (`np.finfo('float').eps`).
+pub const AREA_EPS: f64 = f64::EPSILON;
+
+impl Box2 {
+    /// From KITTI's `[left, top, right, bottom]` order.
+    pub fn from_ltrb(ltrb_px: [f64; 4]) -> Box2 {
+        Box2 {
+            left_px: ltrb_px[0],
+            top_px: ltrb_px[1],
+            right_px: ltrb_px[2],
+            bottom_px: ltrb_px[3],
+        }
+    }
+
+    pub fn width_px(&self) -> f64 {
+        self.right_px - self.left_px
+    }
+
+    pub fn height_px(&self) -> f64 {
+        self.bottom_px - self.top_px
+    }
+
+    pub fn area_px2(&self) -> f64 {
+        self.width_px() * self.height_px()
+    }
+
+    /// Checks finiteness and `left ≤ right`, `top ≤ bottom`.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        for (field, v) in [
+            ("left_px", self.left_px),
+            ("top_px", self.top_px),
+            ("right_px", self.right_px),
+            ("bottom_px", self.bottom_px),
+        ] {
+            if !v.is_finite() {
+                return Err((field, "not finite".into()));
+            }
+        }
+        if self.right_px < self.left_px {
+            return Err((
+                "right_px",
+                format!("right {} < left {}", self.right_px, self.left_px),
+            ));
+        }
+        if self.bottom_px < self.top_px {
+            return Err((
+                "bottom_px",
+                format!("bottom {} < top {}", self.bottom_px, self.top_px),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Intersection area (0 when disjoint).
+    pub fn intersection_area_px2(&self, other: &Box2) -> f64 {
+        let w = (self.right_px.min(other.right_px) - self.left_px.max(other.left_px)).max(0.0);
+        let h = (self.bottom_px.min(other.bottom_px) - self.top_px.max(other.top_px)).max(0.0);
+        w * h
+    }
+}
+
+/// Image IoU in [0, 1], computed as TrackEval's `_calculate_box_ious`
+/// (x0y0x1y1): 0 when either area or the union is not above [`AREA_EPS`].
+pub fn iou_image(a: &Box2, b: &Box2) -> f64 {
+    let (area_a, area_b) = (a.area_px2(), b.area_px2());
+    if area_a <= AREA_EPS || area_b <= AREA_EPS {
+        return 0.0;
+    }
+    let inter = a.intersection_area_px2(b);
+    let union = area_a + area_b - inter;
+    if union <= AREA_EPS {
+        return 0.0;
+    }
+    inter / union
+}
+
+/// Fraction of `a`'s area inside `region` (intersection over `a`'s area;
+/// TrackEval's `do_ioa`, used for DontCare regions); 0 for an empty `a`.
+pub fn image_fraction_inside(a: &Box2, region: &Box2) -> f64 {
+    let area = a.area_px2();
+    if area <= AREA_EPS {
+        return 0.0;
+    }
+    a.intersection_area_px2(region) / area
+}
+
+/// Geometry the CLEAR-MOT matching core works on: one overlap measure for
+/// matching and one "inside a DontCare region" measure.
+pub trait MotBox: Copy + PartialEq + std::fmt::Debug {
+    /// Checks the box; `Err((field, why))` names the first problem.
+    fn validate(&self) -> Result<(), (&'static str, String)>;
+    /// IoU in [0, 1]. `kind` chooses BEV or 3D for [`Box3`]; an image box
+    /// has a single IoU and ignores it.
+    fn overlap(&self, other: &Self, kind: IouKind) -> f64;
+    /// Fraction of this box inside `region` (BEV footprint for [`Box3`],
+    /// image area for [`Box2`]).
+    fn fraction_inside(&self, region: &Self) -> f64;
+}
+
+impl MotBox for Box3 {
+    fn validate(&self) -> Result<(), (&'static str, String)> {
+        Box3::validate(self)
+    }
+    fn overlap(&self, other: &Box3, kind: IouKind) -> f64 {
+        iou(self, other, kind)
+    }
+    fn fraction_inside(&self, region: &Box3) -> f64 {
+        bev_fraction_inside(self, region)
+    }
+}
+
+impl MotBox for Box2 {
+    fn validate(&self) -> Result<(), (&'static str, String)> {
+        Box2::validate(self)
+    }
+    fn overlap(&self, other: &Box2, _kind: IouKind) -> f64 {
+        iou_image(self, other)
+    }
+    fn fraction_inside(&self, region: &Box2) -> f64 {
+        image_fraction_inside(self, region)
+    }
+}
+
 pub fn iou(a: &Box3, b: &Box3, kind: IouKind) -> f64 {
     match kind {
         IouKind::Bev => iou_bev(a, b),
@@ -291,6 +429,33 @@ mod tests {
         assert!(b(0.0, 0.0, 0.0, -1.0, 1.0, 1.0, 0.0).validate().is_err());
         assert!(
             b(f64::NAN, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+                .validate()
+                .is_err()
+        );
+    }
+
+    #[test]
+    fn image_iou_hand_cases() {
+        let a = Box2::from_ltrb([0.0, 0.0, 10.0, 10.0]);
+        // Shifted by 5 px in x: inter 50, union 150.
+        let b = Box2::from_ltrb([5.0, 0.0, 15.0, 10.0]);
+        assert!((iou_image(&a, &b) - 1.0 / 3.0).abs() < 1e-15);
+        assert_eq!(iou_image(&a, &b), iou_image(&b, &a));
+        assert_eq!(iou_image(&a, &a), 1.0);
+        let far = Box2::from_ltrb([20.0, 20.0, 30.0, 30.0]);
+        assert_eq!(iou_image(&a, &far), 0.0);
+        let flat = Box2::from_ltrb([0.0, 5.0, 10.0, 5.0]);
+        assert_eq!(iou_image(&a, &flat), 0.0);
+        assert_eq!(image_fraction_inside(&b, &a), 0.5);
+        assert_eq!(image_fraction_inside(&flat, &a), 0.0);
+        assert_eq!(a.height_px(), 10.0);
+        // The trait dispatches to the same functions and ignores the kind for images.
+        assert_eq!(a.overlap(&b, IouKind::Bev), iou_image(&a, &b));
+        assert_eq!(MotBox::fraction_inside(&b, &a), 0.5);
+        assert!(MotBox::validate(&a).is_ok());
+        assert!(Box2::from_ltrb([5.0, 0.0, 4.0, 1.0]).validate().is_err());
+        assert!(
+            Box2::from_ltrb([0.0, 0.0, 1.0, f64::NAN])
                 .validate()
                 .is_err()
         );

@@ -13,6 +13,7 @@ pub mod ate;
 pub mod clear_mot;
 pub mod filtering;
 pub mod iou;
+pub mod kitti_mot;
 pub mod objects;
 pub mod rpe;
 pub mod timing;
@@ -21,11 +22,11 @@ pub use align::{Alignment, umeyama};
 pub use assignment::{Assignment, min_cost_assignment};
 pub use ate::{AlignMode, AteResult, associate, ate, ate_with, ego_trajectory};
 pub use clear_mot::{
-    ClearMotConfig, ClearMotResult, IdSwitchRule, MotFrame, TrackedBox, clear_mot,
-    clear_mot_per_class,
+    ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, TrackedBox, clear_mot,
+    clear_mot_per_class, combine_sequences,
 };
 pub use filtering::{FilterScore, filter_precision_recall};
-pub use iou::{Box3, IouKind, iou, iou_3d, iou_bev};
+pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
 pub use objects::{ObjectScore, object_scores};
 pub use rpe::{RpeDelta, RpeResult, rpe};
 pub use timing::{TimingAccumulator, TimingStats};
