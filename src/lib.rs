@@ -2,6 +2,7 @@
 
 pub mod demo;
 pub mod eval;
+pub mod evaluate;
 pub mod kitti;
 pub mod kitti_export;
 pub mod report;

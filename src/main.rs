@@ -2,6 +2,9 @@
 
 use clap::{Parser, Subcommand};
 use limot::demo::run_demo as demo;
+use limot::evaluate::EvaluateError;
+use limot::evaluate::ego::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
+use limot::evaluate::tracks::{TrackEvalOptions, evaluate_tracks};
 use limot::simulate::{Overrides, resolve_scenario, simulate};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -51,8 +54,80 @@ enum Command {
         #[arg(long)]
         duration: Option<f64>,
     },
+    /// Evaluate result files against ground truth (ego trajectory or tracks).
+    Eval {
+        #[command(subcommand)]
+        what: EvalCommand,
+    },
     /// Print the version of every component.
     Version,
+}
+
+#[derive(Subcommand)]
+enum EvalCommand {
+    /// ATE (after alignment) and RPE of an estimated ego trajectory.
+    Ego {
+        /// Ground truth: a limot dataset dir, a KITTI-style dir (oxts/, calib/) or a pose file.
+        #[arg(long)]
+        truth: PathBuf,
+        /// Estimated trajectory: TUM or KITTI pose file.
+        #[arg(long)]
+        estimate: PathBuf,
+        /// Estimate format (tum|kitti); detected from the column count if omitted.
+        #[arg(long)]
+        format: Option<String>,
+        /// Times of a KITTI estimate (one per line); default: the truth's frame times.
+        #[arg(long)]
+        times: Option<PathBuf>,
+        /// Format of a truth pose file (tum|kitti); detected if omitted.
+        #[arg(long)]
+        truth_format: Option<String>,
+        /// Times of a KITTI truth pose file; default: 0.1 s steps.
+        #[arg(long)]
+        truth_times: Option<PathBuf>,
+        /// KITTI sequence number in a KITTI-style truth dir.
+        #[arg(long, default_value_t = 0)]
+        sequence: u32,
+        /// Alignment before ATE: se3, sim3 or none.
+        #[arg(long, default_value = "se3")]
+        align: String,
+        /// Largest time difference of an associated pose pair, s.
+        #[arg(long, default_value_t = 0.01)]
+        max_dt: f64,
+        /// RPE step: N frames (1) or metres (10m).
+        #[arg(long, default_value = "1")]
+        rpe_delta: String,
+        /// Use every pose as an RPE start (evo --all_pairs).
+        #[arg(long)]
+        rpe_all_pairs: bool,
+        /// Also write the results as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Also write the results as markdown.
+        #[arg(long)]
+        markdown: Option<PathBuf>,
+    },
+    /// CLEAR-MOT (3D and BEV IoU 0.25/0.5), TP % and per-object ATE of KITTI-format tracking results.
+    Tracks {
+        /// The limot dataset the results were computed on.
+        #[arg(long)]
+        truth: PathBuf,
+        /// KITTI tracking result file (label_02 lines, optional score column).
+        #[arg(long)]
+        results: PathBuf,
+        /// Ground truth scored: camera (as the KITTI copy labels it) or all.
+        #[arg(long, default_value = "camera")]
+        gt_filter: String,
+        /// Sequence number of the calibration in DATASET/kitti/calib.
+        #[arg(long, default_value_t = 0)]
+        sequence: u32,
+        /// Also write the results as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Also write the results as markdown.
+        #[arg(long)]
+        markdown: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -80,6 +155,7 @@ fn main() -> ExitCode {
             scenario,
             duration,
         } => run_demo(&scenario, &out, duration),
+        Command::Eval { what } => run_eval(what),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
             Ok(())
@@ -166,5 +242,98 @@ fn run_demo(
     }
     println!("estimator variants: not implemented yet (issues 3-5)");
     println!("report: {}", s.report_readme.display());
+    Ok(())
+}
+
+fn parse_align(s: &str) -> Result<limot::eval::AlignMode, EvaluateError> {
+    use limot::eval::AlignMode;
+    match s.to_ascii_lowercase().as_str() {
+        "se3" => Ok(AlignMode::Se3),
+        "sim3" => Ok(AlignMode::Sim3),
+        "none" => Ok(AlignMode::None),
+        _ => Err(EvaluateError::Argument(format!(
+            "--align `{s}`: expected se3, sim3 or none"
+        ))),
+    }
+}
+
+fn write_output(path: &std::path::Path, text: &str) -> Result<(), EvaluateError> {
+    std::fs::write(path, text).map_err(|source| EvaluateError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
+    match what {
+        EvalCommand::Ego {
+            truth,
+            estimate,
+            format,
+            times,
+            truth_format,
+            truth_times,
+            sequence,
+            align,
+            max_dt,
+            rpe_delta,
+            rpe_all_pairs,
+            json,
+            markdown,
+        } => {
+            let opts = EgoEvalOptions {
+                estimate_format: format.as_deref().map(str::parse).transpose()?,
+                estimate_times: times,
+                truth_format: truth_format.as_deref().map(str::parse).transpose()?,
+                truth_times,
+                sequence,
+                align: parse_align(&align)?,
+                max_dt_s: max_dt,
+                rpe_delta: parse_rpe_delta(&rpe_delta)?,
+                rpe_all_pairs,
+            };
+            let r = evaluate_ego(&truth, &estimate, &opts)?;
+            println!("{}", r.summary_line());
+            println!();
+            print!("{}", r.table()?.to_markdown()?);
+            if let Some(note) = r.alignment_note() {
+                println!("note: {note}");
+            }
+            if let Some(path) = json {
+                write_output(&path, &r.to_json().render())?;
+            }
+            if let Some(path) = markdown {
+                write_output(&path, &r.to_markdown()?)?;
+            }
+        }
+        EvalCommand::Tracks {
+            truth,
+            results,
+            gt_filter,
+            sequence,
+            json,
+            markdown,
+        } => {
+            let opts = TrackEvalOptions {
+                gt_filter: gt_filter.parse()?,
+                sequence,
+                ..TrackEvalOptions::default()
+            };
+            let r = evaluate_tracks(&truth, &results, &opts)?;
+            for line in r.summary_lines() {
+                println!("{line}");
+            }
+            println!();
+            print!("{}", r.clear_mot_table()?.to_markdown()?);
+            println!();
+            print!("{}", r.object_table()?.to_markdown()?);
+            if let Some(path) = json {
+                write_output(&path, &r.to_json().render())?;
+            }
+            if let Some(path) = markdown {
+                write_output(&path, &r.to_markdown()?)?;
+            }
+        }
+    }
     Ok(())
 }
