@@ -28,6 +28,8 @@ pub enum DemoError {
     Eval(#[from] EvalError),
     #[error(transparent)]
     Report(#[from] ReportError),
+    #[error(transparent)]
+    Output(Box<crate::simulate::SimulateError>),
 }
 
 /// Id offset of false-positive detections (they have no ground-truth id).
@@ -115,6 +117,9 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
     bar.set_message("simulate");
     let mut mot_frames = Vec::with_capacity(total);
     let mut points = 0usize;
+    // the demo owns its output: a dataset left by an earlier demo is replaced
+    crate::simulate::prepare_output_dir(&out.join("dataset"), true)
+        .map_err(|e| DemoError::Output(Box::new(e)))?;
     let dataset_dir = sim.write_dataset(&out.join("dataset"), |frame, _| {
         points += frame.recorded.scan.points.len();
         mot_frames.push(mot_frame(&sim, frame));

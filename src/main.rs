@@ -5,7 +5,7 @@ use limot::demo::run_demo as demo;
 use limot::evaluate::EvaluateError;
 use limot::evaluate::ego::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
 use limot::evaluate::tracks::{TrackEvalOptions, evaluate_tracks};
-use limot::simulate::{Overrides, resolve_scenario, simulate};
+use limot::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -41,6 +41,9 @@ enum Command {
         /// Print the resolved scenario as TOML and exit.
         #[arg(long)]
         print: bool,
+        /// Replace an existing dataset in OUT.
+        #[arg(long)]
+        force: bool,
     },
     /// Simulate the default urban scenario, score it and write a small report (OUT/report).
     Demo {
@@ -140,6 +143,7 @@ fn main() -> ExitCode {
             duration,
             no_kitti,
             print,
+            force,
         } => run_simulate(
             &scenario,
             &out,
@@ -149,6 +153,7 @@ fn main() -> ExitCode {
             },
             !no_kitti,
             print,
+            force,
         ),
         Command::Demo {
             out,
@@ -181,6 +186,7 @@ fn run_simulate(
     overrides: Overrides,
     kitti: bool,
     print: bool,
+    force: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut spec = resolve_scenario(scenario)?;
     overrides.apply(&mut spec)?;
@@ -188,6 +194,7 @@ fn run_simulate(
         print!("{}", spec.to_toml());
         return Ok(());
     }
+    prepare_output_dir(out, force)?;
     let s = simulate(&spec, out, kitti, true)?;
     println!(
         "simulated `{}` (seed {}): {} frames, {} agents, {} points, {} detections in {:.1} s ({:.1} frames/s)",

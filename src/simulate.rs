@@ -21,6 +21,43 @@ pub enum SimulateError {
     Simulation(#[from] SimulationError),
     #[error(transparent)]
     Export(#[from] ExportError),
+    #[error(
+        "{}: output directory is not empty{}",
+        path.display(),
+        if *is_dataset { " (a limot dataset: pass --force to replace it)" } else { " and is not a limot dataset; choose another directory" }
+    )]
+    OutputNotEmpty { path: PathBuf, is_dataset: bool },
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Makes `out` ready for a new dataset. A missing or empty directory is
+/// fine; an existing limot dataset (it has `meta.toml` or `scenario.toml`)
+/// is removed when `replace` is set, so no stale sweeps of a longer earlier
+/// run survive; anything else is refused rather than mixed or deleted.
+pub fn prepare_output_dir(out: &Path, replace: bool) -> Result<(), SimulateError> {
+    let io = |source| SimulateError::Io {
+        path: out.to_path_buf(),
+        source,
+    };
+    if !out.exists() {
+        return Ok(());
+    }
+    if out.read_dir().map_err(io)?.next().is_none() {
+        return Ok(());
+    }
+    let is_dataset = out.join("meta.toml").is_file() || out.join("scenario.toml").is_file();
+    if is_dataset && replace {
+        return std::fs::remove_dir_all(out).map_err(io);
+    }
+    Err(SimulateError::OutputNotEmpty {
+        path: out.to_path_buf(),
+        is_dataset,
+    })
 }
 
 /// A scenario given on the command line: a TOML file path, or the name of a
@@ -67,12 +104,14 @@ pub struct SimulateSummary {
 
 /// Simulates `spec` into `out` (limot format) and, unless `kitti` is false,
 /// `out/kitti` (KITTI tracking layout). Shows a progress bar when `progress`.
+/// `out` must be missing or empty (see [`prepare_output_dir`]).
 pub fn simulate(
     spec: &ScenarioSpec,
     out: &Path,
     kitti: bool,
     progress: bool,
 ) -> Result<SimulateSummary, SimulateError> {
+    prepare_output_dir(out, false)?;
     let started = Instant::now();
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();

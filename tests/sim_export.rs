@@ -91,3 +91,42 @@ fn kitti_copy_matches_the_simulated_dataset() {
     }
     let _ = fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn simulate_refuses_to_mix_with_existing_files() {
+    use limot::simulate::{SimulateError, prepare_output_dir};
+    let base = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("simulate-out-dir");
+    let _ = fs::remove_dir_all(&base);
+    fs::create_dir_all(base.join("other")).unwrap();
+    fs::write(base.join("other/notes.txt"), "keep me").unwrap();
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = 1.2;
+    // a directory with foreign files is never touched
+    let err = simulate(&spec, &base.join("other"), false, false).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            SimulateError::OutputNotEmpty {
+                is_dataset: false,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(prepare_output_dir(&base.join("other"), true).is_err());
+    assert_eq!(
+        fs::read_to_string(base.join("other/notes.txt")).unwrap(),
+        "keep me"
+    );
+    // an existing dataset needs `replace`, and then no stale sweep survives
+    spec.duration_s = 1.5;
+    simulate(&spec, &base.join("ds"), false, false).unwrap();
+    spec.duration_s = 1.2;
+    let err = simulate(&spec, &base.join("ds"), false, false).unwrap_err();
+    assert!(err.to_string().contains("--force"), "{err}");
+    prepare_output_dir(&base.join("ds"), true).unwrap();
+    simulate(&spec, &base.join("ds"), false, false).unwrap();
+    assert!(base.join("ds/scans/000011.bin").exists());
+    assert!(!base.join("ds/scans/000014.bin").exists());
+    let _ = fs::remove_dir_all(&base);
+}
