@@ -185,6 +185,9 @@ pub struct UrbanParams {
     /// Traffic signal period and the red part of it, at every intersection.
     pub signal_cycle_s: f64,
     pub red_s: f64,
+    /// Cars on the cross streets of every intersection the ego's LiDAR can
+    /// see (both directions together); they cross while the main street is red.
+    pub cross_cars_per_intersection: usize,
     /// Mean spacing of trees and of light poles along each sidewalk.
     pub tree_spacing_m: f64,
     pub pole_spacing_m: f64,
@@ -213,6 +216,7 @@ impl Default for UrbanParams {
             parking_occupancy: 0.6,
             signal_cycle_s: 40.0,
             red_s: 15.0,
+            cross_cars_per_intersection: 2,
             tree_spacing_m: 15.0,
             pole_spacing_m: 30.0,
         }
@@ -719,6 +723,41 @@ fn validate_urban(u: &UrbanParams, duration_s: f64) -> Result<(), ScenarioError>
     in_range("urban.parking_occupancy", u.parking_occupancy, 0.0, 1.0)?;
     in_range("urban.signal_cycle_s", u.signal_cycle_s, 10.0, 600.0)?;
     in_range("urban.red_s", u.red_s, 0.0, u.signal_cycle_s * 0.8)?;
+    count_in_range(
+        "urban.cross_cars_per_intersection",
+        u.cross_cars_per_intersection,
+        0,
+        URBAN_CROSS_CARS_MAX,
+    )?;
+    if u.cross_cars_per_intersection > 0 {
+        // a cross street holds one lane per direction between two sidewalks
+        let needed = 2.0 * u.lane_width_m + 2.0 * URBAN_CROSS_SIDEWALK_MIN_M;
+        if u.cross_street_width_m < needed {
+            return Err(invalid(
+                "urban.cross_street_width_m",
+                format!(
+                    "= {}: cross traffic needs at least {needed} m (2 x lane_width_m + 2 x \
+                     {URBAN_CROSS_SIDEWALK_MIN_M} m sidewalk); or set \
+                     cross_cars_per_intersection = 0",
+                    u.cross_street_width_m
+                ),
+            ));
+        }
+        // the cross street's green is the main street's red less an all-red
+        // clearance at each end
+        let needed = 2.0 * URBAN_ALL_RED_S + URBAN_CROSS_GREEN_MIN_S;
+        if u.red_s < needed {
+            return Err(invalid(
+                "urban.red_s",
+                format!(
+                    "= {}: cross traffic needs a red of at least {needed} s (two {} s all-red \
+                     clearances and {} s of cross-street green); or set \
+                     cross_cars_per_intersection = 0",
+                    u.red_s, URBAN_ALL_RED_S, URBAN_CROSS_GREEN_MIN_S
+                ),
+            ));
+        }
+    }
     in_range("urban.tree_spacing_m", u.tree_spacing_m, 5.0, 10_000.0)?;
     in_range("urban.pole_spacing_m", u.pole_spacing_m, 5.0, 10_000.0)?;
     // impossible geometry: the agents must fit into their spawn zones
@@ -762,6 +801,19 @@ fn validate_urban(u: &UrbanParams, duration_s: f64) -> Result<(), ScenarioError>
     }
     Ok(())
 }
+
+/// Cross traffic: at most this many cars per intersection.
+pub(crate) const URBAN_CROSS_CARS_MAX: usize = 8;
+/// Narrowest sidewalk beside a cross street's two lanes, m.
+pub(crate) const URBAN_CROSS_SIDEWALK_MIN_M: f64 = 1.0;
+/// All-red clearance between the main street's and the cross street's green,
+/// s. A red stop line makes only the vehicles stop that still can comfortably
+/// (it acts as yellow + red), so the few that run it clear the intersection
+/// in this interval plus the time the other street's first car needs to
+/// reach the conflict zone from its stop line (2-3 s).
+pub(crate) const URBAN_ALL_RED_S: f64 = 3.0;
+/// Shortest useful cross-street green, s.
+pub(crate) const URBAN_CROSS_GREEN_MIN_S: f64 = 4.0;
 
 /// Car slots kept free around the ego in its lane (50 m behind, 25 m ahead).
 pub(crate) const URBAN_EGO_FREE_SLOTS: usize = 4;

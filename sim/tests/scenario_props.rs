@@ -131,6 +131,36 @@ fn bad_files_name_file_line_and_field() {
         msg.contains(&want) && msg.contains("urban.moving_cars"),
         "{msg}"
     );
+    // urban: cross traffic needs room and a long enough red
+    for (tag, from, to, field) in [
+        (
+            "urban_narrow_cross",
+            "cross_street_width_m = 14.0",
+            "cross_street_width_m = 7.0",
+            "urban.cross_street_width_m",
+        ),
+        (
+            "urban_short_red",
+            "red_s = 15.0",
+            "red_s = 8.0",
+            "urban.red_s",
+        ),
+        (
+            "urban_many_cross",
+            "cross_cars_per_intersection = 2",
+            "cross_cars_per_intersection = 9",
+            "urban.cross_cars_per_intersection",
+        ),
+    ] {
+        let text = std::fs::read_to_string(scenario_file("urban"))
+            .unwrap()
+            .replace(from, to);
+        let key = field.trim_start_matches("urban.");
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{}", path.display(), line_of(&text, key));
+        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+    }
     // a table of the other family
     let text = format!(
         "{}\n[urban]\nlanes_per_direction = 1\n",
@@ -249,7 +279,27 @@ fn check_urban(spec: &ScenarioSpec, scene: &Scene) {
             .filter(|a| a.class == class && a.parked == parked)
             .count()
     };
-    assert_eq!(count(ObjectClass::Car, false), u.moving_cars);
+    // main-street cars head along x at the start, cross-street cars along y
+    let heading_at_start =
+        |a: &limot_sim::scene::Agent| a.trajectory.pose_at(0.0).rotation * nalgebra::Vector3::x();
+    let moving_cars: Vec<_> = scene
+        .agents
+        .iter()
+        .filter(|a| a.class == ObjectClass::Car && !a.parked)
+        .collect();
+    let main_cars = moving_cars
+        .iter()
+        .filter(|a| heading_at_start(a).x.abs() > 0.99)
+        .count();
+    let cross_cars = cross_cars(scene).len();
+    assert_eq!(main_cars, u.moving_cars);
+    assert_eq!(main_cars + cross_cars, moving_cars.len());
+    // a few intersections in view, each with its cross traffic
+    let n = u.cross_cars_per_intersection;
+    assert!(
+        cross_cars.is_multiple_of(n.max(1)) && (3 * n..=20 * n).contains(&cross_cars),
+        "{cross_cars} cross-street cars"
+    );
     assert_eq!(count(ObjectClass::Cyclist, false), u.cyclists);
     assert_eq!(count(ObjectClass::Pedestrian, false), u.pedestrians);
     assert!(count(ObjectClass::Car, true) > 0);
@@ -291,6 +341,67 @@ fn check_urban(spec: &ScenarioSpec, scene: &Scene) {
     }
 }
 
+/// The moving cars that start along the cross streets (heading +-y).
+fn cross_cars(scene: &Scene) -> Vec<&limot_sim::scene::Agent> {
+    scene
+        .agents
+        .iter()
+        .filter(|a| a.class == ObjectClass::Car && !a.parked)
+        .filter(|a| {
+            let heading = a.trajectory.pose_at(0.0).rotation * nalgebra::Vector3::x();
+            heading.y.abs() > 0.99
+        })
+        .collect()
+}
+
+/// |y| of the main street's kerbs.
+fn kerb_m(spec: &ScenarioSpec) -> f64 {
+    let u = spec.urban_params();
+    u.lanes_per_direction as f64 * u.lane_width_m + u.bike_lane_width_m + u.parking_width_m
+}
+
+/// Cross-street cars that drive from behind one kerb of the main street to
+/// behind the other one during the run.
+fn cars_across_main_street(spec: &ScenarioSpec, scene: &Scene) -> usize {
+    let kerb = kerb_m(spec);
+    cross_cars(scene)
+        .into_iter()
+        .filter(|a| {
+            let y0 = a.trajectory.pose_at(0.0).translation.vector.y;
+            let y1 = a.trajectory.pose_at(scene.duration_s).translation.vector.y;
+            y0.abs() > kerb && y1.abs() > kerb && y0 * y1 < 0.0
+        })
+        .count()
+}
+
+/// Cross-street cars that pass through the ego's lane ahead of it (within
+/// 40 m) while the ego waits after departing (stands or creeps to its stop
+/// line below 0.5 m/s).
+fn cars_across_in_front_of_waiting_ego(spec: &ScenarioSpec, scene: &Scene) -> usize {
+    let u = spec.urban_params();
+    // the ego's lane: |y| in [ (n - lane - 1) w, (n - lane) w ]
+    let n = u.lanes_per_direction as f64;
+    let lane = spec.ego.lane as f64;
+    let band = (
+        -(n - lane) * u.lane_width_m,
+        -(n - lane - 1.0) * u.lane_width_m,
+    );
+    let times: Vec<f64> = sample_times(scene, 0.1)
+        .into_iter()
+        .filter(|&t| t > spec.ego.depart_s + 1.0 && ego_speed_at(scene, t) < 0.5)
+        .collect();
+    cross_cars(scene)
+        .into_iter()
+        .filter(|a| {
+            times.iter().any(|&t| {
+                let p = a.trajectory.pose_at(t).translation.vector;
+                let ego = scene.ego.trajectory.pose_at(t).translation.vector;
+                (band.0..band.1).contains(&p.y) && (0.0..40.0).contains(&(p.x - ego.x))
+            })
+        })
+        .count()
+}
+
 /// The ego stops after departing and drives on again.
 fn ego_stop_and_go(spec: &ScenarioSpec, scene: &Scene) -> bool {
     let times = sample_times(scene, 0.1);
@@ -310,6 +421,22 @@ fn default_urban_has_everything_and_stop_and_go() {
         ego_stop_and_go(&spec, &scene),
         "the ego never stops and goes"
     );
+    let across = cars_across_main_street(&spec, &scene);
+    let in_front = cars_across_in_front_of_waiting_ego(&spec, &scene);
+    assert!(
+        across >= 1 && in_front >= 1,
+        "{across} across, {in_front} in front of the ego"
+    );
+}
+
+#[test]
+fn urban_without_cross_traffic_has_no_cross_cars() {
+    let mut spec = ScenarioSpec::builtin("urban").unwrap();
+    spec.duration_s = 15.0;
+    spec.urban.as_mut().unwrap().cross_cars_per_intersection = 0;
+    let scene = spec.build().unwrap();
+    check_common(&spec, &scene);
+    assert!(cross_cars(&scene).is_empty());
 }
 
 #[test]
@@ -352,6 +479,10 @@ proptest! {
         check_common(&spec, &scene);
         check_urban(&spec, &scene);
         prop_assert!(ego_stop_and_go(&spec, &scene));
+        // cross traffic (check_common found no overlaps with it)
+        let across = cars_across_main_street(&spec, &scene);
+        let in_front = cars_across_in_front_of_waiting_ego(&spec, &scene);
+        prop_assert!(across >= 1 && in_front >= 1, "{} across, {} in front", across, in_front);
     }
 }
 
@@ -384,6 +515,8 @@ fn full_length_scenes_over_seeds() {
                 Family::Urban => {
                     check_urban(&spec, &scene);
                     assert!(ego_stop_and_go(&spec, &scene), "seed {seed}");
+                    assert!(cars_across_main_street(&spec, &scene) >= 1, "seed {seed}");
+                    assert!(cars_across_in_front_of_waiting_ego(&spec, &scene) >= 1);
                 }
             }
         }

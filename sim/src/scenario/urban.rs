@@ -3,7 +3,11 @@
 //! every block with signalised stop lines (stop-and-go), buildings set back
 //! behind the sidewalks, poles, trees, parked cars along both kerbs, moving
 //! cars in both directions, cyclists in the bike lanes and pedestrians on the
-//! sidewalks.
+//! sidewalks. Every intersection the ego's LiDAR can see has a two-lane
+//! cross street with its own cars: they stop at the cross street's stop
+//! lines and cross while the main street is red (with an all-red clearance
+//! between the phases); pedestrians along the main street wait while the
+//! cross street has green.
 //!
 //! Cross-section (the ego drives along +x on the right, y < 0 side; the
 //! street is mirror-symmetric about y = 0):
@@ -19,11 +23,13 @@ use super::common::{
     draw_body, ego_vehicle, generate_ground, parked_agent, run_traffic, uniform, upright_static,
 };
 use super::{
-    ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
+    ScenarioError, ScenarioSpec, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
     URBAN_PEDESTRIAN_SPACING_M, UrbanParams, traffic_error, urban_spawn_length_m,
 };
 use crate::scene::{Agent, Ground, Scene, Shape, StaticKind, StaticObject};
-use crate::traffic::{LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec};
+use crate::traffic::{
+    LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec, lift_to_ground, simulate_traffic,
+};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
 use rand::RngExt;
@@ -80,6 +86,29 @@ const EGO_FREE_AHEAD_M: f64 = 25.0;
 const EGO_RED_LEAD_S: f64 = 4.0;
 /// No red phase starts before this (everyone has time to see it).
 const EARLIEST_RED_S: f64 = 2.0;
+/// Pedestrians along the main street stop this far before a cross street's
+/// carriageway (its lanes are as wide as the main street's).
+const WALK_STOP_SETBACK_M: f64 = 0.5;
+/// Cross-street cars start at rest: the first in each lane this far
+/// (bumper to stop line) before its stop line, ...
+const CROSS_FIRST_GAP_M: (f64, f64) = (2.0, 40.0);
+/// ... each further one this far behind the one ahead (bumper to bumper).
+const CROSS_FOLLOW_GAP_M: (f64, f64) = (6.0, 30.0);
+/// Cross-street cars depart at a time drawn from [0, this x signal_cycle_s],
+/// so they reach their stop line at staggered times, except at the ego's
+/// first intersection: there they depart so that they could reach the stop
+/// line in the second half of the cross street's first green (drawn), which
+/// falls while the ego waits at its red.
+const CROSS_DEPART_SPREAD: f64 = 0.5;
+/// ... and no later than this before that green ends.
+const CROSS_ARRIVAL_BEFORE_RED_S: f64 = 2.0;
+/// Cross streets are side streets: their cars drive at most this fast, so
+/// one that cannot stop at the onset of its red any more clears the main
+/// street within the all-red (`URBAN_ALL_RED_S`) plus the main street's
+/// start-up time, m/s.
+const CROSS_SPEED_MAX_MPS: f64 = 12.0;
+/// Longest body of a pedestrian (`draw_body`), m.
+const PEDESTRIAN_LENGTH_MAX_M: f64 = 0.6;
 
 /// What kind of path a traffic lane is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -96,6 +125,19 @@ struct Lane {
     path: LanePath,
 }
 
+/// A cross street with traffic: one lane per direction.
+struct CrossStreet {
+    /// Index into `Street::crossings`.
+    crossing: usize,
+    /// Along +y (at x = c + w/2: right-hand traffic) and along -y.
+    lanes: [LanePath; 2],
+}
+
+/// Direction of the cross-street lane `CrossStreet::lanes[i]` (true = +y).
+fn cross_forward(i: usize) -> bool {
+    i == 0
+}
+
 /// The street layout shared by all placement steps.
 struct Street {
     u: UrbanParams,
@@ -109,7 +151,13 @@ struct Street {
     crossings: Vec<f64>,
     /// Index of the first crossing ahead of the ego.
     ego_crossing: usize,
+    /// Cross-street lanes run along x = crossing +- lane_width / 2 from
+    /// y = -+cross_half_length_m to y = +-cross_half_length_m.
+    cross_half_length_m: f64,
+    /// Main-street lanes.
     lanes: Vec<Lane>,
+    /// The cross streets with traffic, by increasing crossing index.
+    cross_streets: Vec<CrossStreet>,
 }
 
 impl Street {
@@ -117,6 +165,21 @@ impl Street {
     fn kerb_m(&self) -> f64 {
         let u = &self.u;
         u.lanes_per_direction as f64 * u.lane_width_m + u.bike_lane_width_m + u.parking_width_m
+    }
+
+    /// |y| of the cross streets' stop lines: before the main street's
+    /// sidewalk, so waiting cars leave the pedestrians' lines free.
+    fn cross_stop_y_m(&self) -> f64 {
+        self.kerb_m() + self.u.sidewalk_width_m + STOP_LINE_SETBACK_M
+    }
+
+    /// Arc length on a cross-street lane of the given direction at world y.
+    fn cross_s_of(&self, forward: bool, y: f64) -> f64 {
+        if forward {
+            y + self.cross_half_length_m
+        } else {
+            self.cross_half_length_m - y
+        }
     }
 
     /// Arc length on a lane of the given direction at world x.
@@ -156,16 +219,31 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let mut vehicles = moving_agents(&street, spec.ego.lane, rng);
     let ego_lane = spec.ego.lane;
     let ego_s = street.s_of(true, 0.0);
-    let stop_lines = stop_lines(&street, spec, ego_speed, rng);
+    let (plans, stop_lines) = signals(&street, spec, ego_speed, rng);
+    // cross streets are simulated apart from the main street (and from each
+    // other): their signals keep them from meeting, and a joint simulation
+    // would cost every vehicle a projection onto every cross lane
+    let mut next_id = vehicles.len() as u32 + 1;
+    let mut cross_specs = Vec::new();
+    for cross in &street.cross_streets {
+        let plan = &plans[cross.crossing];
+        let traffic = cross_traffic(&street, cross, plan, next_id, spec.duration_s, rng);
+        next_id += traffic.vehicles.len() as u32;
+        cross_specs.push(traffic);
+    }
     vehicles.push(ego_vehicle(&spec.ego, ego_lane, ego_s, ego_speed));
-    let first_parked_id = vehicles.len() as u32; // moving ids are 1..=N, the ego is last
     let traffic = TrafficSpec {
         lanes: street.lanes.iter().map(|l| l.path.clone()).collect(),
         vehicles,
         stop_lines,
         duration_s: spec.duration_s,
     };
+    // ids: main street 1..=N, cross streets N+1..=M, parked cars from M+1
     let (mut agents, ego) = run_traffic(spec, &ground, &traffic)?;
+    for traffic in &cross_specs {
+        agents.extend(simulate_agents(spec, &ground, traffic)?);
+    }
+    let first_parked_id = next_id;
     agents.extend(parked_cars(
         &street,
         &ground,
@@ -180,6 +258,27 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents,
         ego,
     })
+}
+
+/// Simulates traffic without the ego and lifts it onto the ground.
+fn simulate_agents(
+    spec: &ScenarioSpec,
+    ground: &Ground,
+    traffic: &TrafficSpec,
+) -> Result<Vec<Agent>, ScenarioError> {
+    let tracks = simulate_traffic(traffic).map_err(|e| traffic_error(spec, e))?;
+    Ok(traffic
+        .vehicles
+        .iter()
+        .zip(&tracks)
+        .map(|(vehicle, track)| Agent {
+            id: vehicle.id,
+            class: vehicle.class,
+            size_lwh_m: vehicle.size_lwh_m,
+            parked: false,
+            trajectory: lift_to_ground(track, ground, &vehicle.size_lwh_m),
+        })
+        .collect())
 }
 
 /// Street extent, cross streets and lanes. The ego starts at x = 0; moving
@@ -270,6 +369,33 @@ fn layout(
             });
         }
     }
+    // cross streets the LiDAR can see get one lane per direction (right-hand
+    // traffic: +y at x = c + w/2), long enough that their cars never brake
+    // for the lane's end
+    let stop_y = kerb + u.sidewalk_width_m + STOP_LINE_SETBACK_M;
+    let queue =
+        CROSS_FIRST_GAP_M.1 + u.cross_cars_per_intersection as f64 * (CROSS_FOLLOW_GAP_M.1 + 5.0);
+    let cross_half_length = stop_y + queue + u.car_speed_max_mps * spec.duration_s + END_MARGIN_M;
+    let cross_piece = [PathPiece::Straight {
+        length_m: 2.0 * cross_half_length,
+    }];
+    let mut cross_streets = Vec::new();
+    if u.cross_cars_per_intersection > 0 {
+        for (k, &c) in crossings.iter().enumerate() {
+            if !(view_lo..=view_hi).contains(&c) {
+                continue;
+            }
+            let north = Point2::new(c + 0.5 * w, -cross_half_length);
+            let south = Point2::new(c - 0.5 * w, cross_half_length);
+            cross_streets.push(CrossStreet {
+                crossing: k,
+                lanes: [
+                    LanePath::from_pieces(north, 0.5 * PI, &cross_piece, 0.0)?,
+                    LanePath::from_pieces(south, -0.5 * PI, &cross_piece, 0.0)?,
+                ],
+            });
+        }
+    }
     Ok(Street {
         u: u.clone(),
         x_min,
@@ -278,23 +404,29 @@ fn layout(
         view_hi,
         crossings,
         ego_crossing,
+        cross_half_length_m: cross_half_length,
         lanes,
+        cross_streets,
     })
 }
 
-/// Signal phases per intersection and stop lines on every car and bike lane
-/// before it. Phases are random, except at the ego's first intersection,
-/// which turns red shortly before the ego could arrive there at the earliest
-/// and stays red for `red_s`, so every run has a stop-and-go of the ego.
-fn stop_lines(
+/// Signal plans of all intersections (in `crossings` order) and the stop
+/// lines before them on the main street's lanes. Phases are random, except
+/// at the ego's first intersection, which turns red shortly before the ego
+/// could arrive there at the earliest and stays red for `red_s`, so every run
+/// has a stop-and-go of the ego. Pedestrians stop only where a cross street
+/// has traffic.
+fn signals(
     street: &Street,
     spec: &ScenarioSpec,
     ego_speed_mps: f64,
     rng: &mut ChaCha8Rng,
-) -> Vec<StopLine> {
+) -> (Vec<SignalPlan>, Vec<StopLine>) {
     let u = &street.u;
     let half = 0.5 * u.cross_street_width_m;
-    let mut out = Vec::new();
+    let walk_clear = walk_clearance_s(u);
+    let mut plans = Vec::new();
+    let mut lines = Vec::new();
     for (k, &c) in street.crossings.iter().enumerate() {
         let first_red = if k == street.ego_crossing {
             let distance = c - half - STOP_LINE_SETBACK_M - 0.5 * spec.ego.size_lwh_m[0];
@@ -308,30 +440,95 @@ fn stop_lines(
         } else {
             uniform(rng, EARLIEST_RED_S, EARLIEST_RED_S + u.signal_cycle_s)
         };
-        let red = red_intervals(first_red, u.red_s, u.signal_cycle_s, spec.duration_s);
-        if red.is_empty() {
-            continue;
-        }
+        let plan = signal_plan(first_red, u, spec.duration_s, walk_clear);
+        let has_cross_traffic = street.cross_streets.iter().any(|x| x.crossing == k);
         for (index, lane) in street.lanes.iter().enumerate() {
-            if lane.kind == LaneKind::Walk {
-                continue;
-            }
-            let line_x = if lane.forward {
-                c - half - STOP_LINE_SETBACK_M
-            } else {
-                c + half + STOP_LINE_SETBACK_M
+            let sign = if lane.forward { -1.0 } else { 1.0 };
+            let (line_x, red) = match lane.kind {
+                LaneKind::Car | LaneKind::Bike => {
+                    (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
+                }
+                // pedestrians wait at the cross street's carriageway while
+                // it has green
+                LaneKind::Walk if has_cross_traffic => (
+                    c + sign * (u.lane_width_m + WALK_STOP_SETBACK_M),
+                    &plan.walk_red,
+                ),
+                LaneKind::Walk => continue,
             };
             let s = street.s_of(lane.forward, line_x);
-            if s > 0.0 && s < lane.path.length_m() {
-                out.push(StopLine {
+            if !red.is_empty() && s > 0.0 && s < lane.path.length_m() {
+                lines.push(StopLine {
                     lane: index,
                     s_m: s,
                     red_intervals_s: red.clone(),
                 });
             }
         }
+        plans.push(plan);
     }
-    out
+    (plans, lines)
+}
+
+/// Red intervals of one intersection's approaches.
+#[derive(Debug, Clone, PartialEq)]
+struct SignalPlan {
+    /// Main-street car and bike lanes.
+    main_red: Vec<(f64, f64)>,
+    /// Cross-street lanes: green only inside each main red [T, T + red_s),
+    /// `URBAN_ALL_RED_S` after its start and before its end.
+    cross_red: Vec<(f64, f64)>,
+    /// Pedestrians along the main street (they cross the cross street): red
+    /// from `walk_clear_s` before each main red to its end, so those already
+    /// on the crossing leave it before the cross street's green.
+    walk_red: Vec<(f64, f64)>,
+}
+
+/// The signal plan of an intersection whose main street first turns red at
+/// `first_red_s`. The cross street is red until `walk_clear_s` +
+/// `URBAN_ALL_RED_S`: whoever stands inside the intersection at t = 0 has
+/// left it by then.
+fn signal_plan(
+    first_red_s: f64,
+    u: &UrbanParams,
+    duration_s: f64,
+    walk_clear_s: f64,
+) -> SignalPlan {
+    let main_red = red_intervals(first_red_s, u.red_s, u.signal_cycle_s, duration_s);
+    let earliest_green = walk_clear_s + URBAN_ALL_RED_S;
+    let mut cross_red = Vec::new();
+    let mut walk_red = Vec::new();
+    let mut red_from = 0.0;
+    for &(start, _) in &main_red {
+        let end = start + u.red_s;
+        walk_red.push(((start - walk_clear_s).max(0.0), end.min(duration_s)));
+        let green = (
+            (start + URBAN_ALL_RED_S).max(earliest_green),
+            (end - URBAN_ALL_RED_S).min(duration_s),
+        );
+        if green.1 - green.0 >= 1.0 {
+            if green.0 > red_from {
+                cross_red.push((red_from, green.0));
+            }
+            red_from = green.1;
+        }
+    }
+    // red to beyond the end of the run
+    cross_red.push((red_from, duration_s + URBAN_ALL_RED_S));
+    SignalPlan {
+        main_red,
+        cross_red,
+        walk_red,
+    }
+}
+
+/// How long a pedestrian who could not stop at the walk red needs to cross a
+/// cross street's carriageway: the slowest walking speed over the carriageway,
+/// both setbacks and a body length, plus the time to reach the line.
+fn walk_clearance_s(u: &UrbanParams) -> f64 {
+    let crossing = 2.0 * u.lane_width_m + 2.0 * WALK_STOP_SETBACK_M + PEDESTRIAN_LENGTH_MAX_M;
+    let decel = crate::traffic::DriverParams::pedestrian().comfortable_decel_mps2;
+    crossing / u.pedestrian_speed_min_mps + u.pedestrian_speed_max_mps / (2.0 * decel)
 }
 
 /// Red intervals [first + j cycle, first + j cycle + red) inside [0, duration].
@@ -431,6 +628,81 @@ fn moving_agents(street: &Street, ego_lane: usize, rng: &mut ChaCha8Rng) -> Vec<
         }
     }
     agents
+}
+
+/// The traffic of one cross street: its two lanes, stop lines before the
+/// main street with the cross street's red, and its cars (ids from
+/// `first_id`). The cars start at rest queued before their stop line
+/// (alternating directions, the first one's drawn) and depart at staggered
+/// times; at the ego's first intersection they depart so that they reach the
+/// stop line in the second half of the cross street's first green, when the
+/// ego waits at its red, and cross in front of it.
+fn cross_traffic(
+    street: &Street,
+    cross: &CrossStreet,
+    plan: &SignalPlan,
+    first_id: u32,
+    duration_s: f64,
+    rng: &mut ChaCha8Rng,
+) -> TrafficSpec {
+    let u = &street.u;
+    let stop_s = |i: usize| {
+        let forward = cross_forward(i);
+        let sign = if forward { -1.0 } else { 1.0 };
+        street.cross_s_of(forward, sign * street.cross_stop_y_m())
+    };
+    // distance from the stop line to the rear of the last car, per lane
+    let mut queue_m = [0.0; 2];
+    let first_lane = rng.random_range(0..2);
+    // the first green: between the first two red intervals
+    let first_green = match plan.cross_red.as_slice() {
+        [a, b, ..] if cross.crossing == street.ego_crossing => Some((a.1, b.0)),
+        _ => None,
+    };
+    let mut cars = Vec::new();
+    for i in 0..u.cross_cars_per_intersection {
+        let lane = (first_lane + i) % 2;
+        let gap = if queue_m[lane] == 0.0 {
+            uniform(rng, CROSS_FIRST_GAP_M.0, CROSS_FIRST_GAP_M.1)
+        } else {
+            queue_m[lane] + uniform(rng, CROSS_FOLLOW_GAP_M.0, CROSS_FOLLOW_GAP_M.1)
+        };
+        let (size, driver) = draw_body(rng, ObjectClass::Car);
+        queue_m[lane] = gap + size.x;
+        let speed = uniform(rng, u.car_speed_min_mps, u.car_speed_max_mps).min(CROSS_SPEED_MAX_MPS);
+        let depart = match first_green {
+            Some((start, end)) => {
+                let arrival = uniform(rng, 0.5 * (start + end), end - CROSS_ARRIVAL_BEFORE_RED_S);
+                let travel = earliest_travel_time_s(gap, speed, driver.max_accel_mps2);
+                (arrival - travel).max(0.0)
+            }
+            None => uniform(rng, 0.0, CROSS_DEPART_SPREAD * u.signal_cycle_s),
+        };
+        cars.push(VehicleSpec {
+            id: first_id + cars.len() as u32,
+            class: ObjectClass::Car,
+            size_lwh_m: size,
+            lane,
+            start_s_m: stop_s(lane) - gap - 0.5 * size.x,
+            start_speed_mps: 0.0,
+            desired_speed_mps: speed,
+            depart_s: depart,
+            lane_changes: Vec::new(),
+            driver,
+        });
+    }
+    TrafficSpec {
+        lanes: cross.lanes.to_vec(),
+        vehicles: cars,
+        stop_lines: (0..2)
+            .map(|lane| StopLine {
+                lane,
+                s_m: stop_s(lane),
+                red_intervals_s: plan.cross_red.clone(),
+            })
+            .collect(),
+        duration_s,
+    }
 }
 
 /// Parked cars in the parking strips on both sides, facing the traffic on
@@ -613,6 +885,159 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
 
+    fn is_red(intervals: &[(f64, f64)], t_s: f64) -> bool {
+        intervals.iter().any(|&(a, b)| t_s >= a && t_s < b)
+    }
+
+    #[test]
+    fn signal_plans_separate_main_and_cross_street_with_all_red() {
+        let u = UrbanParams::default();
+        let duration = 60.0;
+        let walk_clear = walk_clearance_s(&u);
+        // slowest pedestrian over 2 lanes + setbacks + a body, and its stop
+        assert!((walk_clear - (8.2 / 1.2 + 1.5 / 3.0)).abs() < 1e-9);
+        for k in 0..40 {
+            let first_red = EARLIEST_RED_S + k as f64 * u.signal_cycle_s / 40.0;
+            let plan = signal_plan(first_red, &u, duration, walk_clear);
+            assert_eq!(
+                plan.main_red,
+                red_intervals(first_red, u.red_s, u.signal_cycle_s, duration)
+            );
+            for w in plan.cross_red.windows(2) {
+                assert!(w[0].0 < w[0].1 && w[0].1 < w[1].0, "{:?}", plan.cross_red);
+            }
+            let mut green_s = 0.0;
+            let dt = 0.01;
+            for i in 0..(duration / dt) as usize {
+                let t = i as f64 * dt;
+                let cross_green = !is_red(&plan.cross_red, t);
+                if cross_green {
+                    green_s += dt;
+                    assert!(t >= walk_clear + URBAN_ALL_RED_S - 1e-9, "green at {t}");
+                    // the main street is red from ALL_RED before to ALL_RED after
+                    for d in [-URBAN_ALL_RED_S + 1e-6, 0.0, URBAN_ALL_RED_S - 1e-6] {
+                        let tm = t + d;
+                        if (0.0..duration).contains(&tm) {
+                            assert!(is_red(&plan.main_red, tm), "first {first_red} t {t} d {d}");
+                        }
+                    }
+                }
+                // pedestrians along the main street step out only if the
+                // cross street stays red until they are across
+                if !is_red(&plan.walk_red, t) {
+                    for d in [0.0, 0.5 * walk_clear, walk_clear - 1e-6] {
+                        let tc = (t + d).min(duration);
+                        assert!(is_red(&plan.cross_red, tc), "walk at {t}");
+                    }
+                }
+            }
+            // the cross street gets green in every main red that starts
+            // after the start-up clearance, less two all-reds
+            let full_reds = plan
+                .main_red
+                .iter()
+                .filter(|&&(a, _)| a >= walk_clear && a + u.red_s <= duration)
+                .count() as f64;
+            let want = full_reds * (u.red_s - 2.0 * URBAN_ALL_RED_S);
+            assert!(
+                green_s >= want - 0.05,
+                "first {first_red}: green {green_s} < {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn nothing_static_stands_on_a_cross_street() {
+        let spec = ScenarioSpec::builtin("urban").unwrap();
+        let u = spec.urban_params();
+        let half = 0.5 * u.cross_street_width_m;
+        for seed in 0..10 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let ground = generate_ground(&mut rng, &spec.ground);
+            let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
+            let mut statics = buildings(&street, &ground, &mut rng);
+            statics.extend(furniture(&street, &ground, &mut rng));
+            let parked = parked_cars(&street, &ground, 1, 10.0, &mut rng);
+            // (centre x, half extent along x) of every footprint
+            let mut footprints: Vec<(f64, f64)> = statics
+                .iter()
+                .map(|s| {
+                    let x = s.t_world_object.translation.vector.x;
+                    let r = match s.shape {
+                        // buildings are axis-aligned
+                        Shape::Cuboid { half_extents_m } => half_extents_m.x,
+                        Shape::Cylinder { radius_m, .. } => radius_m,
+                        Shape::Ball { radius_m } => radius_m,
+                    };
+                    (x, r)
+                })
+                .collect();
+            footprints.extend(parked.iter().map(|a| {
+                let x = a.trajectory.pose_at(0.0).translation.vector.x;
+                (x, 0.5 * a.size_lwh_m.xy().norm())
+            }));
+            assert!(footprints.len() > 100);
+            // the whole cross street (carriageway and sidewalks) stays free,
+            // at every y
+            for &c in &street.crossings {
+                for &(x, r) in &footprints {
+                    assert!(
+                        x + r <= c - half || x - r >= c + half,
+                        "seed {seed}: footprint {x} +- {r} on the cross street at {c}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cross_cars_queue_before_their_stop_lines() {
+        let spec = ScenarioSpec::builtin("urban").unwrap();
+        let mut u = spec.urban_params();
+        u.cross_cars_per_intersection = 5;
+        for seed in 0..10 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
+            let walk_clear = walk_clearance_s(&u);
+            for (n, cross) in street.cross_streets.iter().enumerate() {
+                let plan = signal_plan(10.0, &u, spec.duration_s, walk_clear);
+                let first_id = 100 + 5 * n as u32;
+                let traffic = cross_traffic(&street, cross, &plan, first_id, 60.0, &mut rng);
+                let ids: Vec<u32> = traffic.vehicles.iter().map(|v| v.id).collect();
+                assert_eq!(ids, (first_id..first_id + 5).collect::<Vec<_>>());
+                // both directions, 3 + 2 cars
+                let in_lane = |l: usize| traffic.vehicles.iter().filter(|v| v.lane == l).count();
+                assert_eq!(in_lane(0) + in_lane(1), 5);
+                assert!(in_lane(0).min(in_lane(1)) == 2);
+                for line in &traffic.stop_lines {
+                    let p = traffic.lanes[line.lane].point_at(line.s_m);
+                    assert!((p.y.abs() - street.cross_stop_y_m()).abs() < 1e-9);
+                    assert_eq!(line.red_intervals_s, plan.cross_red);
+                }
+                // at rest, before the stop line, bumpers >= min gap apart
+                for lane in 0..2 {
+                    let mut cars: Vec<&VehicleSpec> =
+                        traffic.vehicles.iter().filter(|v| v.lane == lane).collect();
+                    cars.sort_by(|a, b| b.start_s_m.total_cmp(&a.start_s_m));
+                    let line = traffic.stop_lines[lane].s_m;
+                    let mut front_limit = line - CROSS_FIRST_GAP_M.0;
+                    for car in cars {
+                        assert_eq!(car.start_speed_mps, 0.0);
+                        assert!((0.0..spec.duration_s).contains(&car.depart_s));
+                        let front = car.start_s_m + 0.5 * car.size_lwh_m.x;
+                        assert!(front <= front_limit + 1e-9);
+                        front_limit = car.start_s_m - 0.5 * car.size_lwh_m.x - CROSS_FOLLOW_GAP_M.0;
+                    }
+                }
+                let sim = simulate_traffic(&TrafficSpec {
+                    duration_s: 1.0,
+                    ..traffic
+                });
+                assert!(sim.is_ok(), "{sim:?}");
+            }
+        }
+    }
+
     #[test]
     fn red_intervals_repeat_inside_the_run() {
         let red = red_intervals(5.0, 15.0, 40.0, 100.0);
@@ -653,6 +1078,28 @@ mod tests {
             );
             // 2 x 2 car lanes, 2 bike lanes, 4 pedestrian lines
             assert_eq!(street.lanes.len(), 10);
+            // every crossing in view has a cross street with two lanes
+            let in_view: Vec<usize> = (0..street.crossings.len())
+                .filter(|&k| (street.view_lo..=street.view_hi).contains(&street.crossings[k]))
+                .collect();
+            let with_traffic: Vec<usize> =
+                street.cross_streets.iter().map(|x| x.crossing).collect();
+            assert!(in_view.len() >= 3 && in_view.contains(&street.ego_crossing));
+            assert_eq!(with_traffic, in_view);
+            for cross in &street.cross_streets {
+                let c = street.crossings[cross.crossing];
+                for (i, lane) in cross.lanes.iter().enumerate() {
+                    let start = lane.point_at(0.0);
+                    let end = lane.point_at(lane.length_m());
+                    // right-hand traffic, from one end of the cross street to the other
+                    let forward = cross_forward(i);
+                    let x_want = c + if forward { 0.5 } else { -0.5 } * u.lane_width_m;
+                    assert!((start.x - x_want).abs() < 1e-9 && (end.x - x_want).abs() < 1e-9);
+                    assert!((start.y + end.y).abs() < 1e-9);
+                    assert_eq!(forward, end.y > start.y);
+                    assert!(start.y.abs() > 0.5 * street.cross_half_length_m);
+                }
+            }
         }
     }
 }
