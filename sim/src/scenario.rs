@@ -137,7 +137,7 @@ impl Default for HighwayParams {
         HighwayParams {
             lanes: 4,
             lane_width_m: 3.7,
-            vehicles: 30,
+            vehicles: 40,
             speed_min_mps: 20.0,
             speed_max_mps: 33.0,
             truck_fraction: 0.2,
@@ -146,8 +146,8 @@ impl Default for HighwayParams {
             straight_length_m: 800.0,
             curve_radius_min_m: 800.0,
             curve_radius_max_m: 2500.0,
-            spawn_behind_m: 200.0,
-            spawn_ahead_m: 800.0,
+            spawn_behind_m: 300.0,
+            spawn_ahead_m: 600.0,
             guard_rail_segment_m: 12.0,
             pole_spacing_m: 60.0,
         }
