@@ -17,9 +17,21 @@
 //! the estimator-facing reader hands them out separately from the sensor data.
 //! Numbers are written in Rust's shortest round-trip form, so a dataset is
 //! byte-identical whenever the simulation is.
+//!
+//! The reader rejects, with file, line (0 for binary files) and field:
+//! non-finite numbers anywhere; `meta.toml` with a non-positive duration,
+//! rate or sweep, zero rings, a non-unit `t_lidar_imu` quaternion or a
+//! `frame_count` beyond the scans present; a scan whose ring count or sweep
+//! duration disagrees with `meta.toml`, that does not start at
+//! `index · sweep_duration_s`, or with a point time offset outside the sweep;
+//! time stamps that do not increase in `imu.csv`, `gt/ego.csv` and
+//! `gt/imu_bias.csv`; non-positive box sizes, scores outside [0, 1] and
+//! detection time offsets outside the sweep; `parked` other than 0 or 1.
 
 use crate::detector::DetectionWithTruth;
-use limot_estimator::input::{Detection, ImuSample, LidarPoint, LidarScan, ObjectClass};
+use limot_estimator::input::{
+    Detection, ImuSample, InputError, LidarPoint, LidarScan, ObjectClass,
+};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -87,6 +99,46 @@ impl Meta {
     pub fn t_lidar_imu(&self) -> Isometry3<f64> {
         pose_from_array(&self.t_lidar_imu)
     }
+
+    /// Rejects values no recording can have (TOML happily parses `nan`,
+    /// zero rates and non-unit quaternions); `text` locates the key.
+    fn validate(&self, path: &Path, text: &str) -> Result<(), RecordError> {
+        let bad = |key: &str, message: String| {
+            Err(format_err(path, line_of_key(text, key), key, message))
+        };
+        for (key, v) in [
+            ("duration_s", self.duration_s),
+            ("imu_rate_hz", self.imu_rate_hz),
+            ("sweep_duration_s", self.sweep_duration_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(key, format!("{v} is not finite and positive"));
+            }
+        }
+        if self.num_rings == 0 {
+            return bad("num_rings", "a LiDAR has at least one ring".into());
+        }
+        let a = &self.t_lidar_imu;
+        if !a.iter().all(|v| v.is_finite()) {
+            return bad("t_lidar_imu", format!("{a:?} is not finite"));
+        }
+        let qn = (a[3] * a[3] + a[4] * a[4] + a[5] * a[5] + a[6] * a[6]).sqrt();
+        if (qn - 1.0).abs() > 1e-3 {
+            return bad("t_lidar_imu", format!("quaternion norm {qn} is not 1"));
+        }
+        Ok(())
+    }
+}
+
+/// 1-based line of `key = ...` in a flat TOML text; 0 when absent.
+fn line_of_key(text: &str, key: &str) -> usize {
+    text.lines()
+        .position(|l| {
+            l.trim_start()
+                .strip_prefix(key)
+                .is_some_and(|rest| rest.trim_start().starts_with('='))
+        })
+        .map_or(0, |i| i + 1)
 }
 
 /// Ground-truth ego state at one instant.
@@ -353,6 +405,13 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
                 return Err(bad(name, format!("point {i}: {v} is not finite")));
             }
         }
+        // f32 rounding of an offset near the sweep end may exceed it slightly
+        if time_offset_s < 0.0 || f64::from(time_offset_s) > sweep_duration_s * (1.0 + 1e-6) {
+            return Err(bad(
+                "time_offset_s",
+                format!("point {i}: {time_offset_s} s is outside the {sweep_duration_s} s sweep"),
+            ));
+        }
         let ring = u16_at(o + 24);
         if ring >= num_rings {
             return Err(bad(
@@ -497,6 +556,26 @@ impl Row<'_> {
         Ok(pose_from_array(&a))
     }
 
+    /// A time stamp strictly after `previous` (streams never go backwards).
+    fn increasing_time(&self, i: usize, previous: Option<f64>) -> Result<f64, RecordError> {
+        let t_s = self.f64(i)?;
+        match previous {
+            Some(prev) if t_s <= prev => {
+                Err(self.error(i, format!("time {t_s} does not increase (previous {prev})")))
+            }
+            _ => Ok(t_s),
+        }
+    }
+
+    /// Three finite, positive box dimensions.
+    fn size(&self, i: usize) -> Result<Vector3<f64>, RecordError> {
+        let size = self.vec3(i)?;
+        if let Some(k) = (0..3).find(|&k| size[k] <= 0.0) {
+            return Err(self.error(i + k, format!("{} is not a positive size", size[k])));
+        }
+        Ok(size)
+    }
+
     fn class(&self, i: usize) -> Result<ObjectClass, RecordError> {
         ObjectClass::parse(self.fields[i]).ok_or_else(|| {
             format_err(
@@ -537,7 +616,7 @@ impl Dataset {
         if meta.format_version != FORMAT_VERSION {
             return Err(format_err(
                 &meta_path,
-                1,
+                line_of_key(&meta_text, "format_version"),
                 "format_version",
                 format!(
                     "{} but this build reads {FORMAT_VERSION}",
@@ -545,8 +624,26 @@ impl Dataset {
                 ),
             ));
         }
+        meta.validate(&meta_path, &meta_text)?;
+        // a frame_count beyond the scans present is a bad meta.toml, not a
+        // missing-file surprise halfway through a run
+        if let Some(missing) = (0..meta.frame_count)
+            .map(|i| scan_path(dir, i))
+            .find(|p| !p.is_file())
+        {
+            return Err(format_err(
+                &meta_path,
+                line_of_key(&meta_text, "frame_count"),
+                "frame_count",
+                format!(
+                    "{} frames but {} does not exist",
+                    meta.frame_count,
+                    missing.display()
+                ),
+            ));
+        }
         let imu = read_imu(&dir.join("imu.csv"))?;
-        let detections = read_detections(&dir.join("detections.csv"), meta.frame_count)?;
+        let detections = read_detections(&dir.join("detections.csv"), &meta)?;
         Ok(Dataset {
             dir: dir.to_path_buf(),
             meta,
@@ -564,6 +661,7 @@ impl Dataset {
         let path = scan_path(&self.dir, index);
         let bytes = fs::read(&path).map_err(io_err(&path))?;
         let (scan, labels) = decode_scan(&bytes, &path)?;
+        self.check_scan_header(index, &scan, &path)?;
         Ok(RecordedFrame {
             scan,
             labels,
@@ -571,36 +669,81 @@ impl Dataset {
         })
     }
 
+    /// A scan must be the sweep `meta.toml` describes: same ring count and
+    /// sweep duration, starting at `index · sweep_duration_s` (scans are
+    /// consecutive sweeps; evaluation derives frame times from that).
+    fn check_scan_header(
+        &self,
+        index: usize,
+        scan: &LidarScan,
+        path: &Path,
+    ) -> Result<(), RecordError> {
+        let meta = &self.meta;
+        if scan.num_rings != meta.num_rings {
+            return Err(format_err(
+                path,
+                0,
+                "num_rings",
+                format!("{} but meta.toml says {}", scan.num_rings, meta.num_rings),
+            ));
+        }
+        if (scan.sweep_duration_s - meta.sweep_duration_s).abs() > 1e-9 * meta.sweep_duration_s {
+            return Err(format_err(
+                path,
+                0,
+                "sweep_duration_s",
+                format!(
+                    "{} but meta.toml says {}",
+                    scan.sweep_duration_s, meta.sweep_duration_s
+                ),
+            ));
+        }
+        let expected_t_s = index as f64 * meta.sweep_duration_s;
+        if (scan.t_s - expected_t_s).abs() > 1e-6 {
+            return Err(format_err(
+                path,
+                0,
+                "t_s",
+                format!(
+                    "{} but frame {index} starts at {expected_t_s} \
+                     (frame index × meta.toml sweep_duration_s)",
+                    scan.t_s
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     pub fn ego_truth(&self) -> Result<Vec<EgoTruth>, RecordError> {
         let columns = [
             "t_s", "x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz",
         ];
         let csv = Csv::open(self.dir.join("gt/ego.csv"), &columns.join(","))?;
-        csv.rows(&columns)?
-            .iter()
-            .map(|r| {
-                Ok(EgoTruth {
-                    t_s: r.f64(0)?,
-                    t_world_lidar: r.pose(1)?,
-                    velocity_world_mps: r.vec3(8)?,
-                })
-            })
-            .collect()
+        let mut out: Vec<EgoTruth> = Vec::new();
+        for r in csv.rows(&columns)? {
+            let t_s = r.increasing_time(0, out.last().map(|e| e.t_s))?;
+            out.push(EgoTruth {
+                t_s,
+                t_world_lidar: r.pose(1)?,
+                velocity_world_mps: r.vec3(8)?,
+            });
+        }
+        Ok(out)
     }
 
     pub fn bias_truth(&self) -> Result<Vec<BiasTruth>, RecordError> {
         let columns = ["t_s", "bax", "bay", "baz", "bgx", "bgy", "bgz"];
         let csv = Csv::open(self.dir.join("gt/imu_bias.csv"), &columns.join(","))?;
-        csv.rows(&columns)?
-            .iter()
-            .map(|r| {
-                Ok(BiasTruth {
-                    t_s: r.f64(0)?,
-                    accel_bias: r.vec3(1)?,
-                    gyro_bias: r.vec3(4)?,
-                })
-            })
-            .collect()
+        let mut out: Vec<BiasTruth> = Vec::new();
+        for r in csv.rows(&columns)? {
+            let t_s = r.increasing_time(0, out.last().map(|b| b.t_s))?;
+            out.push(BiasTruth {
+                t_s,
+                accel_bias: r.vec3(1)?,
+                gyro_bias: r.vec3(4)?,
+            });
+        }
+        Ok(out)
     }
 
     /// Ground-truth boxes per frame.
@@ -619,16 +762,20 @@ impl Dataset {
                     format!("frame {frame} but the dataset has {}", out.len()),
                 ));
             }
-            let parked: u8 = r.int(17)?;
+            let parked = match r.fields[17] {
+                "0" => false,
+                "1" => true,
+                other => return Err(r.error(17, format!("`{other}` is neither 0 nor 1"))),
+            };
             out[frame].push(BoxTruth {
                 frame,
                 t_s: r.f64(1)?,
                 id: r.int(2)?,
                 class: r.class(3)?,
                 t_world_box: r.pose(4)?,
-                size_lwh_m: r.vec3(11)?,
+                size_lwh_m: r.size(11)?,
                 velocity_world_mps: r.vec3(14)?,
-                parked: parked != 0,
+                parked,
             });
         }
         Ok(out)
@@ -640,31 +787,18 @@ fn read_imu(path: &Path) -> Result<Vec<ImuSample>, RecordError> {
     let csv = Csv::open(path.to_path_buf(), &columns.join(","))?;
     let mut out: Vec<ImuSample> = Vec::new();
     for r in csv.rows(&columns)? {
-        let sample = ImuSample {
-            t_s: r.f64(0)?,
+        let t_s = r.increasing_time(0, out.last().map(|s| s.t_s))?;
+        out.push(ImuSample {
+            t_s,
             accel_mps2: r.vec3(1)?,
             gyro_radps: r.vec3(4)?,
-        };
-        if let Some(prev) = out.last()
-            && sample.t_s <= prev.t_s
-        {
-            return Err(r.error(
-                0,
-                format!(
-                    "time {} does not increase (previous {})",
-                    sample.t_s, prev.t_s
-                ),
-            ));
-        }
-        out.push(sample);
+        });
     }
     Ok(out)
 }
 
-fn read_detections(
-    path: &Path,
-    frame_count: usize,
-) -> Result<Vec<Vec<DetectionWithTruth>>, RecordError> {
+fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTruth>>, RecordError> {
+    let frame_count = meta.frame_count;
     let columns = [
         "frame",
         "time_offset_s",
@@ -697,6 +831,17 @@ fn read_detections(
             yaw_rad: r.f64(9)?,
             score: r.f64(10)?,
         };
+        // a detection is seen during its sweep
+        let offset = detection.time_offset_s;
+        if !(0.0..=meta.sweep_duration_s).contains(&offset) {
+            return Err(r.error(
+                1,
+                format!(
+                    "{offset} s is outside the {} s sweep",
+                    meta.sweep_duration_s
+                ),
+            ));
+        }
         let truth: i64 = r.int(11)?;
         let truth_id = match truth {
             -1 => None,
@@ -704,9 +849,20 @@ fn read_detections(
             _ => return Err(r.error(11, format!("{truth} is neither -1 nor an instance id"))),
         };
         let index = out[frame].len();
-        detection
-            .validate(0.0, index)
-            .map_err(|e| r.error(3, e.to_string()))?;
+        detection.validate(0.0, index).map_err(|e| {
+            // name the column of the offending field, not just the row
+            let column = match &e {
+                InputError::BadDetection { field, .. } => match *field {
+                    "size_lwh" => 6 + (0..3).find(|&k| detection.size_lwh[k] <= 0.0).unwrap_or(0),
+                    "yaw_rad" => 9,
+                    "score" => 10,
+                    "time_offset_s" => 1,
+                    _ => 3,
+                },
+                _ => 3,
+            };
+            r.error(column, e.to_string())
+        })?;
         out[frame].push(DetectionWithTruth {
             detection,
             truth_id,
@@ -763,6 +919,246 @@ mod tests {
         assert!(err.to_string().contains("`y`"), "{err}");
         for cut in 0..SCAN_HEADER_BYTES {
             assert!(decode_scan(&bytes[..cut], Path::new("s.bin")).is_err());
+        }
+    }
+
+    /// A 2-frame dataset written by [`DatasetWriter`] into a fresh temp dir.
+    fn tiny_dataset(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("limot-record-{}-{name}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        let mut writer = DatasetWriter::begin(&dir, "").unwrap();
+        let size = Vector3::new(4.0, 1.8, 1.5);
+        for frame in 0..2 {
+            let (mut scan, labels) = sample_scan();
+            scan.t_s = frame as f64 * 0.1;
+            let detection = Detection {
+                center_lidar: Vector3::new(10.0, 0.0, 0.0),
+                size_lwh: size,
+                yaw_rad: 0.0,
+                class: ObjectClass::Car,
+                score: 0.9,
+                time_offset_s: 0.02,
+            };
+            let truth = BoxTruth {
+                frame,
+                t_s: scan.t_s,
+                id: 3,
+                class: ObjectClass::Car,
+                t_world_box: Isometry3::identity(),
+                size_lwh_m: size,
+                velocity_world_mps: Vector3::zeros(),
+                parked: false,
+            };
+            let detections = vec![DetectionWithTruth {
+                detection,
+                truth_id: Some(3),
+            }];
+            let recorded = RecordedFrame {
+                scan,
+                labels,
+                detections,
+            };
+            writer.write_frame(&recorded, &[truth]).unwrap();
+        }
+        let imu: Vec<ImuSample> = (0..20)
+            .map(|k| ImuSample {
+                t_s: k as f64 * 0.01,
+                accel_mps2: Vector3::new(0.0, 0.0, 9.8),
+                gyro_radps: Vector3::zeros(),
+            })
+            .collect();
+        let biases: Vec<BiasTruth> = imu
+            .iter()
+            .map(|s| BiasTruth {
+                t_s: s.t_s,
+                accel_bias: Vector3::zeros(),
+                gyro_bias: Vector3::zeros(),
+            })
+            .collect();
+        let ego: Vec<EgoTruth> = imu
+            .iter()
+            .map(|s| EgoTruth {
+                t_s: s.t_s,
+                t_world_lidar: Isometry3::identity(),
+                velocity_world_mps: Vector3::zeros(),
+            })
+            .collect();
+        let meta = Meta {
+            format_version: FORMAT_VERSION,
+            name: "tiny".into(),
+            family: "urban".into(),
+            seed: 1,
+            duration_s: 0.2,
+            frame_count: 0,
+            imu_rate_hz: 100.0,
+            sweep_duration_s: 0.1,
+            num_rings: 64,
+            t_lidar_imu: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        };
+        writer.finish(meta, &imu, &biases, &ego).unwrap()
+    }
+
+    /// Rewrites line `line` (1-based) of `file`: `column` set to `value`.
+    fn set_field(dir: &Path, file: &str, line: usize, column: usize, value: &str) {
+        let path = dir.join(file);
+        let text = fs::read_to_string(&path).unwrap();
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        let mut fields: Vec<&str> = lines[line - 1].split(',').collect();
+        fields[column] = value;
+        lines[line - 1] = fields.join(",");
+        fs::write(&path, lines.join("\n") + "\n").unwrap();
+    }
+
+    /// Replaces the only occurrence of `from` in `file`.
+    fn replace_in(dir: &Path, file: &str, from: &str, to: &str) {
+        let path = dir.join(file);
+        let text = fs::read_to_string(&path).unwrap();
+        assert_eq!(text.matches(from).count(), 1, "`{from}` in {file}");
+        fs::write(&path, text.replace(from, to)).unwrap();
+    }
+
+    fn read_everything(dir: &Path) -> Result<(), RecordError> {
+        let dataset = Dataset::open(dir)?;
+        for i in 0..dataset.frame_count() {
+            dataset.frame(i)?;
+        }
+        dataset.ego_truth()?;
+        dataset.bias_truth()?;
+        dataset.box_truth()?;
+        Ok(())
+    }
+
+    fn error_of(dir: &Path) -> String {
+        read_everything(dir).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn tiny_dataset_reads_back() {
+        let dir = tiny_dataset("clean");
+        let dataset = Dataset::open(&dir).unwrap();
+        assert_eq!(dataset.frame_count(), 2);
+        assert_eq!(dataset.frame(1).unwrap().scan.t_s, 0.1);
+        assert_eq!(dataset.box_truth().unwrap()[1][0].size_lwh_m.x, 4.0);
+        read_everything(&dir).unwrap();
+    }
+
+    #[test]
+    fn meta_values_are_checked_with_their_line() {
+        let dir = tiny_dataset("meta-nan");
+        replace_in(
+            &dir,
+            "meta.toml",
+            "imu_rate_hz = 100.0",
+            "imu_rate_hz = nan",
+        );
+        let err = error_of(&dir);
+        assert!(err.contains("meta.toml:7: field `imu_rate_hz`"), "{err}");
+
+        let dir = tiny_dataset("meta-quat");
+        replace_in(&dir, "meta.toml", "0.0, 1.0]", "0.0, 5.0]");
+        let err = error_of(&dir);
+        assert!(err.contains("meta.toml:10: field `t_lidar_imu`"), "{err}");
+
+        let dir = tiny_dataset("meta-rings");
+        replace_in(&dir, "meta.toml", "num_rings = 64", "num_rings = 0");
+        assert!(error_of(&dir).contains("field `num_rings`"));
+    }
+
+    #[test]
+    fn frame_count_beyond_the_scans_names_meta_toml() {
+        let dir = tiny_dataset("meta-count");
+        replace_in(&dir, "meta.toml", "frame_count = 2", "frame_count = 3");
+        let err = error_of(&dir);
+        assert!(
+            err.contains("meta.toml:6: field `frame_count`") && err.contains("000002.bin"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn scans_must_match_meta() {
+        let dir = tiny_dataset("scan-rings");
+        replace_in(&dir, "meta.toml", "num_rings = 64", "num_rings = 32");
+        let err = error_of(&dir);
+        assert!(
+            err.contains("000000.bin:0: field `num_rings`") && err.contains("meta.toml"),
+            "{err}"
+        );
+
+        let dir = tiny_dataset("scan-time");
+        let (mut scan, labels) = sample_scan();
+        scan.t_s = 0.5;
+        fs::write(scan_path(&dir, 1), encode_scan(&scan, &labels)).unwrap();
+        let err = error_of(&dir);
+        assert!(err.contains("000001.bin:0: field `t_s`"), "{err}");
+
+        let dir = tiny_dataset("scan-sweep");
+        let (mut scan, labels) = sample_scan();
+        scan.t_s = 0.0;
+        scan.sweep_duration_s = 0.2;
+        fs::write(scan_path(&dir, 0), encode_scan(&scan, &labels)).unwrap();
+        let err = error_of(&dir);
+        assert!(err.contains("field `sweep_duration_s`"), "{err}");
+    }
+
+    #[test]
+    fn point_times_outside_the_sweep_are_rejected() {
+        for bad in [-0.01_f32, 0.2, f32::MAX] {
+            let (mut scan, labels) = sample_scan();
+            scan.points[2].time_offset_s = bad;
+            let err = decode_scan(&encode_scan(&scan, &labels), Path::new("s.bin")).unwrap_err();
+            assert!(
+                err.to_string().contains("s.bin:0: field `time_offset_s`"),
+                "{err}"
+            );
+        }
+        // the last column of a sweep ends right at the sweep duration
+        let (mut scan, labels) = sample_scan();
+        scan.points[4].time_offset_s = 0.1;
+        assert!(decode_scan(&encode_scan(&scan, &labels), Path::new("s.bin")).is_ok());
+    }
+
+    #[test]
+    fn truth_time_going_backwards_is_rejected() {
+        for file in ["gt/ego.csv", "gt/imu_bias.csv", "imu.csv"] {
+            let dir = tiny_dataset("time-backwards");
+            // data rows 1 and 2 (file lines 2 and 3) swapped
+            set_field(&dir, file, 3, 0, "0");
+            set_field(&dir, file, 2, 0, "0.01");
+            let err = error_of(&dir);
+            assert!(err.contains(&format!("{file}:3: field `t_s`")), "{err}");
+        }
+    }
+
+    #[test]
+    fn bad_boxes_are_rejected_by_field() {
+        let dir = tiny_dataset("box-size");
+        set_field(&dir, "gt/boxes.csv", 2, 12, "-1");
+        let err = error_of(&dir);
+        assert!(err.contains("gt/boxes.csv:2: field `w`"), "{err}");
+
+        let dir = tiny_dataset("box-parked");
+        set_field(&dir, "gt/boxes.csv", 3, 17, "2");
+        let err = error_of(&dir);
+        assert!(err.contains("gt/boxes.csv:3: field `parked`"), "{err}");
+    }
+
+    #[test]
+    fn bad_detections_name_their_column() {
+        for (column, name, value) in [
+            (6, "l", "-1"),
+            (10, "score", "1.5"),
+            (8, "h", "0"),
+            (1, "time_offset_s", "-0.01"),
+            (1, "time_offset_s", "0.3"),
+        ] {
+            let dir = tiny_dataset("detection");
+            set_field(&dir, "detections.csv", 3, column, value);
+            let err = error_of(&dir);
+            assert!(
+                err.contains(&format!("detections.csv:3: field `{name}`")),
+                "{err}"
+            );
         }
     }
 }
