@@ -40,13 +40,13 @@ fn read_tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
-#[test]
-fn same_seed_gives_identical_dataset_bytes_and_another_seed_does_not() {
-    let spec = short_spec("urban", 7, 1.2);
+fn check_determinism(family: &str, seed: u64) {
+    let spec = short_spec(family, seed, 1.2);
+    let tag = format!("{family}-{seed}");
     let (a, b, c) = (
-        scratch_dir("det-a"),
-        scratch_dir("det-b"),
-        scratch_dir("det-c"),
+        scratch_dir(&format!("det-a-{tag}")),
+        scratch_dir(&format!("det-b-{tag}")),
+        scratch_dir(&format!("det-c-{tag}")),
     );
     Simulation::new(&spec)
         .unwrap()
@@ -72,7 +72,7 @@ fn same_seed_gives_identical_dataset_bytes_and_another_seed_does_not() {
             path.display()
         );
     }
-    let other = short_spec("urban", 8, 1.2);
+    let other = short_spec(family, seed + 1, 1.2);
     Simulation::new(&other)
         .unwrap()
         .write_dataset(&c, |_, _| {})
@@ -92,6 +92,11 @@ fn same_seed_gives_identical_dataset_bytes_and_another_seed_does_not() {
     for d in [a, b, c] {
         let _ = fs::remove_dir_all(d);
     }
+}
+
+#[test]
+fn same_seed_gives_identical_dataset_bytes_and_another_seed_does_not() {
+    check_determinism("urban", 7);
 }
 
 /// With noise off, a point labelled with an agent id lies on that agent's box
@@ -141,6 +146,11 @@ fn noise_free(mut spec: ScenarioSpec) -> ScenarioSpec {
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 3, ..ProptestConfig::default() })]
+
+    #[test]
+    fn datasets_are_byte_identical_per_seed(seed in 0u64..1_000_000, urban in any::<bool>()) {
+        check_determinism(if urban { "urban" } else { "highway" }, seed);
+    }
 
     #[test]
     fn moving_object_points_carry_their_ids(seed in 0u64..1000, urban in any::<bool>()) {
