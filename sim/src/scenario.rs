@@ -191,6 +191,10 @@ pub struct UrbanParams {
     /// Mean spacing of trees and of light poles along each sidewalk.
     pub tree_spacing_m: f64,
     pub pole_spacing_m: f64,
+    /// Probability that a building lot holds a building, in [0, 1]; each lot
+    /// decides independently. Below 1 the parked cars become the main
+    /// structure along the street. 1 = a building on every lot.
+    pub building_fraction: f64,
 }
 
 impl Default for UrbanParams {
@@ -219,6 +223,7 @@ impl Default for UrbanParams {
             cross_cars_per_intersection: 2,
             tree_spacing_m: 15.0,
             pole_spacing_m: 30.0,
+            building_fraction: 1.0,
         }
     }
 }
@@ -721,6 +726,7 @@ fn validate_urban(u: &UrbanParams, duration_s: f64) -> Result<(), ScenarioError>
         (0.2, 3.0),
     )?;
     in_range("urban.parking_occupancy", u.parking_occupancy, 0.0, 1.0)?;
+    in_range("urban.building_fraction", u.building_fraction, 0.0, 1.0)?;
     in_range("urban.signal_cycle_s", u.signal_cycle_s, 10.0, 600.0)?;
     in_range("urban.red_s", u.red_s, 0.0, u.signal_cycle_s * 0.8)?;
     count_in_range(

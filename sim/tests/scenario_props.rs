@@ -151,6 +151,24 @@ fn bad_files_name_file_line_and_field() {
             "cross_cars_per_intersection = 9",
             "urban.cross_cars_per_intersection",
         ),
+        (
+            "urban_nan_buildings",
+            "building_fraction = 1.0",
+            "building_fraction = nan",
+            "urban.building_fraction",
+        ),
+        (
+            "urban_too_many_buildings",
+            "building_fraction = 1.0",
+            "building_fraction = 1.5",
+            "urban.building_fraction",
+        ),
+        (
+            "urban_negative_buildings",
+            "building_fraction = 1.0",
+            "building_fraction = -0.1",
+            "urban.building_fraction",
+        ),
     ] {
         let text = std::fs::read_to_string(scenario_file("urban"))
             .unwrap()
@@ -332,13 +350,48 @@ fn check_urban(spec: &ScenarioSpec, scene: &Scene) {
         assert_eq!(speed_at(scene, agent.id, 0.5 * scene.duration_s), 0.0);
     }
     for kind in [
-        StaticKind::Building,
         StaticKind::Pole,
         StaticKind::TreeTrunk,
         StaticKind::TreeCrown,
     ] {
         assert!(scene.statics.iter().any(|s| s.kind == kind), "{kind:?}");
     }
+    // buildings on (some of) the lots, none at all at building_fraction = 0
+    assert_eq!(
+        buildings(scene).count() > 0,
+        u.building_fraction > 0.0,
+        "building_fraction {}",
+        u.building_fraction
+    );
+}
+
+fn buildings(scene: &Scene) -> impl Iterator<Item = &limot_sim::scene::StaticObject> {
+    scene
+        .statics
+        .iter()
+        .filter(|s| s.kind == StaticKind::Building)
+}
+
+/// The builtin urban spec, shortened, with the given seed and building fraction.
+fn urban_with_buildings(seed: u64, duration_s: f64, building_fraction: f64) -> ScenarioSpec {
+    let mut spec = ScenarioSpec::builtin("urban").unwrap();
+    spec.seed = seed;
+    spec.duration_s = duration_s;
+    spec.urban.as_mut().unwrap().building_fraction = building_fraction;
+    spec
+}
+
+/// Everything but the buildings: `building_fraction` must not shift any
+/// other random draw.
+fn same_but_buildings(a: &Scene, b: &Scene) -> bool {
+    let others = |s: &Scene| {
+        s.statics
+            .iter()
+            .filter(|o| o.kind != StaticKind::Building)
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    a.agents == b.agents && a.ego == b.ego && a.ground == b.ground && others(a) == others(b)
 }
 
 /// The moving cars that start along the cross streets (heading +-y).
@@ -521,4 +574,54 @@ fn full_length_scenes_over_seeds() {
             }
         }
     }
+}
+
+/// A street whose structure is parked cars only: no buildings, parked cars
+/// along the kerbs, no overlaps, and the ego still stops and goes; the rest
+/// of the scene is that of the street with buildings.
+#[test]
+fn urban_without_buildings_keeps_parked_cars_and_stop_and_go() {
+    for seed in [2, 5] {
+        let spec = urban_with_buildings(seed, 30.0, 0.0);
+        let scene = spec.build().unwrap();
+        assert_eq!(buildings(&scene).count(), 0, "seed {seed}");
+        let parked = scene.agents.iter().filter(|a| a.parked).count();
+        assert!(parked > 20, "seed {seed}: {parked} parked cars");
+        assert!(first_overlap(&scene, 0.05).is_none(), "seed {seed}");
+        check_common(&spec, &scene);
+        check_urban(&spec, &scene);
+        assert!(ego_stop_and_go(&spec, &scene), "seed {seed}");
+        let full = urban_with_buildings(seed, 30.0, 1.0).build().unwrap();
+        assert!(buildings(&full).count() > 20, "seed {seed}");
+        assert!(same_but_buildings(&scene, &full), "seed {seed}");
+    }
+}
+
+/// At building_fraction = 0.5 each lot holds its building with probability
+/// 1/2: the buildings are a subset of those at 1.0 (same lots, same
+/// geometry) and about half of them, within 4 sigma of binomial sampling.
+#[test]
+fn half_the_building_lots_are_built_at_one_half() {
+    let (mut lots, mut built) = (0usize, 0usize);
+    for seed in 0..5 {
+        let spec = urban_with_buildings(seed, 10.0, 0.5);
+        let half = spec.build().unwrap();
+        let full = urban_with_buildings(seed, 10.0, 1.0).build().unwrap();
+        let all: Vec<_> = buildings(&full).collect();
+        for b in buildings(&half) {
+            assert!(all.contains(&b), "seed {seed}: {b:?} is not on a lot");
+        }
+        assert!(same_but_buildings(&half, &full), "seed {seed}");
+        check_common(&spec, &half);
+        lots += all.len();
+        built += buildings(&half).count();
+    }
+    let share = built as f64 / lots as f64;
+    let sigma = (0.25 / lots as f64).sqrt();
+    println!("building_fraction 0.5: {built} of {lots} lots built ({share:.3}, sigma {sigma:.3})");
+    assert!(lots > 100, "{lots} lots");
+    assert!(
+        (share - 0.5).abs() < 4.0 * sigma,
+        "{built} of {lots} lots built"
+    );
 }

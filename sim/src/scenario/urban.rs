@@ -32,8 +32,8 @@ use crate::traffic::{
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
-use rand::RngExt;
 use rand::seq::SliceRandom;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
@@ -66,6 +66,9 @@ const BUILDING_DEPTH_M: (f64, f64) = (10.0, 25.0);
 const BUILDING_HEIGHT_M: (f64, f64) = (6.0, 30.0);
 const BUILDING_GAP_M: (f64, f64) = (0.0, 4.0);
 const BUILDING_SETBACK_M: (f64, f64) = (1.0, 3.0);
+/// ChaCha stream (of the scenario seed) for the building lots' keep/skip
+/// draws; the generator's main stream is 0.
+const BUILDING_LOT_STREAM: u64 = 0x0042_5549_4c44; // "BUILD" in ASCII
 /// Buildings reach this far below the lowest ground point of their footprint.
 const BUILDING_SINK_M: f64 = 0.5;
 const POLE_RADIUS_M: f64 = 0.12;
@@ -213,7 +216,8 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let ego_speed = spec.ego_speed_mps();
     let street = layout(spec, &u, ego_speed, rng).map_err(|e| traffic_error(spec, e))?;
 
-    let mut statics = buildings(&street, &ground, rng);
+    let mut lots = building_lot_rng(spec.seed);
+    let mut statics = buildings(&street, &ground, rng, &mut lots);
     statics.extend(furniture(&street, &ground, rng));
 
     let mut vehicles = moving_agents(&street, spec.ego.lane, rng);
@@ -746,8 +750,26 @@ fn parked_cars(
     cars
 }
 
-/// Rows of buildings behind both sidewalks, block by block.
-fn buildings(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<StaticObject> {
+/// The random stream that decides which building lots hold a building: the
+/// scenario seed on its own ChaCha stream, so the decisions never shift the
+/// generator's other draws: at `building_fraction` = 1 every lot is built
+/// and the scene is bit-identical to the one before this parameter existed;
+/// below 1 buildings disappear and nothing else changes.
+fn building_lot_rng(seed: u64) -> ChaCha8Rng {
+    let mut lots = ChaCha8Rng::seed_from_u64(seed);
+    lots.set_stream(BUILDING_LOT_STREAM);
+    lots
+}
+
+/// Rows of buildings behind both sidewalks, block by block. Every lot is
+/// drawn from `rng` whether it gets built or not (so the lots stay where they
+/// are); `lots` decides, with probability `building_fraction`, that it is.
+fn buildings(
+    street: &Street,
+    ground: &Ground,
+    rng: &mut ChaCha8Rng,
+    lots: &mut ChaCha8Rng,
+) -> Vec<StaticObject> {
     let u = &street.u;
     let back_of_sidewalk = street.kerb_m() + u.sidewalk_width_m;
     let half = 0.5 * u.cross_street_width_m;
@@ -762,6 +784,14 @@ fn buildings(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<Stat
                 let depth = uniform(rng, BUILDING_DEPTH_M.0, BUILDING_DEPTH_M.1);
                 let height = uniform(rng, BUILDING_HEIGHT_M.0, BUILDING_HEIGHT_M.1);
                 let setback = uniform(rng, BUILDING_SETBACK_M.0, BUILDING_SETBACK_M.1);
+                let gap = uniform(rng, BUILDING_GAP_M.0, BUILDING_GAP_M.1);
+                // one draw per lot, also at fraction 1, so that a lot built
+                // at some fraction is built at every higher one
+                let built = lots.random::<f64>() < u.building_fraction;
+                if !built {
+                    x += length + gap;
+                    continue;
+                }
                 let near = back_of_sidewalk + setback;
                 let centre = street.at(x + 0.5 * length, side, near + 0.5 * depth);
                 // base below the lowest corner of the footprint
@@ -785,7 +815,7 @@ fn buildings(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<Stat
                     base,
                     0.0,
                 ));
-                x += length + uniform(rng, BUILDING_GAP_M.0, BUILDING_GAP_M.1);
+                x += length + gap;
             }
         }
     }
@@ -955,7 +985,7 @@ mod tests {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let ground = generate_ground(&mut rng, &spec.ground);
             let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
-            let mut statics = buildings(&street, &ground, &mut rng);
+            let mut statics = buildings(&street, &ground, &mut rng, &mut building_lot_rng(seed));
             statics.extend(furniture(&street, &ground, &mut rng));
             let parked = parked_cars(&street, &ground, 1, 10.0, &mut rng);
             // (centre x, half extent along x) of every footprint
@@ -987,6 +1017,53 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn building_fraction_keeps_each_lot_independently_and_nested() {
+        let spec = ScenarioSpec::builtin("urban").unwrap();
+        let u = spec.urban_params();
+        let (mut lots, mut built) = (0usize, [0usize; 3]);
+        for seed in 0..40 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let ground = generate_ground(&mut rng, &spec.ground);
+            let mut street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
+            // the same main stream for every fraction: the lots are the same
+            let mut at = |fraction: f64| {
+                street.u.building_fraction = fraction;
+                let mut rng = rng.clone();
+                let out = buildings(&street, &ground, &mut rng, &mut building_lot_rng(seed));
+                (out, rng)
+            };
+            let (all, rng_all) = at(1.0);
+            let (none, rng_none) = at(0.0);
+            let (third, _) = at(1.0 / 3.0);
+            let (two_thirds, rng_two_thirds) = at(2.0 / 3.0);
+            assert!(none.is_empty());
+            // the main stream ends where it does at fraction 1
+            let next = |mut r: ChaCha8Rng| r.random::<u64>();
+            assert_eq!(next(rng_none), next(rng_all.clone()));
+            assert_eq!(next(rng_two_thirds), next(rng_all));
+            // a lot built at some fraction is built at every higher one
+            assert!(third.iter().all(|b| two_thirds.contains(b)));
+            assert!(two_thirds.iter().all(|b| all.contains(b)));
+            lots += all.len();
+            built[0] += third.len();
+            built[1] += two_thirds.len();
+            built[2] += all.len();
+        }
+        assert_eq!(built[2], lots);
+        assert!(lots > 1000, "{lots} lots");
+        for (k, fraction) in [1.0 / 3.0, 2.0 / 3.0].into_iter().enumerate() {
+            let share = built[k] as f64 / lots as f64;
+            let sigma = (fraction * (1.0 - fraction) / lots as f64).sqrt();
+            println!("fraction {fraction:.3}: {share:.3} of {lots} lots built (sigma {sigma:.3})");
+            assert!(
+                (share - fraction).abs() < 4.0 * sigma,
+                "{fraction}: {} of {lots} lots built",
+                built[k]
+            );
         }
     }
 
