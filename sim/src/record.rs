@@ -30,7 +30,7 @@
 
 use crate::detector::DetectionWithTruth;
 use limot_estimator::input::{
-    Detection, ImuSample, InputError, LidarPoint, LidarScan, ObjectClass,
+    Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint, LidarScan, ObjectClass,
 };
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -667,6 +667,22 @@ impl Dataset {
             labels,
             detections: self.detections.get(index).cloned().unwrap_or_default(),
         })
+    }
+
+    /// Frame `index` as the estimator sees it: the sweep and the detections,
+    /// without any ground truth (labels and truth ids stay here).
+    pub fn input_frame(&self, index: usize) -> Result<Frame, RecordError> {
+        let recorded = self.frame(index)?;
+        Ok(Frame {
+            scan: recorded.scan,
+            detections: recorded.detections.iter().map(|d| d.detection).collect(),
+        })
+    }
+
+    pub fn extrinsics(&self) -> Extrinsics {
+        Extrinsics {
+            t_lidar_imu: self.meta.t_lidar_imu(),
+        }
     }
 
     /// A scan must be the sweep `meta.toml` describes: same ring count and

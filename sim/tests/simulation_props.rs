@@ -160,3 +160,24 @@ proptest! {
         prop_assert!(moving > 100, "only {moving} points on moving agents");
     }
 }
+
+#[test]
+fn the_estimator_view_of_a_dataset_holds_no_ground_truth() {
+    let spec = short_spec("highway", 3, 1.0);
+    let dir = scratch_dir("input-view");
+    Simulation::new(&spec)
+        .unwrap()
+        .write_dataset(&dir, |_, _| {})
+        .unwrap();
+    let ds = Dataset::open(&dir).unwrap();
+    let scene = spec.build().unwrap();
+    assert_eq!(ds.extrinsics().t_lidar_imu, scene.ego.t_lidar_imu);
+    for index in [0, 9] {
+        let recorded = ds.frame(index).unwrap();
+        let input = ds.input_frame(index).unwrap();
+        assert_eq!(input.scan, recorded.scan);
+        let dets: Vec<_> = recorded.detections.iter().map(|d| d.detection).collect();
+        assert_eq!(input.detections, dets);
+    }
+    let _ = fs::remove_dir_all(dir);
+}
