@@ -205,12 +205,23 @@ fn noise_free() -> ImuConfig {
 /// Worst position (m) and rotation (rad) error of dead reckoning over the
 /// ego's IMU stream against the true IMU pose.
 fn dead_reckoning_error(ego: &Ego, duration_s: f64) -> (f64, f64) {
-    let sim = ImuSimulator::new(noise_free(), 7).unwrap();
+    dead_reckoning_error_at(ego, duration_s, 100.0)
+}
+
+fn dead_reckoning_error_at(ego: &Ego, duration_s: f64, rate_hz: f64) -> (f64, f64) {
+    let sim = ImuSimulator::new(
+        ImuConfig {
+            rate_hz,
+            ..noise_free()
+        },
+        7,
+    )
+    .unwrap();
     let gravity = sim.config().gravity_mps2;
     let stream = sim.simulate(ego, 0.0, duration_s).unwrap();
     assert_eq!(
         stream.samples.len(),
-        (duration_s * 100.0).round() as usize + 1
+        (duration_s * rate_hz).round() as usize + 1
     );
     let pose0 = ImuSimulator::t_world_imu(ego, 0.0);
     let mut state = NavState {
@@ -423,4 +434,32 @@ fn bad_config_and_times_are_errors() {
             .samples
             .is_empty()
     );
+}
+
+// ---------- the same over generated scenarios ----------
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 4, ..ProptestConfig::default() })]
+
+    /// The ego of a generated scenario (traffic model, stop-and-go, lane
+    /// changes, terrain) is as consistent as a hand-made drive: its noise-free
+    /// IMU dead-reckons onto its own pose.
+    #[test]
+    fn noise_free_imu_integrates_along_generated_scenarios(
+        seed in 0u64..1_000_000,
+        urban in any::<bool>(),
+    ) {
+        let family = if urban { "urban" } else { "highway" };
+        let mut spec = limot_sim::scenario::ScenarioSpec::builtin(family).unwrap();
+        spec.seed = seed;
+        spec.duration_s = 10.0;
+        let scene = spec.build().unwrap();
+        let (pos_err, rot_err) = dead_reckoning_error(&scene.ego, spec.duration_s);
+        prop_assert!(pos_err < 0.01, "{family} seed {seed}: position error {pos_err} m");
+        prop_assert!(
+            rot_err < 0.1f64.to_radians(),
+            "{family} seed {seed}: rotation error {} deg",
+            rot_err.to_degrees()
+        );
+    }
 }

@@ -9,15 +9,17 @@ use nalgebra::{Vector2, Vector3};
 const TRACK_OVER_WIDTH: f64 = 0.85;
 /// Wheelbase as a fraction of the body length (same as the bicycle model).
 const WHEELBASE_OVER_LENGTH: f64 = 0.6;
-/// Time step of the central differences for pitch/roll derivatives.
-const DIFF_STEP_S: f64 = 1e-3;
 
 /// 3-D C2 trajectory of the box centre on the ground: z = ground height + centre height,
 /// pitch/roll from the ground under the wheelbase/track; knots every track.dt_s.
 ///
-/// x, y, yaw come with the model's exact derivatives; z uses the ground gradient
-/// and Hessian; pitch and roll are differentiated by central differences of
-/// the planar state's second-order Taylor expansion around each sample.
+/// Every knot's rate and acceleration are finite differences of the sampled
+/// values themselves (x, y, yaw, z, pitch, roll), not the model's instantaneous
+/// derivatives: the 1 kHz integrator's steps differ from those by O(a dt), and
+/// a quintic piece forced through inconsistent end data over 10 ms swings its
+/// acceleration by ~1 m/s^2 at 100 Hz, which no car does and which IMU
+/// preintegration would see as error. Differences of the samples are
+/// consistent with the samples, so the pieces stay smooth.
 /// A track with a non-positive or non-finite `dt_s` is read with 0.01 s.
 pub fn lift_to_ground(
     track: &PlanarTrack,
@@ -38,52 +40,70 @@ pub fn lift_to_ground(
         let roll = (at(p + left * half_track) - at(p - left * half_track)).atan2(2.0 * half_track);
         (pitch, roll)
     };
-    let knots = track
-        .samples
-        .iter()
-        .map(|s| {
-            let grad = ground.gradient(s.x, s.y);
-            let hess = ground.hessian(s.x, s.y);
-            let vel = Vector2::new(s.vx_mps, s.vy_mps);
-            let acc = Vector2::new(s.ax_mps2, s.ay_mps2);
-            let z = Jet::new(
-                ground.height(s.x, s.y) + centre_height,
-                grad.dot(&vel),
-                grad.dot(&acc) + vel.dot(&(hess * vel)),
-            );
-            let state_at = |tau: f64| {
-                attitude(
-                    s.x + s.vx_mps * tau + 0.5 * s.ax_mps2 * tau * tau,
-                    s.y + s.vy_mps * tau + 0.5 * s.ay_mps2 * tau * tau,
-                    s.yaw + s.yaw_rate_radps * tau + 0.5 * s.yaw_accel_radps2 * tau * tau,
-                )
-            };
-            let h = DIFF_STEP_S;
-            let (pm, rm) = state_at(-h);
-            let (p0, r0) = state_at(0.0);
-            let (pp, rp) = state_at(h);
-            Knot {
-                position: [
-                    Jet::new(s.x, s.vx_mps, s.ax_mps2),
-                    Jet::new(s.y, s.vy_mps, s.ay_mps2),
-                    z,
-                ],
-                euler: [
-                    Jet::new(s.yaw, s.yaw_rate_radps, s.yaw_accel_radps2),
-                    Jet::new(p0, (pp - pm) / (2.0 * h), (pp - 2.0 * p0 + pm) / (h * h)),
-                    Jet::new(r0, (rp - rm) / (2.0 * h), (rp - 2.0 * r0 + rm) / (h * h)),
-                ],
-            }
-        })
-        .collect::<Vec<_>>();
     // a hand-made track with a bad step or no samples must not panic
     let dt_s = if track.dt_s.is_finite() && track.dt_s > 0.0 {
         track.dt_s
     } else {
         0.01
     };
-    if knots.is_empty() {
+    if track.samples.is_empty() {
         return Trajectory::new(track.t0_s, dt_s, vec![Knot::default()]);
     }
+    let channels: [Vec<f64>; 6] = {
+        let mut c: [Vec<f64>; 6] = Default::default();
+        for s in &track.samples {
+            let (pitch, roll) = attitude(s.x, s.y, s.yaw);
+            let values = [
+                s.x,
+                s.y,
+                ground.height(s.x, s.y) + centre_height,
+                s.yaw,
+                pitch,
+                roll,
+            ];
+            for (channel, value) in c.iter_mut().zip(values) {
+                channel.push(value);
+            }
+        }
+        c
+    };
+    let jets = channels.map(|values| differentiate(&values, dt_s));
+    let knots = (0..track.samples.len())
+        .map(|k| Knot {
+            position: [jets[0][k], jets[1][k], jets[2][k]],
+            euler: [jets[3][k], jets[4][k], jets[5][k]],
+        })
+        .collect();
     Trajectory::new(track.t0_s, dt_s, knots)
+}
+
+/// Value, rate and acceleration of evenly spaced samples: second-order
+/// central differences inside, second-order one-sided ones at the ends.
+fn differentiate(values: &[f64], h: f64) -> Vec<Jet> {
+    let n = values.len();
+    (0..n)
+        .map(|k| {
+            let p = |i: usize| values[i];
+            let (rate, accel) = if n < 4 {
+                // too short to difference: hold still (a hand-made stub track)
+                (0.0, 0.0)
+            } else if k == 0 {
+                (
+                    (-3.0 * p(0) + 4.0 * p(1) - p(2)) / (2.0 * h),
+                    (2.0 * p(0) - 5.0 * p(1) + 4.0 * p(2) - p(3)) / (h * h),
+                )
+            } else if k == n - 1 {
+                (
+                    (3.0 * p(k) - 4.0 * p(k - 1) + p(k - 2)) / (2.0 * h),
+                    (2.0 * p(k) - 5.0 * p(k - 1) + 4.0 * p(k - 2) - p(k - 3)) / (h * h),
+                )
+            } else {
+                (
+                    (p(k + 1) - p(k - 1)) / (2.0 * h),
+                    (p(k + 1) - 2.0 * p(k) + p(k - 1)) / (h * h),
+                )
+            };
+            Jet::new(values[k], rate, accel)
+        })
+        .collect()
 }
