@@ -13,6 +13,7 @@
 pub mod calib;
 pub mod detections;
 pub mod labels;
+pub mod object_labels;
 pub mod oxts;
 pub mod poses;
 pub mod raw;
