@@ -13,11 +13,10 @@ use crate::eval::iou::{Box3, IouKind};
 use crate::report::plot::Series2D;
 use crate::report::table::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
-use indicatif::{ProgressBar, ProgressStyle};
 use limot_sim::detector::Detector;
+use limot_sim::record::points_per_instance;
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::simulation::{SimulatedFrame, Simulation, SimulationError};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -55,10 +54,7 @@ pub struct DemoSummary {
 fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
     let spec = sim.spec();
     let scene = sim.scene();
-    let mut points = BTreeMap::<u32, usize>::new();
-    for &label in &frame.recorded.labels {
-        *points.entry(label).or_default() += 1;
-    }
+    let points = points_per_instance(&frame.recorded.labels);
     let gt = scene
         .agents
         .iter()
@@ -105,16 +101,7 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
 pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
-    let bar = if progress {
-        ProgressBar::new(total as u64).with_style(
-            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} frames  eta {eta}")
-                .expect("static template")
-                .progress_chars("=> "),
-        )
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_message("simulate");
+    let bar = crate::simulate::frame_progress_bar(total, progress);
     let mut mot_frames = Vec::with_capacity(total);
     let mut points = 0usize;
     // the demo owns its output: a dataset left by an earlier demo is replaced

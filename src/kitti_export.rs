@@ -26,11 +26,10 @@ use crate::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
 use crate::kitti::velodyne::encode_bin;
 use crate::kitti::{KittiError, detections::LidarBox};
 use limot_sim::imu::ImuSimulator;
-use limot_sim::record::{Dataset, RecordError};
+use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::scene::Scene;
 use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
-use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -202,10 +201,7 @@ pub fn export_dataset(dataset_dir: &Path, out: &Path) -> Result<PathBuf, ExportE
         let bin = velodyne_dir.join(format!("{index:06}.bin"));
         write(&bin, encode_bin(&frame.scan.points))?;
 
-        let mut points_on = BTreeMap::<u32, usize>::new();
-        for &label in &frame.labels {
-            *points_on.entry(label).or_default() += 1;
-        }
+        let points_on = points_per_instance(&frame.labels);
         for b in boxes_by_frame.get(index).into_iter().flatten() {
             let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
             let center = t_lidar_box.translation.vector;

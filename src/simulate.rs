@@ -90,6 +90,22 @@ impl Overrides {
     }
 }
 
+/// The progress bar of a simulation over `total` frames (hidden unless `visible`).
+pub fn frame_progress_bar(total: usize, visible: bool) -> ProgressBar {
+    if !visible {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:40}] {pos}/{len} frames  {per_sec}  eta {eta}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
+    );
+    bar.set_message("simulate");
+    bar
+}
+
 /// What a simulation run produced.
 #[derive(Debug, Clone)]
 pub struct SimulateSummary {
@@ -115,18 +131,7 @@ pub fn simulate(
     let started = Instant::now();
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
-    let bar = if progress {
-        ProgressBar::new(total as u64).with_style(
-            ProgressStyle::with_template(
-                "{msg:>10} [{bar:40}] {pos}/{len} frames  {per_sec}  eta {eta}",
-            )
-            .expect("static template")
-            .progress_chars("=> "),
-        )
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_message("simulate");
+    let bar = frame_progress_bar(total, progress);
     let (mut points, mut detections) = (0, 0);
     let dataset_dir = sim.write_dataset(out, |frame, _| {
         points += frame.recorded.scan.points.len();

@@ -34,6 +34,7 @@ use limot_estimator::input::{
 };
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -177,6 +178,15 @@ pub struct RecordedFrame {
     /// Ground-truth instance id per point (0 = static scene).
     pub labels: Vec<u32>,
     pub detections: Vec<DetectionWithTruth>,
+}
+
+/// LiDAR returns per ground-truth instance id in a sweep's labels.
+pub fn points_per_instance(labels: &[u32]) -> BTreeMap<u32, usize> {
+    let mut counts = BTreeMap::new();
+    for &label in labels {
+        *counts.entry(label).or_insert(0) += 1;
+    }
+    counts
 }
 
 pub fn pose_to_array(pose: &Isometry3<f64>) -> [f64; 7] {

@@ -10,12 +10,11 @@ use crate::imu::{ImuError, ImuSimulator, ImuStream};
 use crate::lidar_scan::{LidarError, LidarSimulator};
 use crate::record::{
     BiasTruth, BoxTruth, DatasetWriter, EgoTruth, FORMAT_VERSION, Meta, RecordError, RecordedFrame,
-    pose_to_array,
+    points_per_instance, pose_to_array,
 };
 use crate::scenario::{Family, ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
 use crate::world::World;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -116,15 +115,11 @@ impl Simulation {
         }
         let t_s = self.frame_start_s(index);
         let sweep = self.lidar.scan(&self.scene, &self.world, index as u64, t_s);
-        let mut points_per_instance = BTreeMap::new();
-        for &label in &sweep.labels {
-            *points_per_instance.entry(label).or_insert(0usize) += 1;
-        }
         let detections = self.detector.detect(
             index as u64,
             t_s,
             &self.scene,
-            &points_per_instance,
+            &points_per_instance(&sweep.labels),
             &self.spec.lidar,
         )?;
         let boxes = self
