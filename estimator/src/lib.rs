@@ -5,3 +5,5 @@
 
 pub mod input;
 pub mod lie;
+pub mod graph;
+pub mod imu;

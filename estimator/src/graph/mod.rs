@@ -1,0 +1,20 @@
+//! Factor graph: typed variable keys, values on their manifolds, factors
+//! (residual + Jacobians, GTSAM style), kept separate from the solver.
+//!
+//! Conventions shared by every factor:
+//! * Poses are [`Isometry3`](nalgebra::Isometry3) with the right perturbation
+//!   `T ⊕ ξ = T·Exp(ξ)`, tangent `ξ = (ρ, φ)` (see [`crate::lie`]).
+//! * Velocities and biases are Euclidean: `x ⊕ δ = x + δ`.
+//! * A factor returns its *unwhitened* residual and Jacobians (one per key,
+//!   with respect to that key's tangent); the [`NoiseModel`] whitens them and
+//!   applies the robust kernel, so factors never do.
+
+pub mod factor;
+pub mod key;
+pub mod noise;
+pub mod values;
+
+pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
+pub use key::Key;
+pub use noise::{NoiseModel, RobustKernel};
+pub use values::{Values, Variable};

@@ -1,0 +1,56 @@
+//! IMU model shared by preintegration and the graph: biases and noise densities.
+
+use nalgebra::{Vector3, Vector6};
+
+/// Accelerometer and gyroscope biases (measured = true + bias + noise).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ImuBias {
+    pub accel_mps2: Vector3<f64>,
+    pub gyro_radps: Vector3<f64>,
+}
+
+impl ImuBias {
+    /// `(accel, gyro)` stacked, the tangent ordering of a bias variable.
+    pub fn to_vector6(&self) -> Vector6<f64> {
+        Vector6::new(
+            self.accel_mps2.x,
+            self.accel_mps2.y,
+            self.accel_mps2.z,
+            self.gyro_radps.x,
+            self.gyro_radps.y,
+            self.gyro_radps.z,
+        )
+    }
+
+    pub fn from_vector6(v: &Vector6<f64>) -> ImuBias {
+        ImuBias {
+            accel_mps2: Vector3::new(v[0], v[1], v[2]),
+            gyro_radps: Vector3::new(v[3], v[4], v[5]),
+        }
+    }
+}
+
+/// Continuous-time IMU noise (Kalibr convention). Defaults are LIO-SAM's,
+/// which the simulator also uses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuNoise {
+    /// White accelerometer noise, m/s²/√Hz.
+    pub accel_noise_density: f64,
+    /// White gyroscope noise, rad/s/√Hz.
+    pub gyro_noise_density: f64,
+    /// Accelerometer bias random walk, m/s³/√Hz.
+    pub accel_bias_random_walk: f64,
+    /// Gyroscope bias random walk, rad/s²/√Hz.
+    pub gyro_bias_random_walk: f64,
+}
+
+impl Default for ImuNoise {
+    fn default() -> Self {
+        ImuNoise {
+            accel_noise_density: 3.9939570888238808e-03,
+            gyro_noise_density: 1.5636343949698187e-03,
+            accel_bias_random_walk: 6.4356659353532566e-05,
+            gyro_bias_random_walk: 3.5640318696367613e-05,
+        }
+    }
+}
