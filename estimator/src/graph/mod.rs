@@ -10,6 +10,7 @@
 //!   applies the robust kernel, so factors never do.
 
 pub mod factor;
+pub mod imu_factor;
 pub mod key;
 pub mod noise;
 pub mod values;

@@ -1,5 +1,7 @@
 //! IMU model shared by preintegration and the graph: biases and noise densities.
 
+pub mod preintegration;
+
 use nalgebra::{Vector3, Vector6};
 
 /// Accelerometer and gyroscope biases (measured = true + bias + noise).
