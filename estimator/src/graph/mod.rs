@@ -9,13 +9,23 @@
 //!   with respect to that key's tangent); the [`NoiseModel`] whitens them and
 //!   applies the robust kernel, so factors never do.
 
+pub mod between_factor;
 pub mod factor;
 pub mod imu_factor;
 pub mod key;
+pub mod marginalization;
 pub mod noise;
+pub mod prior_factor;
+pub mod sliding_window;
+pub mod solver;
 pub mod values;
 
+pub use between_factor::BetweenFactor;
 pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
 pub use key::Key;
+pub use marginalization::{MarginalPriorFactor, MarginalizationConfig, MarginalizationError};
 pub use noise::{NoiseModel, RobustKernel};
+pub use prior_factor::PriorFactor;
+pub use sliding_window::{SlidingWindowSmoother, WindowError};
+pub use solver::{FactorGraph, SolverConfig, SolverError, SolverReport, VariableIndex};
 pub use values::{Values, Variable};
