@@ -7,3 +7,4 @@ pub mod input;
 pub mod lie;
 pub mod graph;
 pub mod imu;
+pub mod lidar;
