@@ -1,4 +1,7 @@
-//! LiDAR front end: de-skew, LOAM features, voxel grid, local map and scan-to-map matching.
+//! LiDAR processing: motion compensation and LOAM feature extraction.
 
 pub mod deskew;
 pub mod features;
+pub mod local_map;
+pub mod scan_matching;
+pub mod voxel;
