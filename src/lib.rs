@@ -6,4 +6,5 @@ pub mod evaluate;
 pub mod kitti;
 pub mod kitti_export;
 pub mod report;
+pub mod run;
 pub mod simulate;

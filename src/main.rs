@@ -57,6 +57,23 @@ enum Command {
         #[arg(long)]
         duration: Option<f64>,
     },
+    /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
+    Run {
+        /// A limot dataset, a KITTI raw drive dir (velodyne_points/, oxts/) or a dir of KITTI .bin scans.
+        dataset: PathBuf,
+        /// Output directory (default: DATASET/<variant>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// System variant: lio, allfilt, dynafilt or limot.
+        #[arg(long, default_value = "lio")]
+        variant: String,
+        /// Ignore the IMU (scan-to-map matching with a constant-velocity model).
+        #[arg(long)]
+        lidar_only: bool,
+        /// Process at most N frames.
+        #[arg(long)]
+        max_frames: Option<usize>,
+    },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
         #[command(subcommand)]
@@ -160,6 +177,13 @@ fn main() -> ExitCode {
             scenario,
             duration,
         } => run_demo(&scenario, &out, duration),
+        Command::Run {
+            dataset,
+            out,
+            variant,
+            lidar_only,
+            max_frames,
+        } => run_estimator(&dataset, out, &variant, lidar_only, max_frames),
         Command::Eval { what } => run_eval(what),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
@@ -211,6 +235,57 @@ fn run_simulate(
     if let Some(k) = &s.kitti_dir {
         println!("KITTI-style copy: {}", k.display());
     }
+    Ok(())
+}
+
+fn run_estimator(
+    dataset: &std::path::Path,
+    out: Option<PathBuf>,
+    variant: &str,
+    lidar_only: bool,
+    max_frames: Option<usize>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::report::Variant;
+    use limot::run::{RunOptions, Source, run, write_output};
+    let variant = Variant::ALL
+        .into_iter()
+        .find(|v| v.name() == variant)
+        .ok_or_else(|| format!("unknown variant `{variant}` (lio, allfilt, dynafilt, limot)"))?;
+    let out = out.unwrap_or_else(|| dataset.join(variant.name()));
+    let source = Source::open(dataset)?;
+    let options = RunOptions {
+        variant,
+        lidar_only,
+        max_frames,
+        progress: true,
+    };
+    let output = run(&source, dataset, &options, None)?;
+    write_output(&out, &output)?;
+    let n = output.estimates.len();
+    println!(
+        "{}: {} frames estimated ({} before initialisation), {:?} mode, {:.1} s wall ({:.1} FPS)",
+        variant.name(),
+        n,
+        output.frames_before_init,
+        output.mode,
+        output.wall_time.as_secs_f64(),
+        n as f64 / output.wall_time.as_secs_f64().max(1e-9)
+    );
+    let timings: Vec<String> = output
+        .mean_timings()
+        .iter()
+        .map(|(name, d)| format!("{name} {:.2}", d.as_secs_f64() * 1e3))
+        .collect();
+    println!("mean ms per frame: {}", timings.join(", "));
+    if dataset.join("gt").join("ego.csv").is_file() {
+        let opts = EgoEvalOptions::default();
+        let e = evaluate_ego(dataset, &out.join("poses_tum.txt"), &opts)?;
+        println!(
+            "ego vs truth: ATE_T {:.3} m, ATE_R {:.4} rad over {} poses",
+            e.ate.ate_t_rmse_m, e.ate.ate_r_rmse_rad, e.ate.n
+        );
+    }
+    println!("trajectory: {}", out.join("poses_tum.txt").display());
     Ok(())
 }
 

@@ -3,8 +3,9 @@
 //! Everything a source (simulator or KITTI reader) delivers is described by
 //! [`input`]; the estimator never knows which source fed it.
 
-pub mod input;
-pub mod lie;
 pub mod graph;
 pub mod imu;
+pub mod input;
 pub mod lidar;
+pub mod lie;
+pub mod pipeline;

@@ -1,0 +1,112 @@
+//! Estimator configuration with the paper's / LIO-SAM's defaults.
+
+use crate::graph::solver::SolverConfig;
+use crate::imu::ImuNoise;
+use crate::lidar::features::FeatureConfig;
+use crate::lidar::local_map::LocalMapConfig;
+use crate::lidar::scan_matching::ScanMatchConfig;
+
+/// Which sensors drive the ego estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// IMU preintegration and LiDAR odometry in the sliding-window smoother.
+    LidarInertial,
+    /// Scan-to-map matching with a constant-velocity motion model, for sources
+    /// without an IMU (e.g. bare KITTI scans).
+    LidarOnly,
+}
+
+#[derive(Debug, Clone)]
+pub struct EstimatorConfig {
+    pub mode: Mode,
+    /// Ego states in the sliding window (the paper uses 5).
+    pub window_size: usize,
+    /// Gravity magnitude, m/s² (the world z axis points up).
+    pub gravity_mps2: f64,
+    pub imu_noise: ImuNoise,
+    /// Largest tolerated hole in the IMU stream, s; longer gaps are errors.
+    pub max_imu_gap_s: f64,
+    /// IMU history used for the static initialization, s.
+    pub init_window_s: f64,
+    /// Static test: standard deviation of the accelerometer norm, m/s².
+    pub init_max_accel_std_mps2: f64,
+    /// Static test: largest mean angular rate, rad/s.
+    pub init_max_gyro_radps: f64,
+    /// Prior sigmas on the first state: roll/pitch (from gravity), rad.
+    pub init_tilt_sigma_rad: f64,
+    /// Prior sigma on the initial velocity (the ego stands still), m/s.
+    pub init_velocity_sigma_mps: f64,
+    /// Prior sigmas on the initial biases.
+    pub init_accel_bias_sigma_mps2: f64,
+    pub init_gyro_bias_sigma_radps: f64,
+    /// Poses sampled per sweep for the IMU-driven de-skew.
+    pub deskew_samples: usize,
+    pub features: FeatureConfig,
+    /// Voxel sizes for the scan's features before matching, m.
+    pub edge_voxel_m: f64,
+    pub planar_voxel_m: f64,
+    pub local_map: LocalMapConfig,
+    pub scan_match: ScanMatchConfig,
+    /// Std of one point-to-line/plane residual, m; scales the matching
+    /// information into the odometry factor.
+    pub point_sigma_m: f64,
+    /// Matching residuals are correlated (neighbouring points share map
+    /// structure); the information is divided by this factor.
+    pub odometry_information_inflation: f64,
+    /// Eigenvalues of the odometry information are floored here, so
+    /// degenerate directions are left to the IMU instead of being singular.
+    pub odometry_min_information: f64,
+    /// A new keyframe enters the local map after this motion, m / rad.
+    pub keyframe_distance_m: f64,
+    pub keyframe_angle_rad: f64,
+    pub solver: SolverConfig,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        EstimatorConfig {
+            mode: Mode::LidarInertial,
+            window_size: 5,
+            gravity_mps2: 9.80511,
+            imu_noise: ImuNoise::default(),
+            max_imu_gap_s: 0.05,
+            init_window_s: 0.5,
+            init_max_accel_std_mps2: 0.2,
+            init_max_gyro_radps: 0.05,
+            init_tilt_sigma_rad: 0.01,
+            init_velocity_sigma_mps: 0.05,
+            init_accel_bias_sigma_mps2: 0.1,
+            init_gyro_bias_sigma_radps: 0.01,
+            deskew_samples: 11,
+            features: FeatureConfig::default(),
+            edge_voxel_m: 0.2,
+            planar_voxel_m: 0.4,
+            local_map: LocalMapConfig::default(),
+            scan_match: ScanMatchConfig::default(),
+            point_sigma_m: 0.05,
+            odometry_information_inflation: 10.0,
+            odometry_min_information: 1e-2,
+            keyframe_distance_m: 1.0,
+            keyframe_angle_rad: 0.2,
+            // A window of 5 frames converges in a few iterations from the IMU
+            // prediction; tighter tolerances only burn time.
+            solver: SolverConfig {
+                max_iterations: 10,
+                function_tolerance: 1e-6,
+                gradient_tolerance: 1e-9,
+                step_tolerance: 1e-7,
+                ..SolverConfig::default()
+            },
+        }
+    }
+}
+
+impl EstimatorConfig {
+    /// LiDAR-only defaults.
+    pub fn lidar_only() -> EstimatorConfig {
+        EstimatorConfig {
+            mode: Mode::LidarOnly,
+            ..EstimatorConfig::default()
+        }
+    }
+}

@@ -1,0 +1,76 @@
+//! What the estimator reports per frame.
+
+use crate::imu::ImuBias;
+use nalgebra::{Isometry3, Vector3};
+use std::time::Duration;
+
+/// The estimate of one frame, at its scan start time, as known right after
+/// the frame was processed (the window may refine it later).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameEstimate {
+    /// 0-based index of the frame in the input stream.
+    pub frame_index: u64,
+    /// Scan start time, s (the state's time).
+    pub t_s: f64,
+    pub t_world_lidar: Isometry3<f64>,
+    /// Velocity of the IMU in the world frame (LiDAR-only: of the LiDAR,
+    /// from consecutive poses).
+    pub velocity_world_mps: Vector3<f64>,
+    /// Estimated IMU biases (zero in LiDAR-only mode).
+    pub bias: ImuBias,
+    /// `None` when matching was impossible (empty map or scan) and the pose
+    /// is the motion prediction.
+    pub scan_match: Option<ScanMatchSummary>,
+    pub timings: ModuleTimings,
+}
+
+/// Diagnostics of the scan-to-map match of one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanMatchSummary {
+    pub edge_features: usize,
+    pub planar_features: usize,
+    pub edge_matches: usize,
+    pub planar_matches: usize,
+    pub iterations: usize,
+    pub converged: bool,
+    /// Number of weakly constrained directions (0 = well conditioned).
+    pub degenerate_directions: usize,
+    pub rms_residual_m: f64,
+}
+
+/// Wall-clock time per pipeline stage for one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ModuleTimings {
+    pub imu_prediction: Duration,
+    pub deskew: Duration,
+    pub features: Duration,
+    pub downsample: Duration,
+    pub scan_matching: Duration,
+    pub graph: Duration,
+    pub map_update: Duration,
+}
+
+impl ModuleTimings {
+    pub fn total(&self) -> Duration {
+        self.imu_prediction
+            + self.deskew
+            + self.features
+            + self.downsample
+            + self.scan_matching
+            + self.graph
+            + self.map_update
+    }
+
+    /// Stage names and durations, in pipeline order (for tables).
+    pub fn stages(&self) -> [(&'static str, Duration); 7] {
+        [
+            ("imu_prediction", self.imu_prediction),
+            ("deskew", self.deskew),
+            ("features", self.features),
+            ("downsample", self.downsample),
+            ("scan_matching", self.scan_matching),
+            ("graph", self.graph),
+            ("map_update", self.map_update),
+        ]
+    }
+}

@@ -1,0 +1,733 @@
+//! [`Estimator`]: the streaming LiDAR(-inertial) odometry pipeline.
+//!
+//! Per frame (IMU mode): preintegrate the IMU from the previous state to the
+//! scan start and predict the new state; de-skew the sweep with poses
+//! propagated through the IMU at several instants of the sweep; extract LOAM
+//! features; match them to the local map starting from the prediction; add
+//! the new state with IMU, bias random-walk and LiDAR odometry factors to the
+//! sliding window; optimise; marginalise the oldest state by Schur complement
+//! when the window is full; add a keyframe to the map after enough motion.
+//!
+//! States live at scan START times, and the de-skew reference is the scan
+//! start too, so the detections (also stamped within the sweep) and the
+//! ground truth boxes (at scan start) refer to the same instant.
+
+use super::config::{EstimatorConfig, Mode};
+use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
+use super::initialization::{NotStatic, static_init};
+use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
+use crate::graph::prior_factor::PriorFactor;
+use crate::graph::sliding_window::SlidingWindowSmoother;
+use crate::graph::sliding_window::WindowError;
+use crate::graph::{FactorError, Key, NoiseModel, Variable};
+use crate::imu::ImuBias;
+use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
+use crate::input::{Extrinsics, Frame, ImuSample, InputError, LidarScan};
+use crate::lidar::deskew::{DeskewError, SweepMotion, deskew};
+use crate::lidar::features::extract_features;
+use crate::lidar::local_map::{LocalMap, LocalMapError};
+use crate::lidar::scan_matching::{ScanMatchResult, match_scan};
+use crate::lidar::voxel::voxel_downsample;
+use crate::lie;
+use nalgebra::{DMatrix, Isometry3, Matrix6, SymmetricEigen, Vector3, Vector6};
+use std::collections::VecDeque;
+use std::time::Instant;
+
+/// Why the estimator rejected input or could not process a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum EstimatorError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error("frame {frame_index} at t={t_s}: IMU data: {source}")]
+    Imu {
+        frame_index: u64,
+        t_s: f64,
+        #[source]
+        source: PreintegrationError,
+    },
+    #[error("frame {frame_index} at t={t_s}: de-skew: {source}")]
+    Deskew {
+        frame_index: u64,
+        t_s: f64,
+        #[source]
+        source: DeskewError,
+    },
+    #[error("frame {frame_index} at t={t_s}: local map: {source}")]
+    Map {
+        frame_index: u64,
+        t_s: f64,
+        #[source]
+        source: LocalMapError,
+    },
+    #[error("frame {frame_index} at t={t_s}: cannot build a factor: {source}")]
+    Factor {
+        frame_index: u64,
+        t_s: f64,
+        #[source]
+        source: FactorError,
+    },
+    #[error("frame {frame_index} at t={t_s}: sliding-window optimisation failed: {source}")]
+    Graph {
+        frame_index: u64,
+        t_s: f64,
+        #[source]
+        source: WindowError,
+    },
+}
+
+/// The latest optimised ego state.
+#[derive(Debug, Clone, Copy)]
+struct EgoState {
+    frame_index: u64,
+    t_s: f64,
+    t_world_imu: Isometry3<f64>,
+    velocity_world_mps: Vector3<f64>,
+    bias: ImuBias,
+}
+
+/// Features of one de-skewed sweep, LiDAR frame at the scan start.
+struct SweepFeatures {
+    edge_lidar: Vec<Vector3<f64>>,
+    planar_lidar: Vec<Vector3<f64>>,
+}
+
+/// The streaming estimator. Feed IMU samples in time order with
+/// [`Estimator::push_imu`] and frames with [`Estimator::push_frame`] once the
+/// IMU covers the sweep (the IMU is extrapolated, with a flag, when it does not).
+pub struct Estimator {
+    config: EstimatorConfig,
+    t_lidar_imu: Isometry3<f64>,
+    t_imu_lidar: Isometry3<f64>,
+    gravity_world: Vector3<f64>,
+    imu: Vec<ImuSample>,
+    last_scan_t_s: Option<f64>,
+    next_frame_index: u64,
+    map: LocalMap,
+    last_keyframe_t_world_lidar: Option<Isometry3<f64>>,
+    // Inertial mode.
+    smoother: SlidingWindowSmoother,
+    window_frames: VecDeque<u64>,
+    latest: Option<EgoState>,
+    // LiDAR-only mode: the last two (t_s, t_world_lidar).
+    lidar_only_history: VecDeque<(f64, Isometry3<f64>)>,
+    deskewed: Vec<Vector3<f64>>,
+}
+
+impl Estimator {
+    pub fn new(config: EstimatorConfig, extrinsics: Extrinsics) -> Estimator {
+        let map = LocalMap::new(config.local_map.clone());
+        Estimator {
+            gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
+            t_lidar_imu: extrinsics.t_lidar_imu,
+            t_imu_lidar: extrinsics.t_lidar_imu.inverse(),
+            config,
+            imu: Vec::new(),
+            last_scan_t_s: None,
+            next_frame_index: 0,
+            map,
+            last_keyframe_t_world_lidar: None,
+            smoother: SlidingWindowSmoother::new(),
+            window_frames: VecDeque::new(),
+            latest: None,
+            lidar_only_history: VecDeque::new(),
+            deskewed: Vec::new(),
+        }
+    }
+
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.config
+    }
+
+    /// True once the ego state is initialised (always, in LiDAR-only mode).
+    pub fn is_initialized(&self) -> bool {
+        match self.config.mode {
+            Mode::LidarOnly => true,
+            Mode::LidarInertial => self.latest.is_some(),
+        }
+    }
+
+    /// Adds one IMU sample. Samples must be finite and strictly increasing in time.
+    pub fn push_imu(&mut self, sample: ImuSample) -> Result<(), EstimatorError> {
+        sample.validate()?;
+        if let Some(last) = self.imu.last()
+            && sample.t_s <= last.t_s
+        {
+            return Err(InputError::ImuTimeNotIncreasing {
+                t_s: sample.t_s,
+                previous_t_s: last.t_s,
+            }
+            .into());
+        }
+        self.imu.push(sample);
+        self.prune_imu();
+        Ok(())
+    }
+
+    /// Processes one frame. Returns `None` while the estimator waits for a
+    /// static interval to initialise (IMU mode); frames are never queued.
+    /// Non-finite points are dropped (a driver's "no return"); a scan must
+    /// start after the previous one.
+    pub fn push_frame(&mut self, frame: &Frame) -> Result<Option<FrameEstimate>, EstimatorError> {
+        let scan = &frame.scan;
+        if !scan.t_s.is_finite() {
+            return Err(InputError::ScanNotFinite {
+                t_s: scan.t_s,
+                field: "t_s",
+            }
+            .into());
+        }
+        if !scan.sweep_duration_s.is_finite() || scan.sweep_duration_s < 0.0 {
+            return Err(InputError::ScanNotFinite {
+                t_s: scan.t_s,
+                field: "sweep_duration_s",
+            }
+            .into());
+        }
+        if let Some(previous) = self.last_scan_t_s
+            && scan.t_s <= previous
+        {
+            return Err(InputError::ScanTimeNotIncreasing {
+                t_s: scan.t_s,
+                previous_t_s: previous,
+            }
+            .into());
+        }
+        self.last_scan_t_s = Some(scan.t_s);
+        let frame_index = self.next_frame_index;
+        self.next_frame_index += 1;
+        let finite;
+        let scan = if scan.points.iter().all(|p| {
+            p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.time_offset_s.is_finite()
+        }) {
+            scan
+        } else {
+            let mut copy = scan.clone();
+            copy.points.retain(|p| {
+                p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.time_offset_s.is_finite()
+            });
+            finite = copy;
+            &finite
+        };
+        match self.config.mode {
+            Mode::LidarOnly => self.process_lidar_only(frame_index, scan).map(Some),
+            Mode::LidarInertial => {
+                if self.latest.is_none() {
+                    self.try_initialize(frame_index, scan)
+                } else {
+                    self.process_inertial(frame_index, scan).map(Some)
+                }
+            }
+        }
+    }
+
+    /// Drops IMU samples no future frame needs.
+    fn prune_imu(&mut self) {
+        if self.imu.len() < 4096 {
+            return;
+        }
+        let keep_from_s = match self.latest {
+            Some(state) => state.t_s - 1.0,
+            None => self.imu.last().map_or(0.0, |s| s.t_s) - 2.0 * self.config.init_window_s,
+        };
+        let cut = self.imu.partition_point(|s| s.t_s < keep_from_s);
+        // Keep one sample before the cut for interpolation.
+        let cut = cut.saturating_sub(1);
+        if cut > 0 {
+            self.imu.drain(..cut);
+        }
+    }
+
+    fn try_initialize(
+        &mut self,
+        frame_index: u64,
+        scan: &LidarScan,
+    ) -> Result<Option<FrameEstimate>, EstimatorError> {
+        let t0 = scan.t_s - self.config.init_window_s;
+        let from = self.imu.partition_point(|s| s.t_s < t0);
+        let to = self.imu.partition_point(|s| s.t_s <= scan.t_s);
+        let covered = self.imu.first().is_some_and(|s| s.t_s <= t0 + 0.02);
+        if !covered {
+            return Ok(None);
+        }
+        let init = match static_init(
+            &self.imu[from..to],
+            &self.t_lidar_imu,
+            self.config.gravity_mps2,
+            self.config.init_max_accel_std_mps2,
+            self.config.init_max_gyro_radps,
+        ) {
+            Ok(init) => init,
+            Err(NotStatic::TooFewSamples { .. } | NotStatic::Moving { .. }) => return Ok(None),
+        };
+        // World origin at the first LiDAR pose, z up, LiDAR heading along x.
+        let r_world_imu = nalgebra::UnitQuaternion::from_rotation_matrix(&init.r_world_imu);
+        let p_world_imu = -(r_world_imu * self.t_imu_lidar.translation.vector);
+        let t_world_imu = Isometry3::from_parts(p_world_imu.into(), r_world_imu);
+        let state = EgoState {
+            frame_index,
+            t_s: scan.t_s,
+            t_world_imu,
+            velocity_world_mps: Vector3::zeros(),
+            bias: ImuBias {
+                accel_mps2: Vector3::zeros(),
+                gyro_radps: init.gyro_bias_radps,
+            },
+        };
+        let window_error = |source| EstimatorError::Graph {
+            frame_index,
+            t_s: scan.t_s,
+            source,
+        };
+        let c = self.config.clone();
+        self.smoother
+            .add_variable(Key::EgoPose(frame_index), Variable::Pose(t_world_imu))
+            .map_err(&window_error)?;
+        self.smoother
+            .add_variable(
+                Key::EgoVelocity(frame_index),
+                Variable::Vector3(state.velocity_world_mps),
+            )
+            .map_err(&window_error)?;
+        self.smoother
+            .add_variable(Key::EgoBias(frame_index), Variable::Bias(state.bias))
+            .map_err(&window_error)?;
+        // The gauge (position, yaw) is fixed tightly; roll and pitch come from gravity.
+        let gauge = 1e-3;
+        self.smoother
+            .add_factor(Box::new(PriorFactor::new(
+                Key::EgoPose(frame_index),
+                Variable::Pose(t_world_imu),
+                NoiseModel::diagonal_sigmas(&[
+                    gauge,
+                    gauge,
+                    gauge,
+                    c.init_tilt_sigma_rad,
+                    c.init_tilt_sigma_rad,
+                    gauge,
+                ]),
+            )))
+            .map_err(&window_error)?;
+        self.smoother
+            .add_factor(Box::new(PriorFactor::new(
+                Key::EgoVelocity(frame_index),
+                Variable::Vector3(Vector3::zeros()),
+                NoiseModel::diagonal_sigmas(&[c.init_velocity_sigma_mps; 3]),
+            )))
+            .map_err(&window_error)?;
+        let ab = c.init_accel_bias_sigma_mps2;
+        let gb = c.init_gyro_bias_sigma_radps;
+        self.smoother
+            .add_factor(Box::new(PriorFactor::new(
+                Key::EgoBias(frame_index),
+                Variable::Bias(state.bias),
+                NoiseModel::diagonal_sigmas(&[ab, ab, ab, gb, gb, gb]),
+            )))
+            .map_err(&window_error)?;
+        self.window_frames.push_back(frame_index);
+        self.latest = Some(state);
+
+        let mut timings = ModuleTimings::default();
+        let motion = self.imu_sweep_motion(&state, scan, &mut timings);
+        let motion = motion.map_err(|source| EstimatorError::Deskew {
+            frame_index,
+            t_s: scan.t_s,
+            source,
+        })?;
+        let features = self.sweep_features(scan, &motion, &mut timings);
+        let t_world_lidar = t_world_imu * self.t_imu_lidar;
+        let clock = Instant::now();
+        self.add_keyframe(&t_world_lidar, &features)
+            .map_err(|source| EstimatorError::Map {
+                frame_index,
+                t_s: scan.t_s,
+                source,
+            })?;
+        timings.map_update = clock.elapsed();
+        Ok(Some(FrameEstimate {
+            frame_index,
+            t_s: scan.t_s,
+            t_world_lidar,
+            velocity_world_mps: state.velocity_world_mps,
+            bias: state.bias,
+            scan_match: None,
+            timings,
+        }))
+    }
+
+    fn process_inertial(
+        &mut self,
+        frame_index: u64,
+        scan: &LidarScan,
+    ) -> Result<FrameEstimate, EstimatorError> {
+        let previous = self.latest.expect("initialised");
+        let mut timings = ModuleTimings::default();
+        let t_s = scan.t_s;
+        let imu_error = |source| EstimatorError::Imu {
+            frame_index,
+            t_s,
+            source,
+        };
+
+        let clock = Instant::now();
+        let preintegration = Preintegration::from_samples(
+            &self.imu,
+            previous.t_s,
+            t_s,
+            previous.bias,
+            self.config.imu_noise,
+            self.config.max_imu_gap_s,
+        )
+        .map_err(imu_error)?;
+        let (t_world_imu_pred, velocity_pred) = preintegration.predict(
+            &previous.t_world_imu,
+            &previous.velocity_world_mps,
+            &previous.bias,
+            &self.gravity_world,
+        );
+        let predicted = EgoState {
+            frame_index,
+            t_s,
+            t_world_imu: t_world_imu_pred,
+            velocity_world_mps: velocity_pred,
+            bias: previous.bias,
+        };
+        timings.imu_prediction = clock.elapsed();
+
+        let motion = self
+            .imu_sweep_motion(&predicted, scan, &mut timings)
+            .map_err(|source| EstimatorError::Deskew {
+                frame_index,
+                t_s,
+                source,
+            })?;
+        let features = self.sweep_features(scan, &motion, &mut timings);
+
+        let clock = Instant::now();
+        let initial_t_world_lidar = t_world_imu_pred * self.t_imu_lidar;
+        let matched = self.match_features(&features, &initial_t_world_lidar);
+        timings.scan_matching = clock.elapsed();
+
+        let clock = Instant::now();
+        let j = previous.frame_index;
+        let k = frame_index;
+        let window_error = |source| EstimatorError::Graph {
+            frame_index,
+            t_s,
+            source,
+        };
+        self.smoother
+            .add_variable(Key::EgoPose(k), Variable::Pose(t_world_imu_pred))
+            .map_err(&window_error)?;
+        self.smoother
+            .add_variable(Key::EgoVelocity(k), Variable::Vector3(velocity_pred))
+            .map_err(&window_error)?;
+        self.smoother
+            .add_variable(Key::EgoBias(k), Variable::Bias(previous.bias))
+            .map_err(&window_error)?;
+        let dt_s = preintegration.delta_t_s();
+        let factor_error = |source| EstimatorError::Factor {
+            frame_index,
+            t_s,
+            source,
+        };
+        let imu_factor =
+            ImuFactor::new(j, k, preintegration, self.gravity_world).map_err(factor_error)?;
+        let bias_factor =
+            BiasRandomWalkFactor::new(j, k, dt_s, &self.config.imu_noise).map_err(factor_error)?;
+        self.smoother
+            .add_factor(Box::new(imu_factor))
+            .map_err(&window_error)?;
+        self.smoother
+            .add_factor(Box::new(bias_factor))
+            .map_err(&window_error)?;
+        if let Some(result) = &matched {
+            // LiDAR odometry (the paper's r_odo): the scan-to-map result is a
+            // pose in the map, i.e. world, frame, so it constrains this state
+            // directly (with the map's keyframe poses held fixed, r_odo between
+            // the map anchor and this frame reduces to it). Relative factors
+            // between consecutive matches would let the estimate drift from
+            // the map; relative to the previous *estimate* they would feed its
+            // own corrections back as measurements (unstable).
+            let t_world_imu_matched = result.t_world_lidar * self.t_lidar_imu;
+            if let Some(noise) = self.odometry_noise(result) {
+                self.smoother
+                    .add_factor(Box::new(PriorFactor::new(
+                        Key::EgoPose(k),
+                        Variable::Pose(t_world_imu_matched),
+                        noise,
+                    )))
+                    .map_err(&window_error)?;
+            }
+        }
+        self.window_frames.push_back(k);
+        self.smoother
+            .optimize(&self.config.solver)
+            .map_err(|source| EstimatorError::Graph {
+                frame_index,
+                t_s,
+                source,
+            })?;
+        while self.window_frames.len() > self.config.window_size.max(2) {
+            let oldest = self.window_frames.pop_front().expect("non-empty window");
+            self.smoother
+                .marginalize_frame(oldest)
+                .map_err(|source| EstimatorError::Graph {
+                    frame_index,
+                    t_s,
+                    source,
+                })?;
+        }
+        let values = self.smoother.values();
+        let state = EgoState {
+            frame_index: k,
+            t_s,
+            t_world_imu: *values.pose(&Key::EgoPose(k)),
+            velocity_world_mps: *values.vector3(&Key::EgoVelocity(k)),
+            bias: *values.bias(&Key::EgoBias(k)),
+        };
+        self.latest = Some(state);
+        timings.graph = clock.elapsed();
+
+        let t_world_lidar = state.t_world_imu * self.t_imu_lidar;
+        let clock = Instant::now();
+        if self.is_keyframe(&t_world_lidar) {
+            self.add_keyframe(&t_world_lidar, &features)
+                .map_err(|source| EstimatorError::Map {
+                    frame_index,
+                    t_s: scan.t_s,
+                    source,
+                })?;
+        }
+        timings.map_update = clock.elapsed();
+        Ok(FrameEstimate {
+            frame_index,
+            t_s,
+            t_world_lidar,
+            velocity_world_mps: state.velocity_world_mps,
+            bias: state.bias,
+            scan_match: matched.as_ref().map(|m| summary(m, &features)),
+            timings,
+        })
+    }
+
+    fn process_lidar_only(
+        &mut self,
+        frame_index: u64,
+        scan: &LidarScan,
+    ) -> Result<FrameEstimate, EstimatorError> {
+        let mut timings = ModuleTimings::default();
+        let t_s = scan.t_s;
+        let clock = Instant::now();
+        // Constant velocity: the last relative motion, rescaled in time.
+        let (predicted, twist_per_s) = match (
+            self.lidar_only_history.front(),
+            self.lidar_only_history.back(),
+        ) {
+            (Some(&(t_a, pose_a)), Some(&(t_b, pose_b))) if t_b > t_a => {
+                let twist = lie::se3_log(&(pose_a.inverse() * pose_b)) / (t_b - t_a);
+                (pose_b * lie::se3_exp(&(twist * (t_s - t_b))), twist)
+            }
+            (_, Some(&(_, pose_b))) => (pose_b, Vector6::zeros()),
+            _ => (Isometry3::identity(), Vector6::zeros()),
+        };
+        timings.imu_prediction = clock.elapsed();
+        let end_s = t_s + scan.sweep_duration_s.max(1e-3);
+        let motion = SweepMotion::constant_velocity(
+            t_s,
+            predicted,
+            end_s,
+            predicted * lie::se3_exp(&(twist_per_s * (end_s - t_s))),
+        )
+        .map_err(|source| EstimatorError::Deskew {
+            frame_index,
+            t_s,
+            source,
+        })?;
+        let features = self.sweep_features(scan, &motion, &mut timings);
+        let clock = Instant::now();
+        let matched = self.match_features(&features, &predicted);
+        timings.scan_matching = clock.elapsed();
+        let t_world_lidar = matched.as_ref().map_or(predicted, |m| m.t_world_lidar);
+        let velocity_world_mps = match self.lidar_only_history.back() {
+            Some(&(t_b, pose_b)) if t_s > t_b => {
+                (t_world_lidar.translation.vector - pose_b.translation.vector) / (t_s - t_b)
+            }
+            _ => Vector3::zeros(),
+        };
+        self.lidar_only_history.push_back((t_s, t_world_lidar));
+        while self.lidar_only_history.len() > 2 {
+            self.lidar_only_history.pop_front();
+        }
+        let clock = Instant::now();
+        if self.is_keyframe(&t_world_lidar) {
+            self.add_keyframe(&t_world_lidar, &features)
+                .map_err(|source| EstimatorError::Map {
+                    frame_index,
+                    t_s: scan.t_s,
+                    source,
+                })?;
+        }
+        timings.map_update = clock.elapsed();
+        Ok(FrameEstimate {
+            frame_index,
+            t_s,
+            t_world_lidar,
+            velocity_world_mps,
+            bias: ImuBias::default(),
+            scan_match: matched.as_ref().map(|m| summary(m, &features)),
+            timings,
+        })
+    }
+
+    /// LiDAR poses over the sweep from IMU propagation of `start` (a state at
+    /// the scan start). Instants past the end of the IMU data are left out;
+    /// [`SweepMotion`] extrapolates with the last segment's velocity there.
+    fn imu_sweep_motion(
+        &self,
+        start: &EgoState,
+        scan: &LidarScan,
+        timings: &mut ModuleTimings,
+    ) -> Result<SweepMotion, DeskewError> {
+        let clock = Instant::now();
+        let n = self.config.deskew_samples.max(2);
+        let last_imu_s = self.imu.last().map_or(start.t_s, |s| s.t_s);
+        let sweep_end_s = (start.t_s + scan.sweep_duration_s).min(last_imu_s);
+        let mut samples = vec![(start.t_s, start.t_world_imu * self.t_imu_lidar)];
+        if sweep_end_s > start.t_s
+            && let Ok(trajectory) = ImuTrajectory::propagate(
+                &self.imu,
+                start.t_s,
+                sweep_end_s,
+                &start.t_world_imu,
+                &start.velocity_world_mps,
+                &start.bias,
+                &self.gravity_world,
+                self.config.max_imu_gap_s,
+            )
+        {
+            for i in 1..n {
+                let t = start.t_s + (sweep_end_s - start.t_s) * i as f64 / (n - 1) as f64;
+                if let Ok(t_world_imu) = trajectory.pose_at(t) {
+                    samples.push((t, t_world_imu * self.t_imu_lidar));
+                }
+            }
+        }
+        if samples.len() == 1 {
+            // No IMU inside the sweep: constant velocity from the state.
+            let end_s = start.t_s + scan.sweep_duration_s.max(1e-3);
+            let mut t_end = start.t_world_imu;
+            t_end.translation.vector += start.velocity_world_mps * (end_s - start.t_s);
+            samples.push((end_s, t_end * self.t_imu_lidar));
+        }
+        let motion = SweepMotion::from_poses(samples);
+        timings.imu_prediction += clock.elapsed();
+        motion
+    }
+
+    /// De-skews to the scan start, extracts LOAM features and downsamples them.
+    fn sweep_features(
+        &mut self,
+        scan: &LidarScan,
+        motion: &SweepMotion,
+        timings: &mut ModuleTimings,
+    ) -> SweepFeatures {
+        let clock = Instant::now();
+        self.deskewed.clear();
+        deskew(scan, motion, scan.t_s, &mut self.deskewed);
+        timings.deskew = clock.elapsed();
+
+        let clock = Instant::now();
+        let features = extract_features(&self.deskewed, scan, &self.config.features);
+        timings.features = clock.elapsed();
+
+        let clock = Instant::now();
+        let edge: Vec<Vector3<f64>> = features
+            .edge_indices
+            .iter()
+            .map(|&i| self.deskewed[i])
+            .collect();
+        let planar: Vec<Vector3<f64>> = features
+            .planar_indices
+            .iter()
+            .map(|&i| self.deskewed[i])
+            .collect();
+        let result = SweepFeatures {
+            edge_lidar: voxel_downsample(&edge, self.config.edge_voxel_m),
+            planar_lidar: voxel_downsample(&planar, self.config.planar_voxel_m),
+        };
+        timings.downsample = clock.elapsed();
+        result
+    }
+
+    fn match_features(
+        &self,
+        features: &SweepFeatures,
+        initial_t_world_lidar: &Isometry3<f64>,
+    ) -> Option<ScanMatchResult> {
+        if self.map.is_empty() {
+            return None;
+        }
+        match_scan(
+            &self.map,
+            &features.edge_lidar,
+            &features.planar_lidar,
+            initial_t_world_lidar,
+            &self.config.scan_match,
+        )
+        .ok()
+    }
+
+    /// The matching information moved to the IMU pose tangent, scaled by the
+    /// point sigma and inflation, with degenerate directions floored.
+    fn odometry_noise(&self, result: &ScanMatchResult) -> Option<NoiseModel> {
+        let c = &self.config;
+        let scale = 1.0 / (c.point_sigma_m * c.point_sigma_m * c.odometry_information_inflation);
+        // ξ_lidar = Ad(T_lidar_imu)·ξ_imu for a right perturbation of t_world_imu.
+        let ad = lie::se3_adjoint(&self.t_lidar_imu);
+        let info_imu: Matrix6<f64> = ad.transpose() * (result.information * scale) * ad;
+        let sym = (info_imu + info_imu.transpose()) * 0.5;
+        let eigen = SymmetricEigen::new(sym);
+        let floored = eigen.eigenvalues.map(|v| v.max(c.odometry_min_information));
+        let info =
+            eigen.eigenvectors * Matrix6::from_diagonal(&floored) * eigen.eigenvectors.transpose();
+        NoiseModel::from_information(&DMatrix::from_column_slice(6, 6, info.as_slice()))
+    }
+
+    fn is_keyframe(&self, t_world_lidar: &Isometry3<f64>) -> bool {
+        match &self.last_keyframe_t_world_lidar {
+            None => true,
+            Some(last) => {
+                let delta = last.inverse() * t_world_lidar;
+                delta.translation.vector.norm() >= self.config.keyframe_distance_m
+                    || delta.rotation.angle() >= self.config.keyframe_angle_rad
+            }
+        }
+    }
+
+    fn add_keyframe(
+        &mut self,
+        t_world_lidar: &Isometry3<f64>,
+        features: &SweepFeatures,
+    ) -> Result<(), LocalMapError> {
+        if features.edge_lidar.is_empty() && features.planar_lidar.is_empty() {
+            return Ok(());
+        }
+        self.map
+            .add_keyframe(t_world_lidar, &features.edge_lidar, &features.planar_lidar)?;
+        self.last_keyframe_t_world_lidar = Some(*t_world_lidar);
+        Ok(())
+    }
+}
+
+fn summary(result: &ScanMatchResult, features: &SweepFeatures) -> ScanMatchSummary {
+    ScanMatchSummary {
+        edge_features: features.edge_lidar.len(),
+        planar_features: features.planar_lidar.len(),
+        edge_matches: result.edge_matches,
+        planar_matches: result.planar_matches,
+        iterations: result.iterations,
+        converged: result.converged,
+        degenerate_directions: result.degenerate_directions,
+        rms_residual_m: result.rms_residual_m,
+    }
+}

@@ -1,0 +1,12 @@
+//! The streaming estimator: configuration, initialization and the per-frame
+//! pipeline (IMU prediction → de-skew → features → scan-to-map matching →
+//! sliding-window smoothing → local-map update).
+
+pub mod config;
+pub mod estimate;
+pub mod estimator;
+pub mod initialization;
+
+pub use config::{EstimatorConfig, Mode};
+pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
+pub use estimator::{Estimator, EstimatorError};

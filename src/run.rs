@@ -1,0 +1,359 @@
+//! `limot run`: feeds a dataset to the estimator and writes its trajectory.
+//!
+//! Sources: a limot dataset (LiDAR, IMU, detections, extrinsics), a KITTI raw
+//! drive (`velodyne_points/` + `oxts/`; the IMU is used when the date
+//! directory's `calib_imu_to_velo.txt` is next to the drive) or a directory
+//! of bare KITTI scans (LiDAR only). Outputs in OUT: `poses_tum.txt` (LiDAR
+//! poses, for evo / `limot eval ego`), `poses_kitti.txt` + `times.txt`,
+//! `estimates.csv` (velocity, biases, match diagnostics) and `timings.csv`.
+
+use crate::kitti::KittiError;
+use crate::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
+use crate::kitti::raw::{RawCalib, RawDrive};
+use crate::report::Variant;
+use crate::simulate::frame_progress_bar;
+use limot_estimator::input::{Extrinsics, Frame, ImuSample};
+use limot_estimator::pipeline::{Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode};
+use limot_sim::record::{Dataset, RecordError};
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error(transparent)]
+    Dataset(#[from] RecordError),
+    #[error(transparent)]
+    Kitti(#[from] KittiError),
+    #[error("{path}: {source}")]
+    Estimator {
+        path: PathBuf,
+        #[source]
+        source: EstimatorError,
+    },
+    #[error(
+        "{path}: not a limot dataset (meta.toml), a KITTI raw drive (velodyne_points/) or a directory of KITTI .bin scans"
+    )]
+    UnknownSource { path: PathBuf },
+    #[error(
+        "variant `{0}` is not implemented yet (only `lio` is; allfilt/dynafilt arrive with tracking, limot with the joint graph)"
+    )]
+    VariantNotImplemented(&'static str),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "{path}: the estimator produced no pose (it never initialised: no static interval at the start?)"
+    )]
+    NoEstimate { path: PathBuf },
+}
+
+/// Where the frames come from.
+pub enum Source {
+    Dataset(Box<Dataset>),
+    Kitti {
+        drive: RawDrive,
+        imu: Vec<ImuSample>,
+        extrinsics: Option<Extrinsics>,
+    },
+}
+
+impl Source {
+    /// Detects the kind of `path` and opens it.
+    pub fn open(path: &Path) -> Result<Source, RunError> {
+        if path.join("meta.toml").is_file() {
+            return Ok(Source::Dataset(Box::new(Dataset::open(path)?)));
+        }
+        if path.join("velodyne_points").is_dir() {
+            let drive = RawDrive::open(path)?;
+            let extrinsics = path
+                .parent()
+                .filter(|date| date.join(RawCalib::IMU_TO_VELO).is_file())
+                .map(RawCalib::read)
+                .transpose()?
+                .map(|calib| Extrinsics {
+                    t_lidar_imu: calib.t_velo_imu,
+                });
+            let imu = drive.imu_samples();
+            return Ok(Source::Kitti {
+                drive,
+                imu,
+                extrinsics,
+            });
+        }
+        let has_scans = fs::read_dir(path)
+            .map_err(|source| RunError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?
+            .filter_map(|e| e.ok())
+            .any(|e| {
+                e.path()
+                    .extension()
+                    .is_some_and(|x| x == "bin" || x == "txt")
+            });
+        if has_scans {
+            let drive = RawDrive::open_bare_scans(path)?;
+            return Ok(Source::Kitti {
+                drive,
+                imu: Vec::new(),
+                extrinsics: None,
+            });
+        }
+        Err(RunError::UnknownSource {
+            path: path.to_path_buf(),
+        })
+    }
+
+    pub fn frame_count(&self) -> usize {
+        match self {
+            Source::Dataset(d) => d.frame_count(),
+            Source::Kitti { drive, .. } => drive.num_scans(),
+        }
+    }
+
+    /// IMU samples and extrinsics, or `None` when the source has no usable IMU.
+    pub fn imu(&self) -> Option<(&[ImuSample], Extrinsics)> {
+        match self {
+            Source::Dataset(d) => Some((&d.imu, d.extrinsics())),
+            Source::Kitti {
+                imu, extrinsics, ..
+            } => match extrinsics {
+                Some(e) if !imu.is_empty() => Some((imu, *e)),
+                _ => None,
+            },
+        }
+    }
+
+    pub fn frame(&self, index: usize) -> Result<Frame, RunError> {
+        Ok(match self {
+            Source::Dataset(d) => d.input_frame(index)?,
+            Source::Kitti { drive, .. } => Frame {
+                scan: drive.scan(index)?,
+                detections: Vec::new(),
+            },
+        })
+    }
+}
+
+/// How to run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    pub variant: Variant,
+    /// Ignore the IMU even when the source has one.
+    pub lidar_only: bool,
+    /// Process at most this many frames.
+    pub max_frames: Option<usize>,
+    pub progress: bool,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            variant: Variant::Lio,
+            lidar_only: false,
+            max_frames: None,
+            progress: false,
+        }
+    }
+}
+
+/// Everything a run produced.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    pub mode: Mode,
+    pub estimates: Vec<FrameEstimate>,
+    /// Frames consumed before the estimator initialised.
+    pub frames_before_init: usize,
+    pub wall_time: Duration,
+}
+
+impl RunOutput {
+    pub fn stamped_poses(&self) -> Vec<StampedPose> {
+        self.estimates
+            .iter()
+            .map(|e| StampedPose {
+                t_s: e.t_s,
+                pose: e.t_world_lidar,
+            })
+            .collect()
+    }
+
+    /// Mean time per stage over the frames, and the mean total.
+    pub fn mean_timings(&self) -> Vec<(&'static str, Duration)> {
+        let n = self.estimates.len().max(1) as u32;
+        let mut sums: Vec<(&'static str, Duration)> = Vec::new();
+        for e in &self.estimates {
+            for (i, (name, d)) in e.timings.stages().into_iter().enumerate() {
+                if sums.len() <= i {
+                    sums.push((name, Duration::ZERO));
+                }
+                sums[i].1 += d;
+            }
+        }
+        let total: Duration = self.estimates.iter().map(|e| e.timings.total()).sum();
+        sums.push(("total", total));
+        sums.into_iter().map(|(name, d)| (name, d / n)).collect()
+    }
+}
+
+/// Runs the estimator over `source`.
+pub fn run(
+    source: &Source,
+    source_path: &Path,
+    options: &RunOptions,
+    config: Option<EstimatorConfig>,
+) -> Result<RunOutput, RunError> {
+    if options.variant != Variant::Lio {
+        return Err(RunError::VariantNotImplemented(options.variant.name()));
+    }
+    let imu = if options.lidar_only {
+        None
+    } else {
+        source.imu()
+    };
+    let mut config = config.unwrap_or_default();
+    if imu.is_none() {
+        config.mode = Mode::LidarOnly;
+    }
+    let mode = config.mode;
+    let extrinsics = imu.map_or(Extrinsics::default(), |(_, e)| e);
+    let samples: &[ImuSample] = imu.map_or(&[], |(s, _)| s);
+    let mut estimator = Estimator::new(config, extrinsics);
+    let frames = options
+        .max_frames
+        .map_or(source.frame_count(), |m| m.min(source.frame_count()));
+    let bar = frame_progress_bar(frames, options.progress);
+    let estimator_error = |source| RunError::Estimator {
+        path: source_path.to_path_buf(),
+        source,
+    };
+    let started = Instant::now();
+    let mut next_imu = 0;
+    let mut estimates = Vec::with_capacity(frames);
+    let mut frames_before_init = 0;
+    for index in 0..frames {
+        let frame = source.frame(index)?;
+        // Everything the IMU measured up to the end of this sweep.
+        let sweep_end_s = frame.scan.t_s + frame.scan.sweep_duration_s;
+        while next_imu < samples.len() && samples[next_imu].t_s <= sweep_end_s + 1e-9 {
+            estimator
+                .push_imu(samples[next_imu])
+                .map_err(estimator_error)?;
+            next_imu += 1;
+        }
+        match estimator.push_frame(&frame).map_err(estimator_error)? {
+            Some(estimate) => estimates.push(estimate),
+            None => frames_before_init += 1,
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if estimates.is_empty() {
+        return Err(RunError::NoEstimate {
+            path: source_path.to_path_buf(),
+        });
+    }
+    Ok(RunOutput {
+        mode,
+        estimates,
+        frames_before_init,
+        wall_time: started.elapsed(),
+    })
+}
+
+/// Writes the trajectory (TUM, KITTI + times), the per-frame estimates and timings.
+pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| RunError::Io { path, source }
+    };
+    fs::create_dir_all(out_dir).map_err(io(out_dir))?;
+    let poses = output.stamped_poses();
+    let write = |name: &str, text: String| {
+        let path = out_dir.join(name);
+        fs::write(&path, text).map_err(io(&path))
+    };
+    write("poses_tum.txt", write_tum(&poses))?;
+    write(
+        "poses_kitti.txt",
+        write_kitti_poses(&poses.iter().map(|p| p.pose).collect::<Vec<_>>()),
+    )?;
+    let mut times = String::new();
+    for p in &poses {
+        let _ = writeln!(times, "{}", p.t_s);
+    }
+    write("times.txt", times)?;
+
+    let mut csv = String::from(
+        "frame,t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz,bax,bay,baz,bgx,bgy,bgz,edge_features,planar_features,edge_matches,planar_matches,iterations,converged,degenerate_directions,rms_residual_m\n",
+    );
+    for e in &output.estimates {
+        let t = e.t_world_lidar.translation.vector;
+        let q = e.t_world_lidar.rotation.quaternion();
+        let v = e.velocity_world_mps;
+        let (ba, bg) = (e.bias.accel_mps2, e.bias.gyro_radps);
+        let _ = write!(
+            csv,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            e.frame_index,
+            e.t_s,
+            t.x,
+            t.y,
+            t.z,
+            q.i,
+            q.j,
+            q.k,
+            q.w,
+            v.x,
+            v.y,
+            v.z,
+            ba.x,
+            ba.y,
+            ba.z,
+            bg.x,
+            bg.y,
+            bg.z
+        );
+        match &e.scan_match {
+            Some(m) => {
+                let _ = writeln!(
+                    csv,
+                    ",{},{},{},{},{},{},{},{}",
+                    m.edge_features,
+                    m.planar_features,
+                    m.edge_matches,
+                    m.planar_matches,
+                    m.iterations,
+                    m.converged,
+                    m.degenerate_directions,
+                    m.rms_residual_m
+                );
+            }
+            None => {
+                let _ = writeln!(csv, ",,,,,,,,");
+            }
+        }
+    }
+    write("estimates.csv", csv)?;
+
+    let mut timings = String::from("frame");
+    let names = output.estimates[0].timings.stages().map(|(n, _)| n);
+    for name in names {
+        let _ = write!(timings, ",{name}_ms");
+    }
+    timings.push_str(",total_ms\n");
+    for e in &output.estimates {
+        let _ = write!(timings, "{}", e.frame_index);
+        for (_, d) in e.timings.stages() {
+            let _ = write!(timings, ",{:.3}", d.as_secs_f64() * 1e3);
+        }
+        let _ = writeln!(timings, ",{:.3}", e.timings.total().as_secs_f64() * 1e3);
+    }
+    write("timings.csv", timings)?;
+    Ok(())
+}

@@ -1,0 +1,151 @@
+//! The `lio` variant end to end on simulated urban drives without moving
+//! objects (noise-free and default noise), and LiDAR-only on real KITTI scans.
+
+use limot::evaluate::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
+use limot::run::{RunOptions, RunOutput, Source, run, write_output};
+use limot::simulate::resolve_scenario;
+use limot_sim::scenario::ScenarioSpec;
+use limot_sim::simulation::Simulation;
+use std::path::{Path, PathBuf};
+
+fn static_urban(duration_s: f64, noise_free: bool) -> ScenarioSpec {
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = duration_s;
+    let urban = spec.urban.as_mut().unwrap();
+    urban.moving_cars = 0;
+    urban.cyclists = 0;
+    urban.pedestrians = 0;
+    urban.cross_cars_per_intersection = 0;
+    if noise_free {
+        spec.lidar.range_noise_sigma_m = 0.0;
+        spec.lidar.dropout_probability = 0.0;
+        spec.imu.accel_noise_density = 0.0;
+        spec.imu.gyro_noise_density = 0.0;
+        spec.imu.accel_bias_random_walk = 0.0;
+        spec.imu.gyro_bias_random_walk = 0.0;
+        spec.imu.accel_bias_initial_sigma = 0.0;
+        spec.imu.gyro_bias_initial_sigma = 0.0;
+    }
+    spec
+}
+
+fn simulate(spec: &ScenarioSpec, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("limot-lio-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    Simulation::new(spec)
+        .unwrap()
+        .write_dataset(&dir, |_, _| {})
+        .unwrap()
+}
+
+fn ate(dataset: &Path, output: &RunOutput) -> (f64, f64) {
+    let opts = EgoEvalOptions::default();
+    let truth = load_truth(dataset, &opts).unwrap();
+    let estimate = Trajectory {
+        path: dataset.join("estimate"),
+        kind: "lio".into(),
+        poses: output
+            .estimates
+            .iter()
+            .map(|e| (e.t_s, e.t_world_lidar))
+            .collect(),
+        frame_times: None,
+    };
+    let eval = evaluate_trajectories(&truth, &estimate, &opts).unwrap();
+    (eval.ate.ate_t_rmse_m, eval.ate.ate_r_rmse_rad)
+}
+
+#[test]
+fn noise_free_static_urban_is_tracked_within_centimetres() {
+    let spec = static_urban(60.0, true);
+    let dir = simulate(&spec, "noise-free");
+    let source = Source::open(&dir).unwrap();
+    let output = run(&source, &dir, &RunOptions::default(), None).unwrap();
+    write_output(&dir.join("lio"), &output).unwrap();
+    let (ate_t, ate_r) = ate(&dir, &output);
+    eprintln!(
+        "noise-free: {} estimates, {} before init, ATE_T {ate_t:.4} m, ATE_R {ate_r:.5} rad, {:?} mean total",
+        output.estimates.len(),
+        output.frames_before_init,
+        output.mean_timings().last().unwrap().1
+    );
+    assert!(output.frames_before_init <= 10);
+    assert!(ate_t < 0.05, "ATE_T {ate_t} m");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn default_noise_static_urban_meets_the_accuracy_targets() {
+    let spec = static_urban(60.0, false);
+    let dir = simulate(&spec, "noisy");
+    let source = Source::open(&dir).unwrap();
+    let output = run(&source, &dir, &RunOptions::default(), None).unwrap();
+    let (ate_t, ate_r) = ate(&dir, &output);
+    let dataset = limot_sim::record::Dataset::open(&dir).unwrap();
+    let bias_truth = dataset.bias_truth().unwrap();
+    let last = output.estimates.last().unwrap();
+    let true_bias = bias_truth
+        .iter()
+        .min_by(|a, b| {
+            (a.t_s - last.t_s)
+                .abs()
+                .total_cmp(&(b.t_s - last.t_s).abs())
+        })
+        .unwrap();
+    let gyro_error = (last.bias.gyro_radps - true_bias.gyro_bias).norm();
+    let accel_error = (last.bias.accel_mps2 - true_bias.accel_bias).norm();
+    eprintln!(
+        "default noise: ATE_T {ate_t:.4} m, ATE_R {ate_r:.5} rad; final bias error gyro {gyro_error:.2e} rad/s (true {:.2e}), accel {accel_error:.3} m/s^2 (true {:.3})",
+        true_bias.gyro_bias.norm(),
+        true_bias.accel_bias.norm()
+    );
+    assert!(ate_t < 0.3, "ATE_T {ate_t} m");
+    assert!(ate_r < 0.01, "ATE_R {ate_r} rad");
+    // Biases converge toward the truth: better than assuming zero.
+    assert!(
+        gyro_error < 0.5 * true_bias.gyro_bias.norm(),
+        "gyro bias error {gyro_error}"
+    );
+    assert!(
+        accel_error < true_bias.accel_bias.norm(),
+        "accel bias error {accel_error}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_raw_scans");
+    assert!(
+        dir.is_dir(),
+        "{} is missing (see ../shared/data/README)",
+        dir.display()
+    );
+    let source = Source::open(&dir).unwrap();
+    let output = run(&source, &dir, &RunOptions::default(), None).unwrap();
+    assert_eq!(output.estimates.len(), 20);
+    let poses: Vec<_> = output.estimates.iter().map(|e| e.t_world_lidar).collect();
+    let steps: Vec<f64> = poses
+        .windows(2)
+        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+        .collect();
+    let z: Vec<f64> = poses.iter().map(|p| p.translation.vector.z).collect();
+    eprintln!("KITTI scans: steps {steps:.3?} m, z {z:.3?} m");
+    for e in &output.estimates[1..] {
+        let m = e
+            .scan_match
+            .as_ref()
+            .expect("every scan after the first matches the map");
+        assert!(m.converged, "frame {} did not converge", e.frame_index);
+    }
+    // Smooth: consecutive steps differ little (the car creeps at a steady pace).
+    for w in steps.windows(2) {
+        assert!((w[1] - w[0]).abs() < 0.1, "jerky steps {steps:?}");
+    }
+    let path: f64 = steps.iter().sum();
+    let z_drift = z.last().unwrap() - z[0];
+    assert!(
+        z_drift.abs() < 0.05 + 0.02 * path,
+        "z drift {z_drift} over {path} m"
+    );
+}
