@@ -333,7 +333,7 @@ impl Estimator {
             t_s: scan.t_s,
             source,
         })?;
-        let features = self.sweep_features(scan, &motion, &mut timings);
+        let features = self.sweep_features(scan, &motion, scan.t_s, &mut timings);
         let t_world_lidar = t_world_imu * self.t_imu_lidar;
         let clock = Instant::now();
         self.add_keyframe(&t_world_lidar, &features)
@@ -400,7 +400,7 @@ impl Estimator {
                 t_s,
                 source,
             })?;
-        let features = self.sweep_features(scan, &motion, &mut timings);
+        let features = self.sweep_features(scan, &motion, scan.t_s, &mut timings);
 
         let clock = Instant::now();
         let initial_t_world_lidar = t_world_imu_pred * self.t_imu_lidar;
@@ -518,49 +518,57 @@ impl Estimator {
         let mut timings = ModuleTimings::default();
         let t_s = scan.t_s;
         let clock = Instant::now();
-        // Constant velocity: the last relative motion, rescaled in time.
-        let (predicted, twist_per_s) = match (
+        // Without an IMU the sweep is de-skewed to its MIDDLE and matched
+        // there, and the constant-velocity model runs on mid-sweep poses: a
+        // velocity error then distorts the cloud symmetrically instead of
+        // shifting it, which would feed the error back through the
+        // prediction (an oscillation that grows).
+        let half_s = 0.5 * scan.sweep_duration_s.max(1e-3);
+        let mid_s = t_s + half_s;
+        let (predicted_mid, twist_per_s) = match (
             self.lidar_only_history.front(),
             self.lidar_only_history.back(),
         ) {
             (Some(&(t_a, pose_a)), Some(&(t_b, pose_b))) if t_b > t_a => {
                 let twist = lie::se3_log(&(pose_a.inverse() * pose_b)) / (t_b - t_a);
-                (pose_b * lie::se3_exp(&(twist * (t_s - t_b))), twist)
+                (pose_b * lie::se3_exp(&(twist * (mid_s - t_b))), twist)
             }
             (_, Some(&(_, pose_b))) => (pose_b, Vector6::zeros()),
             _ => (Isometry3::identity(), Vector6::zeros()),
         };
         timings.imu_prediction = clock.elapsed();
-        let end_s = t_s + scan.sweep_duration_s.max(1e-3);
         let motion = SweepMotion::constant_velocity(
             t_s,
-            predicted,
-            end_s,
-            predicted * lie::se3_exp(&(twist_per_s * (end_s - t_s))),
+            predicted_mid * lie::se3_exp(&(-twist_per_s * half_s)),
+            mid_s + half_s,
+            predicted_mid * lie::se3_exp(&(twist_per_s * half_s)),
         )
         .map_err(|source| EstimatorError::Deskew {
             frame_index,
             t_s,
             source,
         })?;
-        let features = self.sweep_features(scan, &motion, &mut timings);
+        let features = self.sweep_features(scan, &motion, mid_s, &mut timings);
         let clock = Instant::now();
-        let matched = self.match_features(&features, &predicted);
+        let matched = self.match_features(&features, &predicted_mid);
         timings.scan_matching = clock.elapsed();
-        let t_world_lidar = matched.as_ref().map_or(predicted, |m| m.t_world_lidar);
+        let t_world_lidar_mid = matched.as_ref().map_or(predicted_mid, |m| m.t_world_lidar);
+        // The reported state is at the scan start, like the IMU mode's.
+        let t_world_lidar = t_world_lidar_mid * lie::se3_exp(&(-twist_per_s * half_s));
         let velocity_world_mps = match self.lidar_only_history.back() {
-            Some(&(t_b, pose_b)) if t_s > t_b => {
-                (t_world_lidar.translation.vector - pose_b.translation.vector) / (t_s - t_b)
+            Some(&(t_b, pose_b)) if mid_s > t_b => {
+                (t_world_lidar_mid.translation.vector - pose_b.translation.vector) / (mid_s - t_b)
             }
             _ => Vector3::zeros(),
         };
-        self.lidar_only_history.push_back((t_s, t_world_lidar));
+        self.lidar_only_history
+            .push_back((mid_s, t_world_lidar_mid));
         while self.lidar_only_history.len() > 2 {
             self.lidar_only_history.pop_front();
         }
         let clock = Instant::now();
-        if self.is_keyframe(&t_world_lidar) {
-            self.add_keyframe(&t_world_lidar, &features)
+        if self.is_keyframe(&t_world_lidar_mid) {
+            self.add_keyframe(&t_world_lidar_mid, &features)
                 .map_err(|source| EstimatorError::Map {
                     frame_index,
                     t_s: scan.t_s,
@@ -629,11 +637,12 @@ impl Estimator {
         &mut self,
         scan: &LidarScan,
         motion: &SweepMotion,
+        t_ref_s: f64,
         timings: &mut ModuleTimings,
     ) -> SweepFeatures {
         let clock = Instant::now();
         self.deskewed.clear();
-        deskew(scan, motion, scan.t_s, &mut self.deskewed);
+        deskew(scan, motion, t_ref_s, &mut self.deskewed);
         timings.deskew = clock.elapsed();
 
         let clock = Instant::now();
