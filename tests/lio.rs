@@ -138,8 +138,10 @@ fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
             .expect("every scan after the first matches the map");
         assert!(m.converged, "frame {} did not converge", e.frame_index);
     }
-    // Smooth: consecutive steps differ little (the car creeps at a steady pace).
-    for w in steps.windows(2) {
+    // Smooth: consecutive steps differ little (the car creeps at a steady
+    // pace). The first pose is the first sweep's middle (no velocity is known
+    // yet to move it to the sweep start), so the first step is short.
+    for w in steps[1..].windows(2) {
         assert!((w[1] - w[0]).abs() < 0.1, "jerky steps {steps:?}");
     }
     let path: f64 = steps.iter().sum();

@@ -60,6 +60,12 @@ pub struct EstimatorConfig {
     pub keyframe_distance_m: f64,
     pub keyframe_angle_rad: f64,
     pub solver: SolverConfig,
+    /// LiDAR-only: when the match lands farther than this from the
+    /// constant-velocity prediction, the sweep is de-skewed again with the
+    /// matched velocity and re-matched (at most `max_redeskew_rounds` times).
+    pub redeskew_translation_m: f64,
+    pub redeskew_rotation_rad: f64,
+    pub max_redeskew_rounds: usize,
 }
 
 impl Default for EstimatorConfig {
@@ -90,6 +96,9 @@ impl Default for EstimatorConfig {
             keyframe_angle_rad: 0.2,
             // A window of 5 frames converges in a few iterations from the IMU
             // prediction; tighter tolerances only burn time.
+            redeskew_translation_m: 0.03,
+            redeskew_rotation_rad: 0.003,
+            max_redeskew_rounds: 2,
             solver: SolverConfig {
                 max_iterations: 10,
                 function_tolerance: 1e-6,

@@ -5,7 +5,9 @@ use nalgebra::{Isometry3, Vector3};
 use std::time::Duration;
 
 /// The estimate of one frame, at its scan start time, as known right after
-/// the frame was processed (the window may refine it later).
+/// the frame was processed (the window may refine it later). In LiDAR-only
+/// mode the very first pose is the first sweep's middle: no velocity is known
+/// yet to move it to the sweep start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameEstimate {
     /// 0-based index of the frame in the input stream.

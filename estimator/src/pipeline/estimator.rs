@@ -537,21 +537,43 @@ impl Estimator {
             _ => (Isometry3::identity(), Vector6::zeros()),
         };
         timings.imu_prediction = clock.elapsed();
-        let motion = SweepMotion::constant_velocity(
-            t_s,
-            predicted_mid * lie::se3_exp(&(-twist_per_s * half_s)),
-            mid_s + half_s,
-            predicted_mid * lie::se3_exp(&(twist_per_s * half_s)),
-        )
-        .map_err(|source| EstimatorError::Deskew {
-            frame_index,
-            t_s,
-            source,
-        })?;
-        let features = self.sweep_features(scan, &motion, mid_s, &mut timings);
-        let clock = Instant::now();
-        let matched = self.match_features(&features, &predicted_mid);
-        timings.scan_matching = clock.elapsed();
+        // When the match moves far from the prediction (start-up, sudden
+        // acceleration), the de-skew used the wrong velocity: redo it with the
+        // velocity the match implies and match again.
+        let mut guess_mid = predicted_mid;
+        let mut twist_per_s = twist_per_s;
+        let mut features;
+        let mut matched;
+        let mut rounds = 0;
+        loop {
+            let motion = SweepMotion::constant_velocity(
+                t_s,
+                guess_mid * lie::se3_exp(&(-twist_per_s * half_s)),
+                mid_s + half_s,
+                guess_mid * lie::se3_exp(&(twist_per_s * half_s)),
+            )
+            .map_err(|source| EstimatorError::Deskew {
+                frame_index,
+                t_s,
+                source,
+            })?;
+            features = self.sweep_features(scan, &motion, mid_s, &mut timings);
+            let clock = Instant::now();
+            matched = self.match_features(&features, &guess_mid);
+            timings.scan_matching += clock.elapsed();
+            rounds += 1;
+            let (Some(m), Some(&(t_b, pose_b))) = (&matched, self.lidar_only_history.back()) else {
+                break;
+            };
+            let change = lie::se3_log(&(guess_mid.inverse() * m.t_world_lidar));
+            let small = lie::xi_rho(&change).norm() < self.config.redeskew_translation_m
+                && lie::xi_phi(&change).norm() < self.config.redeskew_rotation_rad;
+            if small || rounds > self.config.max_redeskew_rounds || mid_s <= t_b {
+                break;
+            }
+            twist_per_s = lie::se3_log(&(pose_b.inverse() * m.t_world_lidar)) / (mid_s - t_b);
+            guess_mid = m.t_world_lidar;
+        }
         let t_world_lidar_mid = matched.as_ref().map_or(predicted_mid, |m| m.t_world_lidar);
         // The reported state is at the scan start, like the IMU mode's.
         let t_world_lidar = t_world_lidar_mid * lie::se3_exp(&(-twist_per_s * half_s));
