@@ -70,6 +70,9 @@ enum Command {
         /// Ignore the IMU (scan-to-map matching with a constant-velocity model).
         #[arg(long)]
         lidar_only: bool,
+        /// Start at frame N (e.g. to try a moving start).
+        #[arg(long, default_value_t = 0)]
+        first_frame: usize,
         /// Process at most N frames.
         #[arg(long)]
         max_frames: Option<usize>,
@@ -182,8 +185,9 @@ fn main() -> ExitCode {
             out,
             variant,
             lidar_only,
+            first_frame,
             max_frames,
-        } => run_estimator(&dataset, out, &variant, lidar_only, max_frames),
+        } => run_estimator(&dataset, out, &variant, lidar_only, first_frame, max_frames),
         Command::Eval { what } => run_eval(what),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
@@ -243,6 +247,7 @@ fn run_estimator(
     out: Option<PathBuf>,
     variant: &str,
     lidar_only: bool,
+    first_frame: usize,
     max_frames: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::report::Variant;
@@ -256,6 +261,7 @@ fn run_estimator(
     let options = RunOptions {
         variant,
         lidar_only,
+        first_frame,
         max_frames,
         progress: true,
     };

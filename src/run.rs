@@ -146,6 +146,8 @@ pub struct RunOptions {
     pub variant: Variant,
     /// Ignore the IMU even when the source has one.
     pub lidar_only: bool,
+    /// Start at this frame (the IMU from half a second before it is used).
+    pub first_frame: usize,
     /// Process at most this many frames.
     pub max_frames: Option<usize>,
     pub progress: bool,
@@ -156,6 +158,7 @@ impl Default for RunOptions {
         RunOptions {
             variant: Variant::Lio,
             lidar_only: false,
+            first_frame: 0,
             max_frames: None,
             progress: false,
         }
@@ -224,9 +227,11 @@ pub fn run(
     let extrinsics = imu.map_or(Extrinsics::default(), |(_, e)| e);
     let samples: &[ImuSample] = imu.map_or(&[], |(s, _)| s);
     let mut estimator = Estimator::new(config, extrinsics);
-    let frames = options
-        .max_frames
-        .map_or(source.frame_count(), |m| m.min(source.frame_count()));
+    let first = options.first_frame.min(source.frame_count());
+    let end = options.max_frames.map_or(source.frame_count(), |m| {
+        (first + m).min(source.frame_count())
+    });
+    let frames = end - first;
     let bar = frame_progress_bar(frames, options.progress);
     let estimator_error = |source| RunError::Estimator {
         path: source_path.to_path_buf(),
@@ -236,8 +241,15 @@ pub fn run(
     let mut next_imu = 0;
     let mut estimates = Vec::with_capacity(frames);
     let mut frames_before_init = 0;
-    for index in 0..frames {
+    for index in first..end {
         let frame = source.frame(index)?;
+        if index == first {
+            // IMU history for the initialisation, not the whole past.
+            let from_s = frame.scan.t_s - 0.6;
+            while next_imu < samples.len() && samples[next_imu].t_s < from_s {
+                next_imu += 1;
+            }
+        }
         // Everything the IMU measured up to the end of this sweep.
         let sweep_end_s = frame.scan.t_s + frame.scan.sweep_duration_s;
         while next_imu < samples.len() && samples[next_imu].t_s <= sweep_end_s + 1e-9 {

@@ -39,6 +39,15 @@ pub struct EstimatorConfig {
     /// Prior sigmas on the initial biases.
     pub init_accel_bias_sigma_mps2: f64,
     pub init_gyro_bias_sigma_radps: f64,
+    /// Static test on the LiDAR: largest motion over the last three sweeps, m.
+    pub init_max_lidar_motion_m: f64,
+    /// Moving start: LiDAR-only sweeps used to find gravity and velocity.
+    pub bootstrap_frames: usize,
+    /// Moving start: largest error of the recovered gravity magnitude, m/s².
+    pub bootstrap_gravity_tolerance_mps2: f64,
+    /// Moving start: prior sigmas on the first state's tilt and velocity.
+    pub bootstrap_tilt_sigma_rad: f64,
+    pub bootstrap_velocity_sigma_mps: f64,
     /// Poses sampled per sweep for the IMU-driven de-skew.
     pub deskew_samples: usize,
     pub features: FeatureConfig,
@@ -83,6 +92,11 @@ impl Default for EstimatorConfig {
             init_velocity_sigma_mps: 0.05,
             init_accel_bias_sigma_mps2: 0.1,
             init_gyro_bias_sigma_radps: 0.01,
+            init_max_lidar_motion_m: 0.05,
+            bootstrap_frames: 10,
+            bootstrap_gravity_tolerance_mps2: 0.5,
+            bootstrap_tilt_sigma_rad: 0.02,
+            bootstrap_velocity_sigma_mps: 0.3,
             deskew_samples: 11,
             features: FeatureConfig::default(),
             edge_voxel_m: 0.2,

@@ -14,7 +14,7 @@
 
 use super::config::{EstimatorConfig, Mode};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
-use super::initialization::{NotStatic, static_init};
+use super::initialization::{NotStatic, moving_init, static_init};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
 use crate::graph::sliding_window::SlidingWindowSmoother;
@@ -85,6 +85,13 @@ struct EgoState {
     bias: ImuBias,
 }
 
+/// Prior sigmas on the first inertial state.
+#[derive(Debug, Clone, Copy)]
+struct InitSigmas {
+    tilt_rad: f64,
+    velocity_mps: f64,
+}
+
 /// Features of one de-skewed sweep, LiDAR frame at the scan start.
 struct SweepFeatures {
     edge_lidar: Vec<Vector3<f64>>,
@@ -110,6 +117,10 @@ pub struct Estimator {
     latest: Option<EgoState>,
     // LiDAR-only mode: the last two (t_s, t_world_lidar).
     lidar_only_history: VecDeque<(f64, Isometry3<f64>)>,
+    /// Mid-sweep LiDAR-only poses of a moving start (IMU mode).
+    bootstrap_mids: Vec<(f64, Isometry3<f64>)>,
+    /// Index of the first bootstrap pose after the last degenerate match.
+    bootstrap_usable_from: usize,
     deskewed: Vec<Vector3<f64>>,
 }
 
@@ -130,6 +141,8 @@ impl Estimator {
             window_frames: VecDeque::new(),
             latest: None,
             lidar_only_history: VecDeque::new(),
+            bootstrap_mids: Vec::new(),
+            bootstrap_usable_from: 0,
             deskewed: Vec::new(),
         }
     }
@@ -237,42 +250,126 @@ impl Estimator {
         }
     }
 
+    /// Before the inertial state exists every sweep runs through LiDAR-only
+    /// odometry. The IMU alone cannot tell standing still from driving at a
+    /// constant speed, so the static initialisation also needs the LiDAR
+    /// poses to stand still; otherwise, after `bootstrap_frames` sweeps,
+    /// gravity, velocity and gyroscope bias come from the LiDAR poses and the
+    /// IMU ([`moving_init`]). These sweeps yield no estimate.
     fn try_initialize(
         &mut self,
         frame_index: u64,
         scan: &LidarScan,
     ) -> Result<Option<FrameEstimate>, EstimatorError> {
+        let lidar_only = self.process_lidar_only(frame_index, scan)?;
+        if let Some(&mid) = self.lidar_only_history.back() {
+            self.bootstrap_mids.push(mid);
+        }
+        // A degenerate match (a straight highway with guard rails only) leaves
+        // the along-track motion, hence the velocity, unobserved: a moving
+        // initialisation may only use the sweeps after it.
+        if lidar_only
+            .scan_match
+            .is_some_and(|m| m.degenerate_directions > 0)
+        {
+            self.bootstrap_usable_from = self.bootstrap_mids.len();
+        }
         let t0 = scan.t_s - self.config.init_window_s;
-        let from = self.imu.partition_point(|s| s.t_s < t0);
-        let to = self.imu.partition_point(|s| s.t_s <= scan.t_s);
         let covered = self.imu.first().is_some_and(|s| s.t_s <= t0 + 0.02);
-        if !covered {
+        if !covered || self.bootstrap_mids.len() < 3 {
             return Ok(None);
         }
-        let init = match static_init(
+        let lidar_still = {
+            let recent = &self.bootstrap_mids[self.bootstrap_mids.len() - 3..];
+            let moved = (recent[2].1.translation.vector - recent[0].1.translation.vector).norm();
+            moved < self.config.init_max_lidar_motion_m
+        };
+        let from = self.imu.partition_point(|s| s.t_s < t0);
+        let to = self.imu.partition_point(|s| s.t_s <= scan.t_s);
+        let imu_still = static_init(
             &self.imu[from..to],
             &self.t_lidar_imu,
             self.config.gravity_mps2,
             self.config.init_max_accel_std_mps2,
             self.config.init_max_gyro_radps,
-        ) {
-            Ok(init) => init,
-            Err(NotStatic::TooFewSamples { .. } | NotStatic::Moving { .. }) => return Ok(None),
+        );
+        let state = match imu_still {
+            Ok(init) if lidar_still => {
+                // World origin at this LiDAR pose, z up, LiDAR heading along x.
+                let r_world_imu = nalgebra::UnitQuaternion::from_rotation_matrix(&init.r_world_imu);
+                let p_world_imu = -(r_world_imu * self.t_imu_lidar.translation.vector);
+                let sigmas = InitSigmas {
+                    tilt_rad: self.config.init_tilt_sigma_rad,
+                    velocity_mps: self.config.init_velocity_sigma_mps,
+                };
+                let state = EgoState {
+                    frame_index,
+                    t_s: scan.t_s,
+                    t_world_imu: Isometry3::from_parts(p_world_imu.into(), r_world_imu),
+                    velocity_world_mps: Vector3::zeros(),
+                    bias: ImuBias {
+                        accel_mps2: Vector3::zeros(),
+                        gyro_radps: init.gyro_bias_radps,
+                    },
+                };
+                (state, sigmas)
+            }
+            Err(NotStatic::TooFewSamples { .. }) => return Ok(None),
+            _ => {
+                let needed = self.config.bootstrap_frames.max(3);
+                if self.bootstrap_mids.len() < self.bootstrap_usable_from + needed {
+                    return Ok(None);
+                }
+                let first = self.bootstrap_mids.len() - needed;
+                let Some(init) = moving_init(
+                    &self.bootstrap_mids[first..],
+                    &self.imu,
+                    &self.t_lidar_imu,
+                    self.config.gravity_mps2,
+                    self.config.bootstrap_gravity_tolerance_mps2,
+                ) else {
+                    return Ok(None);
+                };
+                let align = Isometry3::from_parts(
+                    nalgebra::Translation3::identity(),
+                    nalgebra::UnitQuaternion::from_rotation_matrix(&init.r_world_lidarworld),
+                );
+                let sigmas = InitSigmas {
+                    tilt_rad: self.config.bootstrap_tilt_sigma_rad,
+                    velocity_mps: self.config.bootstrap_velocity_sigma_mps,
+                };
+                let state = EgoState {
+                    frame_index,
+                    t_s: scan.t_s,
+                    t_world_imu: align * lidar_only.t_world_lidar * self.t_lidar_imu,
+                    velocity_world_mps: init.r_world_lidarworld * init.velocity_lidarworld_mps,
+                    bias: ImuBias {
+                        accel_mps2: Vector3::zeros(),
+                        gyro_radps: init.gyro_bias_radps,
+                    },
+                };
+                (state, sigmas)
+            }
         };
-        // World origin at the first LiDAR pose, z up, LiDAR heading along x.
-        let r_world_imu = nalgebra::UnitQuaternion::from_rotation_matrix(&init.r_world_imu);
-        let p_world_imu = -(r_world_imu * self.t_imu_lidar.translation.vector);
-        let t_world_imu = Isometry3::from_parts(p_world_imu.into(), r_world_imu);
-        let state = EgoState {
-            frame_index,
-            t_s: scan.t_s,
-            t_world_imu,
-            velocity_world_mps: Vector3::zeros(),
-            bias: ImuBias {
-                accel_mps2: Vector3::zeros(),
-                gyro_radps: init.gyro_bias_radps,
-            },
-        };
+        // Start the inertial map afresh in the gravity-aligned world.
+        self.map.clear();
+        self.last_keyframe_t_world_lidar = None;
+        self.lidar_only_history.clear();
+        self.bootstrap_mids.clear();
+        self.bootstrap_usable_from = 0;
+        self.start_inertial(state.0, scan, state.1).map(Some)
+    }
+
+    /// Puts the first inertial state into the window with its priors and
+    /// starts the map with this sweep.
+    fn start_inertial(
+        &mut self,
+        state: EgoState,
+        scan: &LidarScan,
+        sigmas: InitSigmas,
+    ) -> Result<FrameEstimate, EstimatorError> {
+        let frame_index = state.frame_index;
+        let t_world_imu = state.t_world_imu;
         let window_error = |source| EstimatorError::Graph {
             frame_index,
             t_s: scan.t_s,
@@ -301,8 +398,8 @@ impl Estimator {
                     gauge,
                     gauge,
                     gauge,
-                    c.init_tilt_sigma_rad,
-                    c.init_tilt_sigma_rad,
+                    sigmas.tilt_rad,
+                    sigmas.tilt_rad,
                     gauge,
                 ]),
             )))
@@ -310,8 +407,8 @@ impl Estimator {
         self.smoother
             .add_factor(Box::new(PriorFactor::new(
                 Key::EgoVelocity(frame_index),
-                Variable::Vector3(Vector3::zeros()),
-                NoiseModel::diagonal_sigmas(&[c.init_velocity_sigma_mps; 3]),
+                Variable::Vector3(state.velocity_world_mps),
+                NoiseModel::diagonal_sigmas(&[sigmas.velocity_mps; 3]),
             )))
             .map_err(&window_error)?;
         let ab = c.init_accel_bias_sigma_mps2;
@@ -343,7 +440,7 @@ impl Estimator {
                 source,
             })?;
         timings.map_update = clock.elapsed();
-        Ok(Some(FrameEstimate {
+        Ok(FrameEstimate {
             frame_index,
             t_s: scan.t_s,
             t_world_lidar,
@@ -351,7 +448,7 @@ impl Estimator {
             bias: state.bias,
             scan_match: None,
             timings,
-        }))
+        })
     }
 
     fn process_inertial(
