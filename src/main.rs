@@ -328,7 +328,18 @@ fn run_demo(
             r.false_negatives
         );
     }
-    println!("estimator variants: not implemented yet (issues 3-5)");
+    let e = &s.estimator;
+    println!(
+        "estimator {}: ego ATE_T {:.3} m, ATE_R {:.4} rad over {} frames ({} before initialisation), {:.1} ms/frame, {:.1} FPS",
+        e.variant,
+        e.ate_t_m,
+        e.ate_r_rad,
+        e.frames_estimated,
+        e.frames_before_init,
+        e.mean_frame_ms,
+        e.fps
+    );
+    println!("trajectory: {}", e.trajectory.display());
     println!("report: {}", s.report_readme.display());
     Ok(())
 }
