@@ -49,10 +49,10 @@ pub struct ImuNoise {
 impl Default for ImuNoise {
     fn default() -> Self {
         ImuNoise {
-            accel_noise_density: 3.9939570888238808e-03,
-            gyro_noise_density: 1.5636343949698187e-03,
-            accel_bias_random_walk: 6.4356659353532566e-05,
-            gyro_bias_random_walk: 3.5640318696367613e-05,
+            accel_noise_density: 3.993_957_088_823_881e-3,
+            gyro_noise_density: 1.563_634_394_969_818_7e-3,
+            accel_bias_random_walk: 6.435_665_935_353_257e-5,
+            gyro_bias_random_walk: 3.564_031_869_636_761e-5,
         }
     }
 }

@@ -126,7 +126,7 @@ pub struct Estimator {
 
 impl Estimator {
     pub fn new(config: EstimatorConfig, extrinsics: Extrinsics) -> Estimator {
-        let map = LocalMap::new(config.local_map.clone());
+        let map = LocalMap::new(config.local_map);
         Estimator {
             gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
             t_lidar_imu: extrinsics.t_lidar_imu,
