@@ -99,18 +99,28 @@ pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f6
     }
     // Index of each voxel's accumulator in `sums` (first-occurrence order).
     let mut index: VoxelMap<u32> = VoxelMap::default();
-    index.reserve(points.len() / 2 + 16);
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::with_capacity(points.len() / 2 + 16);
+    index.reserve(points.len() / 4 + 16);
+    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::with_capacity(points.len() / 4 + 16);
+    // Scan-ordered input (points along a ring) mostly repeats the previous
+    // voxel: remembering it skips most hash lookups.
+    let mut last: Option<(VoxelKey, u32)> = None;
     for p in points.iter().filter(finite) {
-        let next = sums.len() as u32;
-        let slot = *index.entry(voxel_key(p, voxel_m)).or_insert(next);
-        if slot == next {
-            sums.push((*p, 1));
-        } else {
-            let acc = &mut sums[slot as usize];
-            acc.0 += p;
-            acc.1 += 1;
-        }
+        let key = voxel_key(p, voxel_m);
+        let slot = match last {
+            Some((k, slot)) if k == key => slot,
+            _ => {
+                let next = sums.len() as u32;
+                let slot = *index.entry(key).or_insert(next);
+                if slot == next {
+                    sums.push((Vector3::zeros(), 0));
+                }
+                last = Some((key, slot));
+                slot
+            }
+        };
+        let acc = &mut sums[slot as usize];
+        acc.0 += p;
+        acc.1 += 1;
     }
     sums.into_iter()
         .map(|(sum, n)| sum / f64::from(n))
