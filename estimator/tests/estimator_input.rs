@@ -1,0 +1,160 @@
+//! Bad input to the streaming estimator: clear errors or documented
+//! recoveries, never a panic.
+
+use limot_estimator::input::{Extrinsics, Frame, ImuSample, LidarPoint, LidarScan};
+use limot_estimator::pipeline::{Estimator, EstimatorConfig, EstimatorError};
+use nalgebra::Vector3;
+
+/// A still sensor in a 20 m × 14 m × 6 m room: 64 rings × 720 columns.
+fn room_scan(t_s: f64) -> LidarScan {
+    let mut points = Vec::new();
+    for column in 0..720 {
+        let az = column as f64 / 720.0 * std::f64::consts::TAU;
+        for ring in 0..64u16 {
+            let el = (-24.0 + 26.0 * ring as f64 / 63.0).to_radians();
+            let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+            // Distance to the room's walls, floor (z = -1.7) and ceiling (z = 4.3).
+            let mut range = f64::INFINITY;
+            for (n, offset) in [
+                (Vector3::x(), 12.0),
+                (-Vector3::x(), 8.0),
+                (Vector3::y(), 6.0),
+                (-Vector3::y(), 8.0),
+                (-Vector3::z(), 1.7),
+                (Vector3::z(), 4.3),
+            ] {
+                let c = d.dot(&n);
+                if c > 1e-9 {
+                    range = range.min(offset / c);
+                }
+            }
+            let p = d * range;
+            points.push(LidarPoint {
+                x: p.x as f32,
+                y: p.y as f32,
+                z: p.z as f32,
+                intensity: 0.5,
+                ring,
+                time_offset_s: (column as f64 / 720.0 * 0.1) as f32,
+            });
+        }
+    }
+    LidarScan {
+        t_s,
+        sweep_duration_s: 0.1,
+        num_rings: 64,
+        points,
+    }
+}
+
+fn still_imu(t_s: f64) -> ImuSample {
+    ImuSample {
+        t_s,
+        accel_mps2: Vector3::new(0.0, 0.0, 9.80511),
+        gyro_radps: Vector3::zeros(),
+    }
+}
+
+fn frame(t_s: f64) -> Frame {
+    Frame {
+        scan: room_scan(t_s),
+        detections: Vec::new(),
+    }
+}
+
+#[test]
+fn still_room_initialises_and_stays_put() {
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    let mut estimates = Vec::new();
+    let mut next_sample = 0;
+    for k in 0..15 {
+        let t = k as f64 * 0.1;
+        // IMU through the end of the sweep, at 100 Hz on an integer grid.
+        while next_sample <= 10 * (k + 1) {
+            est.push_imu(still_imu(next_sample as f64 * 0.01)).unwrap();
+            next_sample += 1;
+        }
+        if let Some(e) = est.push_frame(&frame(t)).unwrap() {
+            estimates.push(e);
+        }
+    }
+    assert!(est.is_initialized());
+    assert!(estimates.len() >= 5, "{} estimates", estimates.len());
+    for e in &estimates {
+        assert!(e.t_world_lidar.translation.vector.norm() < 0.01, "{e:?}");
+        assert!(e.velocity_world_mps.norm() < 0.05);
+    }
+}
+
+#[test]
+fn imu_and_scan_errors_name_what_is_wrong() {
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    est.push_imu(still_imu(1.0)).unwrap();
+    let err = est.push_imu(still_imu(0.5)).unwrap_err();
+    assert!(err.to_string().contains("not after"), "{err}");
+    let mut nan = still_imu(2.0);
+    nan.gyro_radps.y = f64::NAN;
+    let err = est.push_imu(nan).unwrap_err();
+    assert!(err.to_string().contains("gyro_radps"), "{err}");
+
+    est.push_frame(&frame(1.0)).unwrap();
+    let err = est.push_frame(&frame(0.9)).unwrap_err();
+    assert!(err.to_string().contains("not after"), "{err}");
+    let mut bad = frame(3.0);
+    bad.scan.t_s = f64::NAN;
+    let err = est.push_frame(&bad).unwrap_err();
+    assert!(err.to_string().contains("t_s"), "{err}");
+}
+
+#[test]
+fn nan_points_are_dropped_and_empty_scans_do_not_panic() {
+    let mut est = Estimator::new(EstimatorConfig::lidar_only(), Extrinsics::default());
+    let mut f = frame(0.0);
+    for p in f.scan.points.iter_mut().step_by(7) {
+        p.x = f32::NAN;
+    }
+    let first = est
+        .push_frame(&f)
+        .unwrap()
+        .expect("LiDAR-only estimates at once");
+    assert!(first.t_world_lidar.translation.vector.norm() < 1e-9);
+    // An empty sweep: no features, no match; the pose is the prediction.
+    let empty = Frame {
+        scan: LidarScan {
+            t_s: 0.1,
+            sweep_duration_s: 0.1,
+            num_rings: 64,
+            points: Vec::new(),
+        },
+        detections: Vec::new(),
+    };
+    let e = est.push_frame(&empty).unwrap().unwrap();
+    assert!(e.scan_match.is_none());
+    let e = est.push_frame(&frame(0.2)).unwrap().unwrap();
+    assert!(e.scan_match.is_some_and(|m| m.converged));
+    assert!(e.t_world_lidar.translation.vector.norm() < 0.01);
+}
+
+#[test]
+fn an_imu_gap_is_an_error_naming_the_frame() {
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    let mut k = 0;
+    while !est.is_initialized() {
+        let t = k as f64 * 0.1;
+        for i in 0..=10 {
+            est.push_imu(still_imu(t + i as f64 * 0.01)).ok();
+        }
+        est.push_frame(&frame(t)).unwrap();
+        k += 1;
+        assert!(k < 30, "never initialised");
+    }
+    // Half a second without IMU samples.
+    let t_gap = k as f64 * 0.1 + 0.5;
+    for i in 0..=10 {
+        est.push_imu(still_imu(t_gap + i as f64 * 0.01)).unwrap();
+    }
+    let err = est.push_frame(&frame(t_gap)).unwrap_err();
+    assert!(matches!(err, EstimatorError::Imu { .. }), "{err}");
+    let text = err.to_string();
+    assert!(text.contains(&format!("frame {k}")), "{text}");
+}
