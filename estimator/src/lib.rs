@@ -9,3 +9,4 @@ pub mod input;
 pub mod lidar;
 pub mod lie;
 pub mod pipeline;
+pub mod filter;
