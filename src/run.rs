@@ -13,7 +13,9 @@ use crate::kitti::raw::{RawCalib, RawDrive};
 use crate::report::Variant;
 use crate::simulate::frame_progress_bar;
 use limot_estimator::input::{Extrinsics, Frame, ImuSample};
-use limot_estimator::pipeline::{Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode};
+use limot_estimator::pipeline::{
+    Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant as EstimatorVariant,
+};
 use limot_sim::record::{Dataset, RecordError};
 use std::fmt::Write as _;
 use std::fs;
@@ -37,7 +39,7 @@ pub enum RunError {
     )]
     UnknownSource { path: PathBuf },
     #[error(
-        "variant `{0}` is not implemented yet (only `lio` is; allfilt/dynafilt arrive with tracking, limot with the joint graph)"
+        "variant `{0}` is not implemented yet (lio and allfilt are; dynafilt arrives with the tracker, limot with the joint graph)"
     )]
     VariantNotImplemented(&'static str),
     #[error("{path}: {source}")]
@@ -211,15 +213,18 @@ pub fn run(
     options: &RunOptions,
     config: Option<EstimatorConfig>,
 ) -> Result<RunOutput, RunError> {
-    if options.variant != Variant::Lio {
-        return Err(RunError::VariantNotImplemented(options.variant.name()));
-    }
+    let variant = match options.variant {
+        Variant::Lio => EstimatorVariant::Lio,
+        Variant::Allfilt => EstimatorVariant::Allfilt,
+        other => return Err(RunError::VariantNotImplemented(other.name())),
+    };
     let imu = if options.lidar_only {
         None
     } else {
         source.imu()
     };
     let mut config = config.unwrap_or_default();
+    config.variant = variant;
     if imu.is_none() {
         config.mode = Mode::LidarOnly;
     }
@@ -302,7 +307,7 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
     write("times.txt", times)?;
 
     let mut csv = String::from(
-        "frame,t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz,bax,bay,baz,bgx,bgy,bgz,edge_features,planar_features,edge_matches,planar_matches,iterations,converged,degenerate_directions,rms_residual_m\n",
+        "frame,t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz,bax,bay,baz,bgx,bgy,bgz,removed_features,edge_features,planar_features,edge_matches,planar_matches,iterations,converged,degenerate_directions,rms_residual_m\n",
     );
     for e in &output.estimates {
         let t = e.t_world_lidar.translation.vector;

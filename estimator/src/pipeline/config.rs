@@ -1,5 +1,6 @@
 //! Estimator configuration with the paper's / LIO-SAM's defaults.
 
+use crate::filter::FilterConfig;
 use crate::graph::solver::SolverConfig;
 use crate::imu::ImuNoise;
 use crate::lidar::features::FeatureConfig;
@@ -16,9 +17,21 @@ pub enum Mode {
     LidarOnly,
 }
 
+/// How object points are treated (the paper's ablation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// LiDAR-inertial odometry, no object handling.
+    Lio,
+    /// Drop every feature inside any detected box.
+    Allfilt,
+}
+
 #[derive(Debug, Clone)]
 pub struct EstimatorConfig {
     pub mode: Mode,
+    pub variant: Variant,
+    /// Box inflation and time bins of the object filter.
+    pub filter: FilterConfig,
     /// Ego states in the sliding window (the paper uses 5).
     pub window_size: usize,
     /// Gravity magnitude, m/s² (the world z axis points up).
@@ -81,6 +94,8 @@ impl Default for EstimatorConfig {
     fn default() -> Self {
         EstimatorConfig {
             mode: Mode::LidarInertial,
+            variant: Variant::Lio,
+            filter: FilterConfig::default(),
             window_size: 5,
             gravity_mps2: 9.80511,
             imu_noise: ImuNoise::default(),

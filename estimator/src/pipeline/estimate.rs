@@ -23,6 +23,9 @@ pub struct FrameEstimate {
     /// `None` when matching was impossible (empty map or scan) and the pose
     /// is the motion prediction.
     pub scan_match: Option<ScanMatchSummary>,
+    /// Feature points (indices into the sweep's points) dropped as object
+    /// points by the variant's filter; empty for `lio`.
+    pub removed_feature_indices: Vec<u32>,
     pub timings: ModuleTimings,
 }
 
@@ -46,6 +49,8 @@ pub struct ModuleTimings {
     pub imu_prediction: Duration,
     pub deskew: Duration,
     pub features: Duration,
+    /// Dropping object features (`allfilt`, `dynafilt`).
+    pub filter: Duration,
     pub downsample: Duration,
     pub scan_matching: Duration,
     pub graph: Duration,
@@ -57,6 +62,7 @@ impl ModuleTimings {
         self.imu_prediction
             + self.deskew
             + self.features
+            + self.filter
             + self.downsample
             + self.scan_matching
             + self.graph
@@ -64,11 +70,12 @@ impl ModuleTimings {
     }
 
     /// Stage names and durations, in pipeline order (for tables).
-    pub fn stages(&self) -> [(&'static str, Duration); 7] {
+    pub fn stages(&self) -> [(&'static str, Duration); 8] {
         [
             ("imu_prediction", self.imu_prediction),
             ("deskew", self.deskew),
             ("features", self.features),
+            ("filter", self.filter),
             ("downsample", self.downsample),
             ("scan_matching", self.scan_matching),
             ("graph", self.graph),

@@ -12,9 +12,10 @@
 //! start too, so the detections (also stamped within the sweep) and the
 //! ground truth boxes (at scan start) refer to the same instant.
 
-use super::config::{EstimatorConfig, Mode};
+use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 use super::initialization::{NotStatic, moving_init, static_init};
+use crate::filter::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
 use crate::graph::sliding_window::SlidingWindowSmoother;
@@ -22,9 +23,9 @@ use crate::graph::sliding_window::WindowError;
 use crate::graph::{FactorError, Key, NoiseModel, Variable};
 use crate::imu::ImuBias;
 use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
-use crate::input::{Extrinsics, Frame, ImuSample, InputError, LidarScan};
+use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarScan};
 use crate::lidar::deskew::{DeskewError, SweepMotion, deskew};
-use crate::lidar::features::extract_features;
+use crate::lidar::features::{ScanFeatures, extract_features};
 use crate::lidar::local_map::{LocalMap, LocalMapError};
 use crate::lidar::scan_matching::{ScanMatchResult, match_scan};
 use crate::lidar::voxel::voxel_downsample;
@@ -96,6 +97,18 @@ struct InitSigmas {
 struct SweepFeatures {
     edge_lidar: Vec<Vector3<f64>>,
     planar_lidar: Vec<Vector3<f64>>,
+    /// Indices (into the scan's points) of features dropped as object points.
+    removed: Vec<u32>,
+}
+
+/// Which feature points to drop before matching (the variants).
+enum FeatureFilter {
+    /// `lio`: keep everything.
+    Keep,
+    /// `allfilt`: every detected box, fixed, in the world frame.
+    AllBoxes(Vec<OrientedBox>),
+    /// `dynafilt`: boxes of dynamic tracks, each at the point's own time.
+    Moving(Vec<Box<dyn BoxAtTime>>),
 }
 
 /// The streaming estimator. Feed IMU samples in time order with
@@ -122,6 +135,9 @@ pub struct Estimator {
     /// Index of the first bootstrap pose after the last degenerate match.
     bootstrap_usable_from: usize,
     deskewed: Vec<Vector3<f64>>,
+    /// The valid detections of the frame being processed.
+    frame_detections: Vec<Detection>,
+    invalid_detections: u64,
 }
 
 impl Estimator {
@@ -144,11 +160,19 @@ impl Estimator {
             bootstrap_mids: Vec::new(),
             bootstrap_usable_from: 0,
             deskewed: Vec::new(),
+            frame_detections: Vec::new(),
+            invalid_detections: 0,
         }
     }
 
     pub fn config(&self) -> &EstimatorConfig {
         &self.config
+    }
+
+    /// Detections skipped so far as invalid (non-finite, non-positive size,
+    /// score outside [0, 1]).
+    pub fn invalid_detections(&self) -> u64 {
+        self.invalid_detections
     }
 
     /// True once the ego state is initialised (always, in LiDAR-only mode).
@@ -207,6 +231,15 @@ impl Estimator {
         }
         self.last_scan_t_s = Some(scan.t_s);
         let frame_index = self.next_frame_index;
+        // Detections no detector can produce are skipped (and counted).
+        self.frame_detections.clear();
+        for (index, detection) in frame.detections.iter().enumerate() {
+            if detection.validate(scan.t_s, index).is_ok() {
+                self.frame_detections.push(*detection);
+            } else {
+                self.invalid_detections += 1;
+            }
+        }
         self.next_frame_index += 1;
         let finite;
         let scan = if scan.points.iter().all(|p| {
@@ -430,7 +463,8 @@ impl Estimator {
             t_s: scan.t_s,
             source,
         })?;
-        let features = self.sweep_features(scan, &motion, scan.t_s, &mut timings);
+        let filter = self.feature_filter(scan, &motion);
+        let features = self.sweep_features(scan, &motion, scan.t_s, &filter, &mut timings);
         let t_world_lidar = t_world_imu * self.t_imu_lidar;
         let clock = Instant::now();
         self.add_keyframe(&t_world_lidar, &features)
@@ -447,6 +481,7 @@ impl Estimator {
             velocity_world_mps: state.velocity_world_mps,
             bias: state.bias,
             scan_match: None,
+            removed_feature_indices: features.removed.clone(),
             timings,
         })
     }
@@ -497,7 +532,8 @@ impl Estimator {
                 t_s,
                 source,
             })?;
-        let features = self.sweep_features(scan, &motion, scan.t_s, &mut timings);
+        let filter = self.feature_filter(scan, &motion);
+        let features = self.sweep_features(scan, &motion, scan.t_s, &filter, &mut timings);
 
         let clock = Instant::now();
         let initial_t_world_lidar = t_world_imu_pred * self.t_imu_lidar;
@@ -603,6 +639,7 @@ impl Estimator {
             velocity_world_mps: state.velocity_world_mps,
             bias: state.bias,
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
+            removed_feature_indices: features.removed.clone(),
             timings,
         })
     }
@@ -654,7 +691,8 @@ impl Estimator {
                 t_s,
                 source,
             })?;
-            features = self.sweep_features(scan, &motion, mid_s, &mut timings);
+            let filter = self.feature_filter(scan, &motion);
+            features = self.sweep_features(scan, &motion, mid_s, &filter, &mut timings);
             let clock = Instant::now();
             matched = self.match_features(&features, &guess_mid);
             timings.scan_matching += clock.elapsed();
@@ -702,6 +740,7 @@ impl Estimator {
             velocity_world_mps,
             bias: ImuBias::default(),
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
+            removed_feature_indices: features.removed.clone(),
             timings,
         })
     }
@@ -757,6 +796,7 @@ impl Estimator {
         scan: &LidarScan,
         motion: &SweepMotion,
         t_ref_s: f64,
+        filter: &FeatureFilter,
         timings: &mut ModuleTimings,
     ) -> SweepFeatures {
         let clock = Instant::now();
@@ -765,8 +805,12 @@ impl Estimator {
         timings.deskew = clock.elapsed();
 
         let clock = Instant::now();
-        let features = extract_features(&self.deskewed, scan, &self.config.features);
+        let mut features = extract_features(&self.deskewed, scan, &self.config.features);
         timings.features = clock.elapsed();
+
+        let clock = Instant::now();
+        let removed = self.filter_features(scan, motion, filter, &mut features);
+        timings.filter = clock.elapsed();
 
         let clock = Instant::now();
         let edge: Vec<Vector3<f64>> = features
@@ -782,9 +826,80 @@ impl Estimator {
         let result = SweepFeatures {
             edge_lidar: voxel_downsample(&edge, self.config.edge_voxel_m),
             planar_lidar: voxel_downsample(&planar, self.config.planar_voxel_m),
+            removed,
         };
         timings.downsample = clock.elapsed();
         result
+    }
+
+    /// The variant's object boxes for this sweep.
+    fn feature_filter(&self, scan: &LidarScan, motion: &SweepMotion) -> FeatureFilter {
+        match self.config.variant {
+            Variant::Lio => FeatureFilter::Keep,
+            Variant::Allfilt => FeatureFilter::AllBoxes(
+                self.frame_detections
+                    .iter()
+                    .map(|d| {
+                        OrientedBox::from_detection(d, &motion.pose_at(scan.t_s + d.time_offset_s))
+                    })
+                    .collect(),
+            ),
+        }
+    }
+
+    /// Drops the feature points that lie in the variant's object boxes,
+    /// testing each RAW point at its own time against the box then (the
+    /// ego pose comes from the sweep motion). Returns the dropped indices.
+    fn filter_features(
+        &self,
+        scan: &LidarScan,
+        motion: &SweepMotion,
+        filter: &FeatureFilter,
+        features: &mut ScanFeatures,
+    ) -> Vec<u32> {
+        if matches!(filter, FeatureFilter::Keep) {
+            return Vec::new();
+        }
+        let indices: Vec<usize> = features
+            .edge_indices
+            .iter()
+            .chain(&features.planar_indices)
+            .copied()
+            .collect();
+        let points: Vec<Vector3<f64>> =
+            indices.iter().map(|&i| scan.points[i].position()).collect();
+        let times: Vec<f64> = indices
+            .iter()
+            .map(|&i| scan.t_s + f64::from(scan.points[i].time_offset_s))
+            .collect();
+        let pose_at = |t: f64| motion.pose_at(t);
+        let mask = match filter {
+            FeatureFilter::Keep => return Vec::new(),
+            FeatureFilter::AllBoxes(boxes) => {
+                all_boxes_mask(&points, &times, &pose_at, boxes, &self.config.filter)
+            }
+            FeatureFilter::Moving(boxes) => {
+                let refs: Vec<&dyn BoxAtTime> = boxes.iter().map(|b| b.as_ref()).collect();
+                dynamic_feature_mask(&points, &times, &pose_at, &refs, &self.config.filter)
+            }
+        };
+        // The inputs are finite and equally long and the config is
+        // validated at construction, so the filter cannot fail here.
+        let mask = mask.unwrap_or_else(|_| vec![false; indices.len()]);
+        let removed: std::collections::HashSet<usize> = indices
+            .iter()
+            .zip(&mask)
+            .filter(|(_, drop)| **drop)
+            .map(|(i, _)| *i)
+            .collect();
+        if removed.is_empty() {
+            return Vec::new();
+        }
+        features.edge_indices.retain(|i| !removed.contains(i));
+        features.planar_indices.retain(|i| !removed.contains(i));
+        let mut removed: Vec<u32> = removed.into_iter().map(|i| i as u32).collect();
+        removed.sort_unstable();
+        removed
     }
 
     fn match_features(

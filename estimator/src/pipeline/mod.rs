@@ -7,6 +7,6 @@ pub mod estimate;
 pub mod estimator;
 pub mod initialization;
 
-pub use config::{EstimatorConfig, Mode};
+pub use config::{EstimatorConfig, Mode, Variant};
 pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 pub use estimator::{Estimator, EstimatorError};
