@@ -1,0 +1,354 @@
+//! The per-frame tracker: predict every track to the frame time, associate
+//! detections per class by min-cost flow, update matched tracks, coast or
+//! delete unmatched ones, and start tentative tracks from unmatched
+//! detections.
+
+use super::association::{associate_by_class, matching_matrix};
+use super::track::{Lifecycle, Motion, TimedBox, Track};
+use super::trajectory_fit::FitError;
+use super::{TrackerConfig, TrackerConfigError};
+use crate::input::ObjectClass;
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+
+/// A detection already transformed into the world frame by the caller
+/// (with the ego pose at the detection time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldDetection {
+    pub center_world: Vector3<f64>,
+    /// Length, width, height (metres).
+    pub size_lwh: Vector3<f64>,
+    /// Heading about the world z axis (radians).
+    pub yaw_rad: f64,
+    pub class: ObjectClass,
+    pub score: f64,
+}
+
+impl WorldDetection {
+    /// True when every field is usable (finite, positive size).
+    fn is_valid(&self) -> bool {
+        self.center_world.iter().all(|v| v.is_finite())
+            && self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.yaw_rad.is_finite()
+            && self.score.is_finite()
+    }
+}
+
+/// One track's state after an update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackOutput {
+    pub id: u64,
+    pub class: ObjectClass,
+    /// Fitted (smoothed) centre at the frame time, or the prediction when
+    /// `predicted`.
+    pub center_world: Vector3<f64>,
+    /// Heading wrapped to (−π, π].
+    pub yaw_rad: f64,
+    /// Running mean of the matched sizes.
+    pub size_lwh: Vector3<f64>,
+    /// Derivative of the fitted trajectory at the frame time.
+    pub velocity_world_mps: Vector3<f64>,
+    pub lifecycle: Lifecycle,
+    pub motion: Motion,
+    /// No detection matched this frame: the box is the trajectory prediction.
+    pub predicted: bool,
+}
+
+/// Errors of [`Tracker`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackerError {
+    #[error(transparent)]
+    Config(#[from] TrackerConfigError),
+    #[error("tracker update at t={t_s}: time is not finite")]
+    TimeNotFinite { t_s: f64 },
+    #[error("tracker update at t={t_s} is not after the previous update at t={previous_t_s}")]
+    TimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    #[error("tracker: trajectory fit failed: {0}")]
+    Fit(#[from] FitError),
+}
+
+/// Multi-object tracker over world-frame detections.
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    config: TrackerConfig,
+    tracks: Vec<Track>,
+    next_id: u64,
+    last_t_s: Option<f64>,
+    garbage_detections: u64,
+    low_score_detections: u64,
+}
+
+/// Wraps an angle to (−π, π].
+fn wrap_angle(angle_rad: f64) -> f64 {
+    let wrapped = (angle_rad + PI).rem_euclid(2.0 * PI) - PI;
+    if wrapped <= -PI {
+        wrapped + 2.0 * PI
+    } else {
+        wrapped
+    }
+}
+
+impl Tracker {
+    /// Creates an empty tracker; fails on an invalid configuration.
+    pub fn new(config: TrackerConfig) -> Result<Self, TrackerError> {
+        config.validate()?;
+        Ok(Tracker {
+            config,
+            tracks: Vec::new(),
+            next_id: 0,
+            last_t_s: None,
+            garbage_detections: 0,
+            low_score_detections: 0,
+        })
+    }
+
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// Live tracks (tentative and confirmed, including coasting ones).
+    pub fn tracks(&self) -> &[Track] {
+        &self.tracks
+    }
+
+    /// Detections skipped so far because a field was not finite or a size
+    /// was not positive.
+    pub fn garbage_detections(&self) -> u64 {
+        self.garbage_detections
+    }
+
+    /// Detections ignored so far for a score below `min_score`.
+    pub fn low_score_detections(&self) -> u64 {
+        self.low_score_detections
+    }
+
+    /// Predicted centre and (wrapped) yaw of track `id` at `t_s`, from its
+    /// trajectory fit; `None` for an unknown id or a non-finite time.
+    pub fn predict_box(&self, id: u64, t_s: f64) -> Option<(Vector3<f64>, f64)> {
+        if !t_s.is_finite() {
+            return None;
+        }
+        let track = self.tracks.iter().find(|t| t.id() == id)?;
+        let p = track.predict(t_s);
+        Some((p.center_world, wrap_angle(p.yaw_rad)))
+    }
+
+    /// Processes one frame of detections taken at `t_s` (strictly after the
+    /// previous frame). Returns every live track's state at `t_s`, sorted by id.
+    pub fn update(
+        &mut self,
+        t_s: f64,
+        detections: &[WorldDetection],
+    ) -> Result<Vec<TrackOutput>, TrackerError> {
+        if !t_s.is_finite() {
+            return Err(TrackerError::TimeNotFinite { t_s });
+        }
+        if let Some(previous_t_s) = self.last_t_s
+            && t_s <= previous_t_s
+        {
+            return Err(TrackerError::TimeNotIncreasing { t_s, previous_t_s });
+        }
+        self.last_t_s = Some(t_s);
+
+        // Usable detections only; count what we drop.
+        let mut usable: Vec<&WorldDetection> = Vec::with_capacity(detections.len());
+        for det in detections {
+            if !det.is_valid() {
+                self.garbage_detections += 1;
+            } else if det.score < self.config.min_score {
+                self.low_score_detections += 1;
+            } else {
+                usable.push(det);
+            }
+        }
+
+        // Score matrix between predicted track centres and detections.
+        let predicted: Vec<(Vector3<f64>, ObjectClass)> = self
+            .tracks
+            .iter()
+            .map(|t| (t.predict(t_s).center_world, t.class()))
+            .collect();
+        let observed: Vec<(Vector3<f64>, ObjectClass)> =
+            usable.iter().map(|d| (d.center_world, d.class)).collect();
+        let psi = matching_matrix(
+            &predicted,
+            &observed,
+            self.config.alpha_m,
+            self.config.d_thres_m,
+        );
+        let track_classes: Vec<ObjectClass> = predicted.iter().map(|p| p.1).collect();
+        let det_classes: Vec<ObjectClass> = observed.iter().map(|o| o.1).collect();
+        let pairs = associate_by_class(&psi, &track_classes, &det_classes);
+
+        let mut track_matched = vec![false; self.tracks.len()];
+        let mut det_matched = vec![false; usable.len()];
+        for &(i, j) in &pairs {
+            let det = usable[j];
+            let track = &mut self.tracks[i];
+            let measured = TimedBox {
+                t_s,
+                center_world: det.center_world,
+                yaw_rad: track.unwrap_yaw(t_s, det.yaw_rad),
+                size_lwh: det.size_lwh,
+            };
+            track.record_hit(measured, &self.config)?;
+            track_matched[i] = true;
+            det_matched[j] = true;
+        }
+        for (track, matched) in self.tracks.iter_mut().zip(&track_matched) {
+            if !matched {
+                track.record_miss();
+            }
+        }
+        let config = &self.config;
+        self.tracks.retain(|t| !t.is_lost(config));
+
+        for (det, matched) in usable.iter().zip(&det_matched) {
+            if *matched {
+                continue;
+            }
+            let first = TimedBox {
+                t_s,
+                center_world: det.center_world,
+                yaw_rad: det.yaw_rad,
+                size_lwh: det.size_lwh,
+            };
+            let track = Track::new(self.next_id, det.class, first, &self.config)?;
+            self.next_id += 1;
+            self.tracks.push(track);
+        }
+
+        // Ids only grow and new tracks are appended: the list stays sorted.
+        Ok(self
+            .tracks
+            .iter()
+            .map(|t| {
+                let p = t.predict(t_s);
+                TrackOutput {
+                    id: t.id(),
+                    class: t.class(),
+                    center_world: p.center_world,
+                    yaw_rad: wrap_angle(p.yaw_rad),
+                    size_lwh: t.size_lwh(),
+                    velocity_world_mps: p.velocity_world_mps,
+                    lifecycle: t.lifecycle(),
+                    motion: t.motion(),
+                    predicted: t.consecutive_misses() > 0,
+                }
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn car_at(x: f64, y: f64) -> WorldDetection {
+        WorldDetection {
+            center_world: Vector3::new(x, y, 0.8),
+            size_lwh: Vector3::new(4.5, 1.8, 1.5),
+            yaw_rad: 0.0,
+            class: ObjectClass::Car,
+            score: 0.9,
+        }
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(0.5) - 0.5).abs() < 1e-15);
+        assert!((wrap_angle(-7.0) - (-7.0 + 2.0 * PI)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rejects_bad_time_and_config() {
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        assert!(tracker.update(1.0, &[]).is_ok());
+        assert_eq!(
+            tracker.update(1.0, &[]),
+            Err(TrackerError::TimeNotIncreasing {
+                t_s: 1.0,
+                previous_t_s: 1.0
+            })
+        );
+        assert!(matches!(
+            tracker.update(f64::NAN, &[]),
+            Err(TrackerError::TimeNotFinite { .. })
+        ));
+        let bad = TrackerConfig {
+            alpha_m: -1.0,
+            ..TrackerConfig::default()
+        };
+        match Tracker::new(bad) {
+            Err(TrackerError::Config(e)) => assert_eq!(e.field, "alpha_m"),
+            other => panic!("expected a config error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn garbage_and_low_score_are_skipped_and_counted() {
+        let config = TrackerConfig {
+            min_score: 0.5,
+            ..TrackerConfig::default()
+        };
+        let mut tracker = Tracker::new(config).unwrap();
+        let mut nan = car_at(0.0, 0.0);
+        nan.center_world.x = f64::NAN;
+        let mut flat = car_at(5.0, 0.0);
+        flat.size_lwh.z = 0.0;
+        let mut weak = car_at(10.0, 0.0);
+        weak.score = 0.1;
+        let out = tracker
+            .update(0.0, &[nan, flat, weak, car_at(20.0, 0.0)])
+            .unwrap();
+        assert_eq!(out.len(), 1);
+        assert_eq!(tracker.garbage_detections(), 2);
+        assert_eq!(tracker.low_score_detections(), 1);
+    }
+
+    #[test]
+    fn size_is_the_running_mean_of_matched_sizes() {
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        let lengths = [4.0, 5.0, 4.5, 4.1];
+        let mut out = Vec::new();
+        for (k, length) in lengths.iter().enumerate() {
+            let mut det = car_at(0.5 * k as f64, 0.0);
+            det.size_lwh.x = *length;
+            out = tracker.update(0.1 * k as f64, &[det]).unwrap();
+        }
+        assert!((out[0].size_lwh.x - 4.4).abs() < 1e-12);
+        assert!((out[0].size_lwh.y - 1.8).abs() < 1e-12);
+        // A miss does not change it.
+        let out = tracker.update(0.4, &[]).unwrap();
+        assert!((out[0].size_lwh.x - 4.4).abs() < 1e-12);
+    }
+
+    #[test]
+    fn heading_flip_is_folded_onto_track() {
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        for k in 0..8 {
+            let mut det = car_at(k as f64, 0.0);
+            // Every other frame the detector reports the car backwards.
+            det.yaw_rad = if k % 2 == 0 { 0.05 } else { 0.05 - PI };
+            let out = tracker.update(0.1 * k as f64, &[det]).unwrap();
+            assert_eq!(out.len(), 1);
+            assert!((out[0].yaw_rad - 0.05).abs() < 1e-9, "{}", out[0].yaw_rad);
+        }
+    }
+
+    #[test]
+    fn yaw_across_pi_stays_continuous() {
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        for k in 0..10 {
+            let mut det = car_at(0.0, k as f64);
+            det.yaw_rad = wrap_angle(PI - 0.3 + 0.06 * k as f64);
+            tracker.update(0.1 * k as f64, &[det]).unwrap();
+        }
+        // Turning at 0.6 rad/s through ±π: the fit sees a smooth ramp.
+        let (_, yaw) = tracker.predict_box(0, 1.0).unwrap();
+        assert!((wrap_angle(yaw - (PI - 0.3 + 0.6))).abs() < 1e-6, "{yaw}");
+        assert!(tracker.predict_box(99, 1.0).is_none());
+    }
+}
