@@ -45,7 +45,7 @@ fn main() {
         clock.elapsed()
     );
 
-    let mut estimator = Estimator::new(EstimatorConfig::default(), extrinsics);
+    let mut estimator = Estimator::new(EstimatorConfig::default(), extrinsics).expect("config");
     let mut estimates: Vec<FrameEstimate> = Vec::new();
     let mut next = 0;
     let clock = Instant::now();

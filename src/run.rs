@@ -39,7 +39,7 @@ pub enum RunError {
     )]
     UnknownSource { path: PathBuf },
     #[error(
-        "variant `{0}` is not implemented yet (lio and allfilt are; dynafilt arrives with the tracker, limot with the joint graph)"
+        "variant `{0}` is not implemented yet (lio, allfilt and dynafilt are; limot arrives with the joint graph)"
     )]
     VariantNotImplemented(&'static str),
     #[error("{path}: {source}")]
@@ -216,6 +216,7 @@ pub fn run(
     let variant = match options.variant {
         Variant::Lio => EstimatorVariant::Lio,
         Variant::Allfilt => EstimatorVariant::Allfilt,
+        Variant::Dynafilt => EstimatorVariant::Dynafilt,
         other => return Err(RunError::VariantNotImplemented(other.name())),
     };
     let imu = if options.lidar_only {
@@ -231,7 +232,11 @@ pub fn run(
     let mode = config.mode;
     let extrinsics = imu.map_or(Extrinsics::default(), |(_, e)| e);
     let samples: &[ImuSample] = imu.map_or(&[], |(s, _)| s);
-    let mut estimator = Estimator::new(config, extrinsics);
+    let mut estimator =
+        Estimator::new(config, extrinsics).map_err(|source| RunError::Estimator {
+            path: source_path.to_path_buf(),
+            source,
+        })?;
     let first = options.first_frame.min(source.frame_count());
     let end = options.max_frames.map_or(source.frame_count(), |m| {
         (first + m).min(source.frame_count())
@@ -372,5 +377,39 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
         let _ = writeln!(timings, ",{:.3}", e.timings.total().as_secs_f64() * 1e3);
     }
     write("timings.csv", timings)?;
+
+    // Tracks per frame, world frame (our format; KITTI tracking results need
+    // a camera calibration and come with the evaluation tooling).
+    let mut tracks = String::from(
+        "frame,t_s,id,class,x,y,z,yaw_rad,l,w,h,vx,vy,vz,lifecycle,motion,predicted\n",
+    );
+    for e in &output.estimates {
+        for t in &e.tracks {
+            let c = t.center_world;
+            let v = t.velocity_world_mps;
+            let _ = writeln!(
+                tracks,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:?},{:?},{}",
+                e.frame_index,
+                e.t_s,
+                t.id,
+                t.class,
+                c.x,
+                c.y,
+                c.z,
+                t.yaw_rad,
+                t.size_lwh.x,
+                t.size_lwh.y,
+                t.size_lwh.z,
+                v.x,
+                v.y,
+                v.z,
+                t.lifecycle,
+                t.motion,
+                t.predicted
+            );
+        }
+    }
+    write("tracks.csv", tracks)?;
     Ok(())
 }

@@ -64,7 +64,7 @@ fn frame(t_s: f64) -> Frame {
 
 #[test]
 fn still_room_initialises_and_stays_put() {
-    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default()).unwrap();
     let mut estimates = Vec::new();
     let mut next_sample = 0;
     for k in 0..15 {
@@ -88,7 +88,7 @@ fn still_room_initialises_and_stays_put() {
 
 #[test]
 fn imu_and_scan_errors_name_what_is_wrong() {
-    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default()).unwrap();
     est.push_imu(still_imu(1.0)).unwrap();
     let err = est.push_imu(still_imu(0.5)).unwrap_err();
     assert!(err.to_string().contains("not after"), "{err}");
@@ -108,7 +108,7 @@ fn imu_and_scan_errors_name_what_is_wrong() {
 
 #[test]
 fn nan_points_are_dropped_and_empty_scans_do_not_panic() {
-    let mut est = Estimator::new(EstimatorConfig::lidar_only(), Extrinsics::default());
+    let mut est = Estimator::new(EstimatorConfig::lidar_only(), Extrinsics::default()).unwrap();
     let mut f = frame(0.0);
     for p in f.scan.points.iter_mut().step_by(7) {
         p.x = f32::NAN;
@@ -137,7 +137,7 @@ fn nan_points_are_dropped_and_empty_scans_do_not_panic() {
 
 #[test]
 fn an_imu_gap_is_an_error_naming_the_frame() {
-    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default());
+    let mut est = Estimator::new(EstimatorConfig::default(), Extrinsics::default()).unwrap();
     let mut k = 0;
     while !est.is_initialized() {
         let t = k as f64 * 0.1;

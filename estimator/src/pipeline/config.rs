@@ -6,6 +6,7 @@ use crate::imu::ImuNoise;
 use crate::lidar::features::FeatureConfig;
 use crate::lidar::local_map::LocalMapConfig;
 use crate::lidar::scan_matching::ScanMatchConfig;
+use crate::tracking::TrackerConfig;
 
 /// Which sensors drive the ego estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -24,6 +25,9 @@ pub enum Variant {
     Lio,
     /// Drop every feature inside any detected box.
     Allfilt,
+    /// Drop the features inside the boxes of dynamic tracks, each point
+    /// tested against its track's predicted box at the point's own time.
+    Dynafilt,
 }
 
 #[derive(Debug, Clone)]
@@ -32,6 +36,7 @@ pub struct EstimatorConfig {
     pub variant: Variant,
     /// Box inflation and time bins of the object filter.
     pub filter: FilterConfig,
+    pub tracker: TrackerConfig,
     /// Ego states in the sliding window (the paper uses 5).
     pub window_size: usize,
     /// Gravity magnitude, m/s² (the world z axis points up).
@@ -96,6 +101,7 @@ impl Default for EstimatorConfig {
             mode: Mode::LidarInertial,
             variant: Variant::Lio,
             filter: FilterConfig::default(),
+            tracker: TrackerConfig::default(),
             window_size: 5,
             gravity_mps2: 9.80511,
             imu_noise: ImuNoise::default(),

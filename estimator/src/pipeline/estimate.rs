@@ -1,6 +1,7 @@
 //! What the estimator reports per frame.
 
 use crate::imu::ImuBias;
+use crate::tracking::tracker::TrackOutput;
 use nalgebra::{Isometry3, Vector3};
 use std::time::Duration;
 
@@ -26,6 +27,8 @@ pub struct FrameEstimate {
     /// Feature points (indices into the sweep's points) dropped as object
     /// points by the variant's filter; empty for `lio`.
     pub removed_feature_indices: Vec<u32>,
+    /// Every live track after this frame (world frame), sorted by id.
+    pub tracks: Vec<TrackOutput>,
     pub timings: ModuleTimings,
 }
 
@@ -55,6 +58,7 @@ pub struct ModuleTimings {
     pub scan_matching: Duration,
     pub graph: Duration,
     pub map_update: Duration,
+    pub tracking: Duration,
 }
 
 impl ModuleTimings {
@@ -67,10 +71,11 @@ impl ModuleTimings {
             + self.scan_matching
             + self.graph
             + self.map_update
+            + self.tracking
     }
 
     /// Stage names and durations, in pipeline order (for tables).
-    pub fn stages(&self) -> [(&'static str, Duration); 8] {
+    pub fn stages(&self) -> [(&'static str, Duration); 9] {
         [
             ("imu_prediction", self.imu_prediction),
             ("deskew", self.deskew),
@@ -80,6 +85,7 @@ impl ModuleTimings {
             ("scan_matching", self.scan_matching),
             ("graph", self.graph),
             ("map_update", self.map_update),
+            ("tracking", self.tracking),
         ]
     }
 }

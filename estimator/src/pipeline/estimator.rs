@@ -15,7 +15,7 @@
 use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 use super::initialization::{NotStatic, moving_init, static_init};
-use crate::filter::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
+use crate::filter::{BoxAtTime, FilterError, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
 use crate::graph::sliding_window::SlidingWindowSmoother;
@@ -30,6 +30,8 @@ use crate::lidar::local_map::{LocalMap, LocalMapError};
 use crate::lidar::scan_matching::{ScanMatchResult, match_scan};
 use crate::lidar::voxel::voxel_downsample;
 use crate::lie;
+use crate::tracking::track::{Lifecycle, Motion, Track};
+use crate::tracking::tracker::{TrackOutput, Tracker, TrackerError, WorldDetection};
 use nalgebra::{DMatrix, Isometry3, Matrix6, SymmetricEigen, Vector3, Vector6};
 use std::collections::VecDeque;
 use std::time::Instant;
@@ -53,6 +55,10 @@ pub enum EstimatorError {
         #[source]
         source: DeskewError,
     },
+    #[error("object filter configuration: {0}")]
+    FilterConfig(#[source] FilterError),
+    #[error("tracker: {0}")]
+    Tracker(#[source] TrackerError),
     #[error("frame {frame_index} at t={t_s}: local map: {source}")]
     Map {
         frame_index: u64,
@@ -84,6 +90,20 @@ struct EgoState {
     t_world_imu: Isometry3<f64>,
     velocity_world_mps: Vector3<f64>,
     bias: ImuBias,
+}
+
+/// A dynamic track's box at any time, from its trajectory fit.
+struct TrackBox(Track);
+
+impl BoxAtTime for TrackBox {
+    fn box_at(&self, t_s: f64) -> OrientedBox {
+        let p = self.0.predict(t_s);
+        OrientedBox {
+            center_world: p.center_world,
+            yaw_rad: p.yaw_rad,
+            size_lwh: self.0.size_lwh(),
+        }
+    }
 }
 
 /// Prior sigmas on the first inertial state.
@@ -137,13 +157,23 @@ pub struct Estimator {
     deskewed: Vec<Vector3<f64>>,
     /// The valid detections of the frame being processed.
     frame_detections: Vec<Detection>,
+    tracker: Tracker,
     invalid_detections: u64,
 }
 
 impl Estimator {
-    pub fn new(config: EstimatorConfig, extrinsics: Extrinsics) -> Estimator {
+    /// Fails when a part of the configuration is invalid.
+    pub fn new(
+        config: EstimatorConfig,
+        extrinsics: Extrinsics,
+    ) -> Result<Estimator, EstimatorError> {
+        config
+            .filter
+            .validate()
+            .map_err(EstimatorError::FilterConfig)?;
+        let tracker = Tracker::new(config.tracker.clone()).map_err(EstimatorError::Tracker)?;
         let map = LocalMap::new(config.local_map);
-        Estimator {
+        Ok(Estimator {
             gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
             t_lidar_imu: extrinsics.t_lidar_imu,
             t_imu_lidar: extrinsics.t_lidar_imu.inverse(),
@@ -161,8 +191,9 @@ impl Estimator {
             bootstrap_usable_from: 0,
             deskewed: Vec::new(),
             frame_detections: Vec::new(),
+            tracker,
             invalid_detections: 0,
-        }
+        })
     }
 
     pub fn config(&self) -> &EstimatorConfig {
@@ -474,6 +505,12 @@ impl Estimator {
                 source,
             })?;
         timings.map_update = clock.elapsed();
+        let clock = Instant::now();
+        // The world changed at initialisation: tracks start afresh.
+        self.tracker =
+            Tracker::new(self.config.tracker.clone()).map_err(EstimatorError::Tracker)?;
+        let tracks = self.track_objects(scan.t_s, &t_world_lidar, &motion)?;
+        timings.tracking = clock.elapsed();
         Ok(FrameEstimate {
             frame_index,
             t_s: scan.t_s,
@@ -482,6 +519,7 @@ impl Estimator {
             bias: state.bias,
             scan_match: None,
             removed_feature_indices: features.removed.clone(),
+            tracks,
             timings,
         })
     }
@@ -632,6 +670,9 @@ impl Estimator {
                 })?;
         }
         timings.map_update = clock.elapsed();
+        let clock = Instant::now();
+        let tracks = self.track_objects(t_s, &t_world_lidar, &motion)?;
+        timings.tracking = clock.elapsed();
         Ok(FrameEstimate {
             frame_index,
             t_s,
@@ -640,6 +681,7 @@ impl Estimator {
             bias: state.bias,
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
             removed_feature_indices: features.removed.clone(),
+            tracks,
             timings,
         })
     }
@@ -733,6 +775,20 @@ impl Estimator {
                 })?;
         }
         timings.map_update = clock.elapsed();
+        let clock = Instant::now();
+        let final_motion = SweepMotion::constant_velocity(
+            t_s,
+            t_world_lidar,
+            t_s + 2.0 * half_s,
+            t_world_lidar * lie::se3_exp(&(twist_per_s * 2.0 * half_s)),
+        )
+        .map_err(|source| EstimatorError::Deskew {
+            frame_index,
+            t_s,
+            source,
+        })?;
+        let tracks = self.track_objects(t_s, &t_world_lidar, &final_motion)?;
+        timings.tracking = clock.elapsed();
         Ok(FrameEstimate {
             frame_index,
             t_s,
@@ -741,6 +797,7 @@ impl Estimator {
             bias: ImuBias::default(),
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
             removed_feature_indices: features.removed.clone(),
+            tracks,
             timings,
         })
     }
@@ -844,7 +901,47 @@ impl Estimator {
                     })
                     .collect(),
             ),
+            Variant::Dynafilt => FeatureFilter::Moving(
+                self.tracker
+                    .tracks()
+                    .iter()
+                    .filter(|t| {
+                        t.lifecycle() == Lifecycle::Confirmed && t.motion() == Motion::Dynamic
+                    })
+                    .map(|t| Box::new(TrackBox(t.clone())) as Box<dyn BoxAtTime>)
+                    .collect(),
+            ),
         }
+    }
+
+    /// Moves the frame's detections into the world with the pose of the
+    /// LiDAR when it saw each of them (`t_world_lidar` at the scan start,
+    /// moved within the sweep by `motion`) and updates the tracker.
+    fn track_objects(
+        &mut self,
+        t_s: f64,
+        t_world_lidar: &Isometry3<f64>,
+        motion: &SweepMotion,
+    ) -> Result<Vec<TrackOutput>, EstimatorError> {
+        let start_inv = motion.pose_at(t_s).inverse();
+        let detections: Vec<WorldDetection> = self
+            .frame_detections
+            .iter()
+            .map(|d| {
+                let pose = t_world_lidar * start_inv * motion.pose_at(t_s + d.time_offset_s);
+                let heading = pose.rotation * Vector3::new(d.yaw_rad.cos(), d.yaw_rad.sin(), 0.0);
+                WorldDetection {
+                    center_world: (pose * nalgebra::Point3::from(d.center_lidar)).coords,
+                    size_lwh: d.size_lwh,
+                    yaw_rad: heading.y.atan2(heading.x),
+                    class: d.class,
+                    score: d.score,
+                }
+            })
+            .collect();
+        self.tracker
+            .update(t_s, &detections)
+            .map_err(EstimatorError::Tracker)
     }
 
     /// Drops the feature points that lie in the variant's object boxes,
