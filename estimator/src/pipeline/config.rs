@@ -37,6 +37,12 @@ pub struct EstimatorConfig {
     /// Box inflation and time bins of the object filter.
     pub filter: FilterConfig,
     pub tracker: TrackerConfig,
+    /// `dynafilt` uses only confirmed tracks (the paper's initialised
+    /// objects); `false` also uses tentative tracks already judged dynamic,
+    /// which catches objects in their first frames.
+    pub filter_confirmed_only: bool,
+    /// Report every feature index per frame (for filter evaluation).
+    pub record_feature_indices: bool,
     /// Ego states in the sliding window (the paper uses 5).
     pub window_size: usize,
     /// Gravity magnitude, m/s² (the world z axis points up).
@@ -102,6 +108,8 @@ impl Default for EstimatorConfig {
             variant: Variant::Lio,
             filter: FilterConfig::default(),
             tracker: TrackerConfig::default(),
+            record_feature_indices: false,
+            filter_confirmed_only: false,
             window_size: 5,
             gravity_mps2: 9.80511,
             imu_noise: ImuNoise::default(),

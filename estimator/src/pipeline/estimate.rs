@@ -27,6 +27,10 @@ pub struct FrameEstimate {
     /// Feature points (indices into the sweep's points) dropped as object
     /// points by the variant's filter; empty for `lio`.
     pub removed_feature_indices: Vec<u32>,
+    /// Every feature point before the filter (indices into the sweep's
+    /// points), only with `EstimatorConfig::record_feature_indices`: what
+    /// filter precision/recall are measured against.
+    pub feature_indices: Vec<u32>,
     /// Every live track after this frame (world frame), sorted by id.
     pub tracks: Vec<TrackOutput>,
     pub timings: ModuleTimings,

@@ -119,6 +119,8 @@ struct SweepFeatures {
     planar_lidar: Vec<Vector3<f64>>,
     /// Indices (into the scan's points) of features dropped as object points.
     removed: Vec<u32>,
+    /// Every feature index before the filter, when `record_feature_indices`.
+    all_indices: Vec<u32>,
 }
 
 /// Which feature points to drop before matching (the variants).
@@ -519,6 +521,7 @@ impl Estimator {
             bias: state.bias,
             scan_match: None,
             removed_feature_indices: features.removed.clone(),
+            feature_indices: features.all_indices.clone(),
             tracks,
             timings,
         })
@@ -681,6 +684,7 @@ impl Estimator {
             bias: state.bias,
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
             removed_feature_indices: features.removed.clone(),
+            feature_indices: features.all_indices.clone(),
             tracks,
             timings,
         })
@@ -797,6 +801,7 @@ impl Estimator {
             bias: ImuBias::default(),
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
             removed_feature_indices: features.removed.clone(),
+            feature_indices: features.all_indices.clone(),
             tracks,
             timings,
         })
@@ -865,6 +870,18 @@ impl Estimator {
         let mut features = extract_features(&self.deskewed, scan, &self.config.features);
         timings.features = clock.elapsed();
 
+        let all_indices = if self.config.record_feature_indices {
+            let mut all: Vec<u32> = features
+                .edge_indices
+                .iter()
+                .chain(&features.planar_indices)
+                .map(|&i| i as u32)
+                .collect();
+            all.sort_unstable();
+            all
+        } else {
+            Vec::new()
+        };
         let clock = Instant::now();
         let removed = self.filter_features(scan, motion, filter, &mut features);
         timings.filter = clock.elapsed();
@@ -884,6 +901,7 @@ impl Estimator {
             edge_lidar: voxel_downsample(&edge, self.config.edge_voxel_m),
             planar_lidar: voxel_downsample(&planar, self.config.planar_voxel_m),
             removed,
+            all_indices,
         };
         timings.downsample = clock.elapsed();
         result
@@ -906,7 +924,9 @@ impl Estimator {
                     .tracks()
                     .iter()
                     .filter(|t| {
-                        t.lifecycle() == Lifecycle::Confirmed && t.motion() == Motion::Dynamic
+                        t.motion() == Motion::Dynamic
+                            && (t.lifecycle() == Lifecycle::Confirmed
+                                || !self.config.filter_confirmed_only)
                     })
                     .map(|t| Box::new(TrackBox(t.clone())) as Box<dyn BoxAtTime>)
                     .collect(),

@@ -1,0 +1,116 @@
+//! Dynamic feature filtering on a generated urban drive, scored against the
+//! simulator's per-point instance labels: `dynafilt` removes the features on
+//! moving objects (faster than 1 m/s) and keeps static ones (parked or
+//! stopped); `allfilt` removes both.
+
+use limot::report::Variant;
+use limot::run::{RunOptions, RunOutput, Source, run};
+use limot::simulate::resolve_scenario;
+use limot_estimator::pipeline::EstimatorConfig;
+use limot_sim::record::Dataset;
+use limot_sim::simulation::Simulation;
+use std::collections::BTreeSet;
+use std::path::Path;
+
+#[derive(Debug, Default)]
+struct Counts {
+    removed: usize,
+    removed_moving: usize,
+    removed_parked: usize,
+    features_moving: usize,
+    features_parked: usize,
+}
+
+fn score(dataset: &Dataset, output: &RunOutput) -> Counts {
+    let boxes = dataset.box_truth().unwrap();
+    let mut c = Counts::default();
+    for e in &output.estimates {
+        let frame = e.frame_index as usize;
+        let labels = dataset.frame(frame).unwrap().labels;
+        // Moving = faster than the paper's v_thres now; stopped cars (at a red
+        // light) count as static objects, like parked ones.
+        let parked: BTreeSet<u32> = boxes[frame]
+            .iter()
+            .filter(|b| b.parked || b.velocity_world_mps.norm() <= 1.0)
+            .map(|b| b.id)
+            .collect();
+        let kind = |i: u32| {
+            let id = labels[i as usize];
+            match id {
+                0 => 0,
+                id if parked.contains(&id) => 2,
+                _ => 1,
+            }
+        };
+        for &i in &e.feature_indices {
+            match kind(i) {
+                1 => c.features_moving += 1,
+                2 => c.features_parked += 1,
+                _ => {}
+            }
+        }
+        for &i in &e.removed_feature_indices {
+            c.removed += 1;
+            match kind(i) {
+                1 => c.removed_moving += 1,
+                2 => c.removed_parked += 1,
+                _ => {}
+            }
+        }
+    }
+    c
+}
+
+#[test]
+fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = 30.0;
+    let dir = std::env::temp_dir().join(format!("limot-filtering-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    Simulation::new(&spec)
+        .unwrap()
+        .write_dataset(&dir, |_, _| {})
+        .unwrap();
+    let dataset = Dataset::open(&dir).unwrap();
+    let source = Source::open(&dir).unwrap();
+    let config = EstimatorConfig {
+        record_feature_indices: true,
+        ..EstimatorConfig::default()
+    };
+    let mut results = Vec::new();
+    for variant in [Variant::Dynafilt, Variant::Allfilt] {
+        let options = RunOptions {
+            variant,
+            ..RunOptions::default()
+        };
+        let output = run(&source, Path::new(&dir), &options, Some(config.clone())).unwrap();
+        let c = score(&dataset, &output);
+        let precision = (c.removed_moving + c.removed_parked) as f64 / c.removed.max(1) as f64;
+        let moving_precision = c.removed_moving as f64 / c.removed.max(1) as f64;
+        let recall = c.removed_moving as f64 / c.features_moving.max(1) as f64;
+        let parked_removed = c.removed_parked as f64 / c.features_parked.max(1) as f64;
+        eprintln!(
+            "{}: {c:?}; moving precision {moving_precision:.3} (object precision {precision:.3}), recall {recall:.3}, parked features removed {parked_removed:.3}",
+            variant.name()
+        );
+        results.push((variant, moving_precision, recall, parked_removed));
+    }
+    // Measured (seed 2, 30 s): dynafilt precision 0.92, recall 0.77, 3.5 % of
+    // the static-object features removed; allfilt recall 0.90 (the ceiling
+    // the detector's misses leave), 91 % of static-object features removed.
+    // The issue aims at recall >= 0.9: not reached yet (see the issue note).
+    let (_, precision, recall, parked) = results[0];
+    assert!(recall >= 0.7, "dynafilt recall {recall}");
+    assert!(precision >= 0.85, "dynafilt precision {precision}");
+    assert!(
+        parked < 0.06,
+        "dynafilt removed {parked} of the static-object features"
+    );
+    let (_, _, allfilt_recall, allfilt_parked) = results[1];
+    assert!(allfilt_recall >= recall);
+    assert!(
+        allfilt_parked > 0.8,
+        "allfilt removed only {allfilt_parked} of static features"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
