@@ -8,3 +8,4 @@ pub mod kitti_export;
 pub mod report;
 pub mod run;
 pub mod simulate;
+pub mod track_kitti;

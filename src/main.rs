@@ -82,6 +82,40 @@ enum Command {
         #[command(subcommand)]
         what: EvalCommand,
     },
+    /// Run the tracker alone on KITTI tracking sequences (detections + OXTS poses),
+    /// write KITTI result files to OUT/NNNN.txt and print CLEAR-MOT for Car.
+    TrackKitti {
+        /// KITTI tracking `training` dir (calib/, oxts/, label_02/).
+        #[arg(long)]
+        training: PathBuf,
+        /// AB3DMOT detection CSV dir (NNNN.txt), e.g. detections/pointrcnn_Car_val.
+        #[arg(long)]
+        detections: PathBuf,
+        /// Sequence map (default: TRAINING/evaluate_tracking.seqmap.val).
+        #[arg(long)]
+        seqmap: Option<PathBuf>,
+        /// Output directory of the result files.
+        #[arg(long)]
+        out: PathBuf,
+        /// Tracker settings: `paper` (defaults) or `tuned` (KITTI val tuned).
+        #[arg(long, default_value = "tuned")]
+        config: String,
+        /// Override the detection score gate (sigmoid of the raw score).
+        #[arg(long)]
+        min_score: Option<f64>,
+        /// Override the number of misses a track survives.
+        #[arg(long)]
+        max_misses: Option<usize>,
+        /// Override the association gate, m.
+        #[arg(long)]
+        d_thres: Option<f64>,
+        /// Also write coasting (predicted) confirmed tracks.
+        #[arg(long)]
+        with_predicted: bool,
+        /// Skip seqmap sequences whose detection file is missing.
+        #[arg(long)]
+        skip_missing: bool,
+    },
     /// Print the version of every component.
     Version,
 }
@@ -189,6 +223,27 @@ fn main() -> ExitCode {
             max_frames,
         } => run_estimator(&dataset, out, &variant, lidar_only, first_frame, max_frames),
         Command::Eval { what } => run_eval(what),
+        Command::TrackKitti {
+            training,
+            detections,
+            seqmap,
+            out,
+            config,
+            min_score,
+            max_misses,
+            d_thres,
+            with_predicted,
+            skip_missing,
+        } => run_track_kitti(
+            &training,
+            &detections,
+            seqmap,
+            &out,
+            &config,
+            (min_score, max_misses, d_thres),
+            with_predicted,
+            skip_missing,
+        ),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
             Ok(())
@@ -434,5 +489,66 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
+    Ok(())
+}
+
+/// `limot track-kitti`: tracks, writes result files and prints the scores.
+#[allow(clippy::too_many_arguments)]
+fn run_track_kitti(
+    training: &std::path::Path,
+    detections: &std::path::Path,
+    seqmap: Option<PathBuf>,
+    out: &std::path::Path,
+    config: &str,
+    overrides: (Option<f64>, Option<usize>, Option<f64>),
+    with_predicted: bool,
+    skip_missing: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::kitti::results::write_results_file;
+    use limot::kitti::seqmap::read_seqmap;
+    use limot::track_kitti::{
+        OutputPolicy, TrackKittiOptions, evaluate_sequences, kitti_val_tuned_config,
+    };
+    let mut tracker = match config {
+        "paper" => limot_estimator::tracking::TrackerConfig::default(),
+        "tuned" => kitti_val_tuned_config(),
+        other => return Err(format!("--config `{other}`: expected paper or tuned").into()),
+    };
+    let (min_score, max_misses, d_thres) = overrides;
+    if let Some(v) = min_score {
+        tracker.min_score = v;
+    }
+    if let Some(v) = max_misses {
+        tracker.max_misses = v;
+    }
+    if let Some(v) = d_thres {
+        tracker.d_thres_m = v;
+    }
+    let options = TrackKittiOptions {
+        tracker,
+        output: if with_predicted {
+            OutputPolicy::AllConfirmed
+        } else {
+            OutputPolicy::MatchedConfirmed
+        },
+        ..TrackKittiOptions::default()
+    };
+    let seqmap_path = seqmap.unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
+    let mut entries = read_seqmap(&seqmap_path)?;
+    if skip_missing {
+        entries.retain(|e| {
+            let present = limot::kitti::sequence_file(detections, e.sequence).is_file();
+            if !present {
+                eprintln!("skipping sequence {:04}: no detection file", e.sequence);
+            }
+            present
+        });
+    }
+    std::fs::create_dir_all(out)?;
+    let (tracks, evaluation) = evaluate_sequences(training, detections, &entries, &options)?;
+    for t in &tracks {
+        write_results_file(out, t.sequence, &t.labels)?;
+    }
+    print!("{}", evaluation.to_text());
     Ok(())
 }
