@@ -321,7 +321,7 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
         let (ba, bg) = (e.bias.accel_mps2, e.bias.gyro_radps);
         let _ = write!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             e.frame_index,
             e.t_s,
             t.x,
@@ -339,7 +339,8 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
             ba.z,
             bg.x,
             bg.y,
-            bg.z
+            bg.z,
+            e.removed_feature_indices.len()
         );
         match &e.scan_match {
             Some(m) => {

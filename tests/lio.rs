@@ -62,6 +62,15 @@ fn noise_free_static_urban_is_tracked_within_centimetres() {
     let source = Source::open(&dir).unwrap();
     let output = run(&source, &dir, &RunOptions::default(), None).unwrap();
     write_output(&dir.join("lio"), &output).unwrap();
+    // Every CSV row has the header's columns.
+    for name in ["estimates.csv", "timings.csv", "tracks.csv"] {
+        let text = std::fs::read_to_string(dir.join("lio").join(name)).unwrap();
+        let mut lines = text.lines();
+        let columns = lines.next().unwrap().split(',').count();
+        for (i, line) in lines.enumerate() {
+            assert_eq!(line.split(',').count(), columns, "{name} line {}", i + 2);
+        }
+    }
     let (ate_t, ate_r) = ate(&dir, &output);
     eprintln!(
         "noise-free: {} estimates, {} before init, ATE_T {ate_t:.4} m, ATE_R {ate_r:.5} rad, {:?} mean total",
