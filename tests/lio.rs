@@ -119,6 +119,36 @@ fn default_noise_static_urban_meets_the_accuracy_targets() {
         accel_error < true_bias.accel_bias.norm(),
         "accel bias error {accel_error}"
     );
+
+    // A moving start (frame 250: the ego pulls away from a stop line): the
+    // LiDAR-only sweeps give gravity, velocity and gyro bias, then the window.
+    let truth = dataset.ego_truth().unwrap();
+    let speed = truth
+        .iter()
+        .find(|e| e.t_s >= 25.0)
+        .unwrap()
+        .velocity_world_mps
+        .norm();
+    let options = RunOptions {
+        first_frame: 250,
+        ..RunOptions::default()
+    };
+    let moving = run(&source, &dir, &options, None).unwrap();
+    let (ate_t, ate_r) = ate(&dir, &moving);
+    eprintln!(
+        "moving start at {speed:.1} m/s: {} sweeps to initialise, ATE_T {ate_t:.4} m, ATE_R {ate_r:.5} rad",
+        moving.frames_before_init
+    );
+    assert!(speed > 1.0, "frame 250 should be moving ({speed} m/s)");
+    assert!(
+        moving.frames_before_init <= 12,
+        "{}",
+        moving.frames_before_init
+    );
+    assert!(
+        ate_t < 0.3 && ate_r < 0.01,
+        "moving start ATE {ate_t} m {ate_r} rad"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
