@@ -500,12 +500,7 @@ impl Estimator {
         let features = self.sweep_features(scan, &motion, scan.t_s, &filter, &mut timings);
         let t_world_lidar = t_world_imu * self.t_imu_lidar;
         let clock = Instant::now();
-        self.add_keyframe(&t_world_lidar, &features)
-            .map_err(|source| EstimatorError::Map {
-                frame_index,
-                t_s: scan.t_s,
-                source,
-            })?;
+        self.update_map(frame_index, scan.t_s, &t_world_lidar, &features, true)?;
         timings.map_update = clock.elapsed();
         let clock = Instant::now();
         // The world changed at initialisation: tracks start afresh.
@@ -664,14 +659,7 @@ impl Estimator {
 
         let t_world_lidar = state.t_world_imu * self.t_imu_lidar;
         let clock = Instant::now();
-        if self.is_keyframe(&t_world_lidar) {
-            self.add_keyframe(&t_world_lidar, &features)
-                .map_err(|source| EstimatorError::Map {
-                    frame_index,
-                    t_s: scan.t_s,
-                    source,
-                })?;
-        }
+        self.update_map(frame_index, scan.t_s, &t_world_lidar, &features, false)?;
         timings.map_update = clock.elapsed();
         let clock = Instant::now();
         let tracks = self.track_objects(t_s, &t_world_lidar, &motion)?;
@@ -770,14 +758,7 @@ impl Estimator {
             self.lidar_only_history.pop_front();
         }
         let clock = Instant::now();
-        if self.is_keyframe(&t_world_lidar_mid) {
-            self.add_keyframe(&t_world_lidar_mid, &features)
-                .map_err(|source| EstimatorError::Map {
-                    frame_index,
-                    t_s: scan.t_s,
-                    source,
-                })?;
-        }
+        self.update_map(frame_index, scan.t_s, &t_world_lidar_mid, &features, false)?;
         timings.map_update = clock.elapsed();
         let clock = Instant::now();
         let final_motion = SweepMotion::constant_velocity(
@@ -1051,6 +1032,27 @@ impl Estimator {
         let info =
             eigen.eigenvectors * Matrix6::from_diagonal(&floored) * eigen.eigenvectors.transpose();
         NoiseModel::from_information(&DMatrix::from_column_slice(6, 6, info.as_slice()))
+    }
+
+    /// Adds the sweep's features to the local map when it is a keyframe
+    /// (enough motion since the last one) or when `force`d (the first sweep).
+    fn update_map(
+        &mut self,
+        frame_index: u64,
+        t_s: f64,
+        t_world_lidar: &Isometry3<f64>,
+        features: &SweepFeatures,
+        force: bool,
+    ) -> Result<(), EstimatorError> {
+        if !force && !self.is_keyframe(t_world_lidar) {
+            return Ok(());
+        }
+        self.add_keyframe(t_world_lidar, features)
+            .map_err(|source| EstimatorError::Map {
+                frame_index,
+                t_s,
+                source,
+            })
     }
 
     fn is_keyframe(&self, t_world_lidar: &Isometry3<f64>) -> bool {
