@@ -106,7 +106,16 @@ impl Default for EstimatorConfig {
         EstimatorConfig {
             mode: Mode::LidarInertial,
             variant: Variant::Lio,
-            filter: FilterConfig::default(),
+            // 0.6 m rather than a "slight" inflation: it has to absorb the
+            // detector's box noise (~0.15 m) and the one-frame trajectory
+            // prediction error (~0.3 m RMS). Measured on 30 s of urban
+            // traffic: dynafilt recall 0.77 at 0.3 m, 0.88 at 0.5 m, 0.91 at
+            // 0.6 m, with precision 0.92 -> 0.90 and 3.5 % -> 4.1 % of the
+            // static-object features removed.
+            filter: FilterConfig {
+                inflate_m: 0.6,
+                ..FilterConfig::default()
+            },
             tracker: TrackerConfig::default(),
             record_feature_indices: false,
             filter_confirmed_only: false,
