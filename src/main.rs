@@ -346,8 +346,34 @@ fn run_estimator(
             e.ate.ate_t_rmse_m, e.ate.ate_r_rmse_rad, e.ate.n
         );
     }
+    if let Source::Dataset(dataset) = &source {
+        let (calib, _) = limot::evaluate::tracks::dataset_calib(dataset, 0)?;
+        let results = limot::run::write_kitti_tracks(&out.join("kitti_results"), &output, &calib)?;
+        let e = evaluate_tracks(
+            dataset_dir_of(dataset),
+            &results,
+            &TrackEvalOptions::default(),
+        )?;
+        for score in &e.scores {
+            println!(
+                "tracks vs truth ({:?} IoU {}): MOTA {:.1} %, MOTP {:.1} %, IDSW {}, FP {}, FN {}",
+                score.iou_kind,
+                score.iou_threshold,
+                score.all.mota.unwrap_or(f64::NAN) * 100.0,
+                score.all.motp.unwrap_or(f64::NAN) * 100.0,
+                score.all.id_switches,
+                score.all.false_positives,
+                score.all.false_negatives
+            );
+        }
+        println!("KITTI tracking results: {}", results.display());
+    }
     println!("trajectory: {}", out.join("poses_tum.txt").display());
     Ok(())
+}
+
+fn dataset_dir_of(dataset: &limot_sim::record::Dataset) -> &std::path::Path {
+    &dataset.dir
 }
 
 fn run_demo(

@@ -414,3 +414,47 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
     write("tracks.csv", tracks)?;
     Ok(())
 }
+
+/// Writes the confirmed tracks that matched a detection in each frame (as
+/// AB3DMOT reports) as a KITTI tracking result file `DIR/0000.txt`, boxes
+/// moved back into each frame's LiDAR frame with the estimated pose and
+/// projected through `calib` (the dataset's KITTI copy uses
+/// [`crate::kitti_export::synthetic_calib`]). Returns the file.
+pub fn write_kitti_tracks(
+    dir: &Path,
+    output: &RunOutput,
+    calib: &crate::kitti::calib::Calib,
+) -> Result<PathBuf, RunError> {
+    use crate::kitti::results::{ImageSize, TrackBox, track_to_label, write_results_file};
+    use crate::track_kitti::world_box_to_lidar;
+    use limot_estimator::tracking::Lifecycle;
+    let mut labels = Vec::new();
+    for e in &output.estimates {
+        for t in &e.tracks {
+            if t.lifecycle != Lifecycle::Confirmed || t.predicted {
+                continue;
+            }
+            let track = TrackBox {
+                frame: e.frame_index as u32,
+                track_id: t.id as u32,
+                class: t.class,
+                lidar_box: world_box_to_lidar(
+                    &t.center_world,
+                    &t.size_lwh,
+                    t.yaw_rad,
+                    &e.t_world_lidar,
+                ),
+                score: 1.0,
+            };
+            // Boxes outside the camera image have no KITTI line.
+            if let Some(label) = track_to_label(&track, calib, ImageSize::KITTI_DEFAULT) {
+                labels.push(label);
+            }
+        }
+    }
+    fs::create_dir_all(dir).map_err(|source| RunError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    Ok(write_results_file(dir, 0, &labels)?)
+}
