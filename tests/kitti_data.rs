@@ -18,19 +18,10 @@ use std::path::PathBuf;
 
 const SEQUENCES: std::ops::Range<u32> = 0..19;
 
+mod common;
+
 fn data_root() -> Option<PathBuf> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if root.is_dir() {
-        Some(root)
-    } else {
-        eprintln!(
-            "\n!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!\n\
-             !!! NOTE: {} is absent: KITTI data tests NOT RUN\n\
-             !!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!!\n",
-            root.display()
-        );
-        None
-    }
+    common::data_root("KITTI data")
 }
 
 fn training(root: &std::path::Path) -> PathBuf {
