@@ -23,7 +23,7 @@ use crate::graph::sliding_window::WindowError;
 use crate::graph::{FactorError, Key, NoiseModel, Variable};
 use crate::imu::ImuBias;
 use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
-use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarScan};
+use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint, LidarScan};
 use crate::lidar::deskew::{DeskewError, SweepMotion, deskew};
 use crate::lidar::features::{ScanFeatures, extract_features};
 use crate::lidar::local_map::{LocalMap, LocalMapError};
@@ -275,15 +275,11 @@ impl Estimator {
         }
         self.next_frame_index += 1;
         let finite;
-        let scan = if scan.points.iter().all(|p| {
-            p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.time_offset_s.is_finite()
-        }) {
+        let scan = if scan.points.iter().all(finite_point) {
             scan
         } else {
             let mut copy = scan.clone();
-            copy.points.retain(|p| {
-                p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.time_offset_s.is_finite()
-            });
+            copy.points.retain(finite_point);
             finite = copy;
             &finite
         };
@@ -1079,6 +1075,11 @@ impl Estimator {
         self.last_keyframe_t_world_lidar = Some(*t_world_lidar);
         Ok(())
     }
+}
+
+/// A return the estimator can use (drivers mark "no return" with NaN).
+fn finite_point(p: &LidarPoint) -> bool {
+    p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.time_offset_s.is_finite()
 }
 
 fn summary(result: &ScanMatchResult, features: &SweepFeatures) -> ScanMatchSummary {
