@@ -8,4 +8,6 @@ pub mod kitti_export;
 pub mod report;
 pub mod run;
 pub mod simulate;
+pub mod suite;
+pub mod suite_report;
 pub mod track_kitti;

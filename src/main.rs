@@ -116,6 +116,14 @@ enum Command {
         #[arg(long)]
         skip_missing: bool,
     },
+    /// Re-render the report of `limot eval suite` from its results.json (no re-running).
+    Report {
+        /// OUT/results.json of a suite, or the suite directory holding it.
+        results: PathBuf,
+        /// Report directory (default: the suite directory's report/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Print the version of every component.
     Version,
 }
@@ -185,6 +193,25 @@ enum EvalCommand {
         #[arg(long)]
         markdown: Option<PathBuf>,
     },
+    /// Simulate a scenario suite (families × seeds), run every variant on each
+    /// sequence, score it and write OUT/results.json and OUT/report/README.md.
+    Suite {
+        /// Scenario families: built-in names (highway, urban) or TOML files, comma-separated.
+        #[arg(long, default_value = "highway,urban")]
+        families: String,
+        /// Seeds, comma-separated.
+        #[arg(long, default_value = "1,2")]
+        seeds: String,
+        /// Duration of each sequence, s.
+        #[arg(long, default_value_t = 30.0)]
+        duration: f64,
+        /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
+        #[arg(long, default_value = "lio,allfilt,dynafilt")]
+        variants: String,
+        /// Output directory (datasets in OUT/data are reused when their scenario matches).
+        #[arg(long, default_value = "reports/suite")]
+        out: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -244,6 +271,7 @@ fn main() -> ExitCode {
             with_predicted,
             skip_missing,
         ),
+        Command::Report { results, out } => run_report(&results, out),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
             Ok(())
@@ -514,7 +542,89 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
                 write_output(&path, &r.to_markdown()?)?;
             }
         }
+        EvalCommand::Suite {
+            families,
+            seeds,
+            duration,
+            variants,
+            out,
+        } => run_eval_suite(&families, &seeds, duration, &variants, out)?,
     }
+    Ok(())
+}
+
+/// `limot eval suite`: runs the suite, writes OUT/report and prints the ego table.
+fn run_eval_suite(
+    families: &str,
+    seeds: &str,
+    duration_s: f64,
+    variants: &str,
+    out: PathBuf,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::report::Variant;
+    use limot::suite::{SuiteSpec, parse_list, run_suite};
+    let spec = SuiteSpec {
+        families: parse_list("families", families, |s| Ok(s.to_string()))?,
+        seeds: parse_list("seeds", seeds, |s| {
+            s.parse::<u64>().map_err(|e| e.to_string())
+        })?,
+        duration_s,
+        variants: parse_list("variants", variants, |s| {
+            Variant::parse(s).map_err(|e| e.to_string())
+        })?,
+        out_dir: out,
+    };
+    let runs = spec.families.len() * spec.seeds.len() * spec.variants.len();
+    println!(
+        "limot eval suite: {} sequence(s) x {} variant(s) = {runs} runs of {} s into {}",
+        spec.families.len() * spec.seeds.len(),
+        spec.variants.len(),
+        spec.duration_s,
+        spec.out_dir.display()
+    );
+    let results = run_suite(&spec, true)?;
+    print_suite_report(&results, &spec.out_dir, &spec.out_dir.join("report"))
+}
+
+/// `limot report`: re-renders a suite report from its results.json.
+fn run_report(
+    results: &std::path::Path,
+    out: Option<PathBuf>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let (results, suite_dir) = limot::suite::SuiteResults::load(results)?;
+    let out = out.unwrap_or_else(|| suite_dir.join("report"));
+    print_suite_report(&results, &suite_dir, &out)
+}
+
+fn print_suite_report(
+    results: &limot::suite::SuiteResults,
+    suite_dir: &std::path::Path,
+    report_dir: &std::path::Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let readme = limot::suite_report::write_suite_report(report_dir, results, suite_dir)?;
+    println!();
+    print!(
+        "{}",
+        limot::suite_report::ego_table(results)?.to_markdown()?
+    );
+    for s in &results.sequences {
+        if let Some(e) = &s.error {
+            println!("{}: not available: {e}", s.name);
+        }
+        for r in s.variants.iter().filter(|r| r.error.is_some()) {
+            println!(
+                "{} / {}: not available: {}",
+                s.name,
+                r.variant.label(),
+                r.error.as_deref().unwrap_or_default()
+            );
+        }
+    }
+    println!(
+        "results: {}",
+        suite_dir.join(limot::suite::RESULTS_FILE).display()
+    );
+    println!("report: {}", readme.display());
     Ok(())
 }
 

@@ -1,0 +1,747 @@
+//! `limot eval suite`: simulates a set of scenarios (families × seeds), runs
+//! every requested system variant on each, scores the runs against ground
+//! truth and saves the figures as `OUT/results.json`, from which
+//! `crate::suite_report` renders the tables and plots (also later, without
+//! re-running, via `limot report`).
+//!
+//! Layout of OUT:
+//!
+//! ```text
+//! data/<family>_s<seed>/            the simulated dataset (reused when its scenario.toml matches)
+//! runs/<family>_s<seed>/<variant>/  poses_tum.txt, tracks.csv, ... and kitti_results/0000.txt
+//! results.json                      SuiteResults (paths inside are relative to OUT)
+//! ```
+//!
+//! A variant whose run or scoring fails is recorded with its error text and
+//! the suite goes on; so does a sequence whose simulation fails. Only a bad
+//! suite specification (unknown family, empty lists, bad duration) or an
+//! unwritable OUT stops the suite.
+
+use crate::eval::TimingAccumulator;
+use crate::eval::iou::IouKind;
+use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
+use crate::evaluate::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
+use crate::report::Variant;
+use crate::run::{RunOptions, RunOutput, Source, run, write_kitti_tracks, write_output};
+use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
+use indicatif::{ProgressBar, ProgressStyle};
+use limot_sim::record::Dataset;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Version of the `results.json` layout; bumped when fields change meaning.
+pub const RESULTS_FORMAT_VERSION: u32 = 1;
+
+/// File name of the saved results inside the suite directory.
+pub const RESULTS_FILE: &str = "results.json";
+
+/// A ground-truth object counts as moving when it is not parked and its
+/// horizontal speed reaches this at some frame (slower ones are waiting or
+/// creeping: their points do not disturb the odometry).
+pub const MOVING_SPEED_MPS: f64 = 0.5;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SuiteError {
+    #[error("suite specification: {0}")]
+    Spec(String),
+    #[error("family `{family}`: {source}")]
+    Scenario {
+        family: String,
+        #[source]
+        source: Box<crate::simulate::SimulateError>,
+    },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Json {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+    #[error("{path}: results format version {found}, this limot reads version {expected}")]
+    Version {
+        path: PathBuf,
+        found: u32,
+        expected: u32,
+    },
+    #[error("{path}: line {line}: field `{field}`: {why}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        field: String,
+        why: String,
+    },
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
+    #[error("{0}")]
+    Data(String),
+}
+
+pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
+
+/// What to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SuiteSpec {
+    /// Scenario files or built-in names (highway, urban).
+    pub families: Vec<String>,
+    pub seeds: Vec<u64>,
+    pub duration_s: f64,
+    pub variants: Vec<Variant>,
+    pub out_dir: PathBuf,
+}
+
+impl SuiteSpec {
+    /// Non-empty lists without repeats and a positive, finite duration.
+    pub fn validate(&self) -> Result<()> {
+        fn no_repeats<T: Ord + std::fmt::Debug>(what: &str, items: &[T]) -> Result<()> {
+            if items.is_empty() {
+                return Err(SuiteError::Spec(format!("no {what} given")));
+            }
+            let mut seen = BTreeSet::new();
+            for item in items {
+                if !seen.insert(item) {
+                    return Err(SuiteError::Spec(format!("{what}: {item:?} given twice")));
+                }
+            }
+            Ok(())
+        }
+        no_repeats("families", &self.families)?;
+        no_repeats("seeds", &self.seeds)?;
+        no_repeats("variants", &self.variants)?;
+        // two scenario files with one stem would share a data directory
+        let names: Vec<String> = self.families.iter().map(|f| sequence_name(f, 0)).collect();
+        no_repeats("family names (file stems)", &names)?;
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return Err(SuiteError::Spec(format!(
+                "duration must be a positive number of seconds, got {}",
+                self.duration_s
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Parses a comma-separated list (`"lio,dynafilt"`), naming the option in errors.
+pub fn parse_list<T>(
+    option: &str,
+    text: &str,
+    parse: impl Fn(&str) -> std::result::Result<T, String>,
+) -> Result<Vec<T>> {
+    text.split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| parse(s).map_err(|why| SuiteError::Spec(format!("--{option} `{s}`: {why}"))))
+        .collect()
+}
+
+/// Serde helpers storing a [`Variant`] by its machine name.
+mod variant_name {
+    use crate::report::Variant;
+    use serde::{Deserialize, Deserializer, Serializer, de::Error};
+
+    pub fn serialize<S: Serializer>(v: &Variant, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(v.name())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Variant, D::Error> {
+        let name = String::deserialize(d)?;
+        Variant::parse(&name).map_err(D::Error::custom)
+    }
+
+    pub mod list {
+        use super::*;
+        use serde::ser::SerializeSeq;
+
+        pub fn serialize<S: Serializer>(vs: &[Variant], s: S) -> Result<S::Ok, S::Error> {
+            let mut seq = s.serialize_seq(Some(vs.len()))?;
+            for v in vs {
+                seq.serialize_element(v.name())?;
+            }
+            seq.end()
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Variant>, D::Error> {
+            Vec::<String>::deserialize(d)?
+                .iter()
+                .map(|n| Variant::parse(n).map_err(D::Error::custom))
+                .collect()
+        }
+    }
+}
+
+/// Ego trajectory accuracy (SE(3)-aligned ATE, RPE over one frame).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EgoMetrics {
+    pub ate_t_m: f64,
+    pub ate_r_rad: f64,
+    pub ate_max_m: f64,
+    /// Associated pose pairs.
+    pub pairs: usize,
+    pub rpe_t_m: Option<f64>,
+    pub rpe_r_rad: Option<f64>,
+}
+
+/// Class-agnostic CLEAR-MOT at one IoU kind and threshold (MOTA, MOTP as fractions).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotMetrics {
+    /// "3D" or "BEV".
+    pub iou_kind: String,
+    pub iou_threshold: f64,
+    pub mota: Option<f64>,
+    pub motp: Option<f64>,
+    pub id_switches: usize,
+    pub false_positives: usize,
+    pub false_negatives: usize,
+    pub matches: usize,
+    pub gt_count: usize,
+}
+
+/// One ground-truth object as the tracker followed it (3D IoU ≥ 0.25).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectMetricsRecord {
+    pub gt_id: u64,
+    pub class: String,
+    pub gt_frames: usize,
+    pub tracked_frames: usize,
+    pub tp_percent: f64,
+    /// The tracker id matched most often (the id in `tracks.csv`).
+    pub track_id: Option<u64>,
+    pub ate_t_m: Option<f64>,
+    pub ate_r_rad: Option<f64>,
+}
+
+/// Per-frame wall time of one pipeline stage, ms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageSamples {
+    pub stage: String,
+    pub ms: Vec<f64>,
+}
+
+/// Everything measured for one variant on one sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VariantMetrics {
+    pub frames_estimated: usize,
+    pub frames_before_init: usize,
+    pub wall_time_s: f64,
+    /// Frames estimated per second of wall time.
+    pub fps: f64,
+    pub ego: EgoMetrics,
+    pub clear_mot: Vec<MotMetrics>,
+    pub objects: Vec<ObjectMetricsRecord>,
+    /// Pipeline stages in order, then "total".
+    pub timings: Vec<StageSamples>,
+}
+
+impl VariantMetrics {
+    /// CLEAR-MOT at `kind` ("3D"/"BEV") and `threshold`.
+    pub fn mot(&self, kind: &str, threshold: f64) -> Option<&MotMetrics> {
+        self.clear_mot
+            .iter()
+            .find(|m| m.iou_kind == kind && m.iou_threshold == threshold)
+    }
+
+    /// Pipeline stage samples as a timing accumulator.
+    pub fn timing_accumulator(&self) -> TimingAccumulator {
+        let mut acc = TimingAccumulator::new();
+        for stage in &self.timings {
+            for &ms in &stage.ms {
+                acc.record(&stage.stage, Duration::from_secs_f64(ms.max(0.0) / 1e3));
+            }
+        }
+        acc
+    }
+}
+
+/// One variant on one sequence: its figures, or why there are none.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VariantResult {
+    #[serde(with = "variant_name")]
+    pub variant: Variant,
+    /// Output directory, relative to the suite directory.
+    pub run_dir: PathBuf,
+    pub metrics: Option<VariantMetrics>,
+    /// Set when the run or its scoring failed.
+    pub error: Option<String>,
+}
+
+/// One simulated sequence and every variant run on it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SequenceResult {
+    /// `<family>_s<seed>`.
+    pub name: String,
+    pub family: String,
+    pub seed: u64,
+    pub frames: usize,
+    /// Dataset directory, relative to the suite directory.
+    pub dataset_dir: PathBuf,
+    /// Ground-truth ids of the moving objects (see [`MOVING_SPEED_MPS`]).
+    pub moving_objects: Vec<u64>,
+    /// Set when the sequence could not be simulated or read.
+    pub error: Option<String>,
+    pub variants: Vec<VariantResult>,
+}
+
+impl SequenceResult {
+    pub fn variant(&self, v: Variant) -> Option<&VariantResult> {
+        self.variants.iter().find(|r| r.variant == v)
+    }
+
+    pub fn metrics(&self, v: Variant) -> Option<&VariantMetrics> {
+        self.variant(v).and_then(|r| r.metrics.as_ref())
+    }
+}
+
+/// What `results.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SuiteResults {
+    pub format_version: u32,
+    pub families: Vec<String>,
+    pub seeds: Vec<u64>,
+    pub duration_s: f64,
+    #[serde(with = "variant_name::list")]
+    pub variants: Vec<Variant>,
+    pub sequences: Vec<SequenceResult>,
+}
+
+impl SuiteResults {
+    /// Writes `dir/results.json`.
+    pub fn save(&self, dir: &Path) -> Result<PathBuf> {
+        let path = dir.join(RESULTS_FILE);
+        let text = serde_json::to_string_pretty(self).map_err(|source| SuiteError::Json {
+            path: path.clone(),
+            source,
+        })?;
+        fs::write(&path, text + "\n").map_err(|source| SuiteError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        Ok(path)
+    }
+
+    /// Reads `results.json` (or `DIR/results.json` when given a directory);
+    /// returns the results and the suite directory their paths are relative to.
+    pub fn load(path: &Path) -> Result<(SuiteResults, PathBuf)> {
+        let file = if path.is_dir() {
+            path.join(RESULTS_FILE)
+        } else {
+            path.to_path_buf()
+        };
+        let text = fs::read_to_string(&file).map_err(|source| SuiteError::Io {
+            path: file.clone(),
+            source,
+        })?;
+        let results: SuiteResults =
+            serde_json::from_str(&text).map_err(|source| SuiteError::Json {
+                path: file.clone(),
+                source,
+            })?;
+        if results.format_version != RESULTS_FORMAT_VERSION {
+            return Err(SuiteError::Version {
+                path: file,
+                found: results.format_version,
+                expected: RESULTS_FORMAT_VERSION,
+            });
+        }
+        let dir = file
+            .parent()
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+        Ok((results, dir))
+    }
+}
+
+/// `<family>_s<seed>`, with a scenario file's stem as the family name.
+pub fn sequence_name(family: &str, seed: u64) -> String {
+    let stem = Path::new(family)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(family);
+    format!("{stem}_s{seed}")
+}
+
+/// An error and its sources on one line.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        let s_text = s.to_string();
+        // transparent wrappers repeat their source's message
+        if !text.ends_with(&s_text) {
+            text.push_str(": ");
+            text.push_str(&s_text);
+        }
+        source = s.source();
+    }
+    text
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SuiteError + '_ {
+    move |source| SuiteError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// The overall bar (runs done / total), hidden when `visible` is false.
+fn overall_bar(total: usize, visible: bool) -> ProgressBar {
+    if !visible {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template("{prefix:>10} [{bar:40}] {pos}/{len} runs  {msg}  {elapsed}")
+            .expect("static template")
+            .progress_chars("#>-"),
+    )
+}
+
+/// Simulates `spec` into `dir` unless a complete dataset of the same resolved
+/// scenario is already there.
+fn ensure_dataset(
+    spec: &limot_sim::scenario::ScenarioSpec,
+    dir: &Path,
+    progress: bool,
+) -> std::result::Result<bool, Box<dyn std::error::Error>> {
+    let wanted = spec.to_toml();
+    let existing = fs::read_to_string(dir.join("scenario.toml")).ok();
+    if dir.join("meta.toml").is_file() && existing.as_deref() == Some(wanted.as_str()) {
+        return Ok(false);
+    }
+    prepare_output_dir(dir, true)?;
+    simulate(spec, dir, false, progress)?;
+    Ok(true)
+}
+
+/// Ids of the moving ground-truth objects of a dataset.
+fn moving_objects(dataset: &Dataset) -> std::result::Result<Vec<u64>, Box<dyn std::error::Error>> {
+    let mut moving = BTreeSet::new();
+    for frame in dataset.box_truth()? {
+        for b in frame {
+            if !b.parked && b.velocity_world_mps.xy().norm() >= MOVING_SPEED_MPS {
+                moving.insert(u64::from(b.id));
+            }
+        }
+    }
+    Ok(moving.into_iter().collect())
+}
+
+fn iou_kind_name(kind: IouKind) -> &'static str {
+    match kind {
+        IouKind::ThreeD => "3D",
+        IouKind::Bev => "BEV",
+    }
+}
+
+/// Per-stage samples (ms) of a run, stages in pipeline order, then "total".
+fn stage_samples(output: &RunOutput) -> Vec<StageSamples> {
+    let mut stages: Vec<StageSamples> = Vec::new();
+    for e in &output.estimates {
+        let timings = e.timings.stages();
+        let total = ("total", e.timings.total());
+        for (i, (name, d)) in timings.into_iter().chain([total]).enumerate() {
+            if stages.len() <= i {
+                stages.push(StageSamples {
+                    stage: name.to_string(),
+                    ms: Vec::with_capacity(output.estimates.len()),
+                });
+            }
+            // whole microseconds: finer is clock noise, and it keeps results.json small
+            stages[i].ms.push((d.as_secs_f64() * 1e6).round() / 1e3);
+        }
+    }
+    stages
+}
+
+fn mot_metrics(tracks: &TracksEvaluation) -> Vec<MotMetrics> {
+    tracks
+        .scores
+        .iter()
+        .map(|s| MotMetrics {
+            iou_kind: iou_kind_name(s.iou_kind).to_string(),
+            iou_threshold: s.iou_threshold,
+            mota: s.all.mota,
+            motp: s.all.motp,
+            id_switches: s.all.id_switches,
+            false_positives: s.all.false_positives,
+            false_negatives: s.all.false_negatives,
+            matches: s.all.matches,
+            gt_count: s.all.gt_count,
+        })
+        .collect()
+}
+
+fn object_metrics(tracks: &TracksEvaluation) -> Vec<ObjectMetricsRecord> {
+    tracks
+        .objects
+        .iter()
+        .map(|o| ObjectMetricsRecord {
+            gt_id: o.gt_id,
+            class: tracks
+                .object_classes
+                .get(&o.gt_id)
+                .map_or_else(|| "?".to_string(), |c| c.to_string()),
+            gt_frames: o.gt_frames,
+            tracked_frames: o.tracked_frames,
+            tp_percent: o.tp_percent,
+            track_id: o.track_id,
+            ate_t_m: o.ate_t_rmse_m,
+            ate_r_rad: o.ate_r_rmse_rad,
+        })
+        .collect()
+}
+
+/// Runs one variant into `run_dir` and scores it.
+fn run_variant(
+    source: &Source,
+    dataset: &Dataset,
+    variant: Variant,
+    run_dir: &Path,
+    progress: bool,
+) -> std::result::Result<VariantMetrics, Box<dyn std::error::Error>> {
+    // A stale output of an earlier suite must not pass for this run's.
+    if run_dir.exists() {
+        fs::remove_dir_all(run_dir).map_err(io_err(run_dir))?;
+    }
+    let options = RunOptions {
+        variant,
+        progress,
+        ..RunOptions::default()
+    };
+    let output = run(source, &dataset.dir, &options, None)?;
+    write_output(run_dir, &output)?;
+    let (calib, _) = dataset_calib(dataset, 0)?;
+    let results = write_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
+    let ego = evaluate_ego(
+        &dataset.dir,
+        &run_dir.join("poses_tum.txt"),
+        &EgoEvalOptions::default(),
+    )?;
+    // JSON has no NaN: a non-finite score would not survive results.json
+    if !(ego.ate.ate_t_rmse_m.is_finite() && ego.ate.ate_r_rmse_rad.is_finite()) {
+        return Err(format!(
+            "ego ATE is not finite (ATE_T {}, ATE_R {})",
+            ego.ate.ate_t_rmse_m, ego.ate.ate_r_rmse_rad
+        )
+        .into());
+    }
+    let tracks = evaluate_tracks(&dataset.dir, &results, &TrackEvalOptions::default())?;
+    let wall_time_s = output.wall_time.as_secs_f64();
+    Ok(VariantMetrics {
+        frames_estimated: output.estimates.len(),
+        frames_before_init: output.frames_before_init,
+        wall_time_s,
+        fps: output.estimates.len() as f64 / wall_time_s.max(1e-9),
+        ego: EgoMetrics {
+            ate_t_m: ego.ate.ate_t_rmse_m,
+            ate_r_rad: ego.ate.ate_r_rmse_rad,
+            ate_max_m: ego.ate.max_m,
+            pairs: ego.ate.n,
+            rpe_t_m: ego.rpe.as_ref().map(|r| r.trans_rmse_m),
+            rpe_r_rad: ego.rpe.as_ref().map(|r| r.rot_rmse_rad),
+        },
+        clear_mot: mot_metrics(&tracks),
+        objects: object_metrics(&tracks),
+        timings: stage_samples(&output),
+    })
+}
+
+/// Simulates (or reuses) one sequence and runs every variant on it.
+fn run_sequence(
+    spec: &SuiteSpec,
+    scenario: &limot_sim::scenario::ScenarioSpec,
+    family: &str,
+    seed: u64,
+    bar: &ProgressBar,
+    progress: bool,
+) -> SequenceResult {
+    let name = sequence_name(family, seed);
+    let dataset_rel = Path::new("data").join(&name);
+    let dataset_dir = spec.out_dir.join(&dataset_rel);
+    let mut result = SequenceResult {
+        name: name.clone(),
+        family: family.to_string(),
+        seed,
+        frames: 0,
+        dataset_dir: dataset_rel,
+        moving_objects: Vec::new(),
+        error: None,
+        variants: Vec::new(),
+    };
+    bar.set_message(format!("{name}: simulate"));
+    let opened = bar
+        .suspend(|| ensure_dataset(scenario, &dataset_dir, progress))
+        .and_then(|_| Ok(Dataset::open(&dataset_dir)?))
+        .and_then(|d| {
+            let moving = moving_objects(&d)?;
+            Ok((d, moving))
+        })
+        .and_then(|(d, moving)| {
+            let source = Source::open(&dataset_dir)?;
+            Ok((d, moving, source))
+        });
+    let (dataset, moving, source) = match opened {
+        Ok(x) => x,
+        Err(e) => {
+            result.error = Some(error_chain(e.as_ref()));
+            // the variants of this sequence count as done
+            bar.inc(spec.variants.len() as u64);
+            return result;
+        }
+    };
+    result.frames = dataset.frame_count();
+    result.moving_objects = moving;
+    for &variant in &spec.variants {
+        bar.set_message(format!("{name}: {}", variant.name()));
+        let run_rel = Path::new("runs").join(&name).join(variant.name());
+        let run_dir = spec.out_dir.join(&run_rel);
+        let outcome = bar.suspend(|| run_variant(&source, &dataset, variant, &run_dir, progress));
+        let (metrics, error) = match outcome {
+            Ok(m) => (Some(m), None),
+            Err(e) => (None, Some(error_chain(e.as_ref()))),
+        };
+        if progress {
+            let what = match (&metrics, &error) {
+                (Some(m), _) => format!(
+                    "ATE_T {:.3} m, ATE_R {:.4} rad, {:.1} FPS",
+                    m.ego.ate_t_m, m.ego.ate_r_rad, m.fps
+                ),
+                (_, Some(e)) => format!("not available: {e}"),
+                _ => String::new(),
+            };
+            bar.println(format!("{name} {}: {what}", variant.name()));
+        }
+        result.variants.push(VariantResult {
+            variant,
+            run_dir: run_rel,
+            metrics,
+            error,
+        });
+        bar.inc(1);
+    }
+    result
+}
+
+/// Runs the whole suite and saves `OUT/results.json`.
+pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
+    spec.validate()?;
+    // Resolve every scenario first: a typo fails before hours of simulation.
+    let mut scenarios = BTreeMap::new();
+    for family in &spec.families {
+        for &seed in &spec.seeds {
+            let wrap = |source| SuiteError::Scenario {
+                family: family.clone(),
+                source: Box::new(source),
+            };
+            let mut scenario = resolve_scenario(family).map_err(wrap)?;
+            Overrides {
+                seed: Some(seed),
+                duration_s: Some(spec.duration_s),
+            }
+            .apply(&mut scenario)
+            .map_err(wrap)?;
+            scenarios.insert((family.clone(), seed), scenario);
+        }
+    }
+    fs::create_dir_all(&spec.out_dir).map_err(io_err(&spec.out_dir))?;
+    let total = scenarios.len() * spec.variants.len();
+    let bar = overall_bar(total, progress);
+    bar.set_prefix("suite");
+    let mut sequences = Vec::with_capacity(scenarios.len());
+    // families in the given order, then seeds in the given order
+    for family in &spec.families {
+        for &seed in &spec.seeds {
+            let scenario = &scenarios[&(family.clone(), seed)];
+            sequences.push(run_sequence(spec, scenario, family, seed, &bar, progress));
+        }
+    }
+    bar.finish_and_clear();
+    let results = SuiteResults {
+        format_version: RESULTS_FORMAT_VERSION,
+        families: spec.families.clone(),
+        seeds: spec.seeds.clone(),
+        duration_s: spec.duration_s,
+        variants: spec.variants.clone(),
+        sequences,
+    };
+    results.save(&spec.out_dir)?;
+    Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> SuiteSpec {
+        SuiteSpec {
+            families: vec!["urban".into()],
+            seeds: vec![1, 2],
+            duration_s: 4.0,
+            variants: vec![Variant::Lio],
+            out_dir: PathBuf::from("unused"),
+        }
+    }
+
+    #[test]
+    fn spec_validation_names_the_problem() {
+        assert!(spec().validate().is_ok());
+        let mut s = spec();
+        s.seeds = vec![1, 1];
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("seeds") && e.contains("twice"), "{e}");
+        let mut s = spec();
+        s.variants.clear();
+        assert!(s.validate().unwrap_err().to_string().contains("variants"));
+        let mut s = spec();
+        s.duration_s = f64::NAN;
+        assert!(s.validate().unwrap_err().to_string().contains("duration"));
+    }
+
+    #[test]
+    fn unknown_family_fails_before_any_work() {
+        let dir = std::env::temp_dir().join(format!("limot-suite-unknown-{}", std::process::id()));
+        let s = SuiteSpec {
+            families: vec!["no-such-family".into()],
+            out_dir: dir.clone(),
+            ..spec()
+        };
+        let e = run_suite(&s, false).unwrap_err().to_string();
+        assert!(e.contains("no-such-family"), "{e}");
+        assert!(!dir.exists(), "nothing may be written for a bad spec");
+    }
+
+    #[test]
+    fn list_parsing_trims_and_reports_the_option() {
+        let v = parse_list("variants", " lio, dynafilt ,", |s| {
+            Variant::parse(s).map_err(|e| e.to_string())
+        })
+        .unwrap();
+        assert_eq!(v, vec![Variant::Lio, Variant::Dynafilt]);
+        let e = parse_list("seeds", "1,x", |s| {
+            s.parse::<u64>().map_err(|e| e.to_string())
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--seeds `x`"), "{e}");
+    }
+
+    #[test]
+    fn sequence_names_use_the_file_stem() {
+        assert_eq!(sequence_name("urban", 3), "urban_s3");
+        assert_eq!(sequence_name("scenarios/my_city.toml", 1), "my_city_s1");
+    }
+
+    #[test]
+    fn error_chain_skips_repeated_messages() {
+        let inner = std::io::Error::other("disk full");
+        let outer = SuiteError::Io {
+            path: PathBuf::from("a/b"),
+            source: inner,
+        };
+        assert_eq!(error_chain(&outer), "a/b: disk full");
+    }
+}

@@ -1,0 +1,1041 @@
+//! The report of a suite (`crate::suite`): tables shaped like the paper's
+//! (ego ATE per sequence × variant, CLEAR-MOT, per-object TP/ATE, timing per
+//! module) and SVG plots per sequence (ego trajectories vs truth, ego error
+//! over time, moving objects' estimated vs true trajectories and speeds).
+//!
+//! Tables come from `results.json` alone; plots also read the run outputs
+//! (`poses_tum.txt`, `tracks.csv`) and the datasets' ground truth, so a report
+//! re-rendered from the same suite directory is identical. A plot whose files
+//! are gone is left out with a note rather than failing the report.
+
+use crate::eval::Alignment;
+use crate::evaluate::ego::{EgoEvalOptions, evaluate_trajectories, load_estimate, load_truth};
+use crate::report::plot::Series2D;
+use crate::report::table::{
+    Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
+    TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
+};
+use crate::report::{Plot, PlotKind, Report, Section, Variant, write_report};
+use crate::suite::{Result, SequenceResult, SuiteError, SuiteResults, VariantMetrics};
+use limot_sim::record::Dataset;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Moving objects per sequence in the per-object table (longest in view first).
+pub const OBJECTS_PER_SEQUENCE: usize = 5;
+/// Moving objects per sequence drawn as trajectory and speed plots.
+pub const OBJECT_PLOTS_PER_SEQUENCE: usize = 3;
+/// The variant whose tracks are drawn, in order of preference.
+const TRACK_PLOT_PREFERENCE: [Variant; 4] = [
+    Variant::Dynafilt,
+    Variant::Limot,
+    Variant::Allfilt,
+    Variant::Lio,
+];
+/// Ground-truth ego poses drawn per trajectory plot at most (IMU-rate truth
+/// would make large SVGs for no visible gain).
+const MAX_TRUTH_POINTS: usize = 2000;
+
+/// One colour per variant across every plot (Tableau 10).
+fn variant_rgb(v: Variant) -> (u8, u8, u8) {
+    match v {
+        Variant::Lio => (31, 119, 180),
+        Variant::Allfilt => (255, 127, 14),
+        Variant::Dynafilt => (44, 160, 44),
+        Variant::Limot => (214, 39, 40),
+    }
+}
+
+/// Variants with figures in any sequence, in the suite's order.
+fn variants_with_metrics(results: &SuiteResults) -> Vec<Variant> {
+    results
+        .variants
+        .iter()
+        .copied()
+        .filter(|&v| results.sequences.iter().any(|s| s.metrics(v).is_some()))
+        .collect()
+}
+
+/// Paper Table "tab_ego_track": Seq | per variant ATE_T [m], ATE_R [rad];
+/// best per row in bold; a mean row.
+pub fn ego_table(results: &SuiteResults) -> Result<Table> {
+    let rows: Vec<EgoAteRow> = results
+        .sequences
+        .iter()
+        .map(|s| EgoAteRow {
+            sequence: s.name.clone(),
+            per_variant: s
+                .variants
+                .iter()
+                .filter_map(|r| {
+                    r.metrics.as_ref().map(|m| {
+                        (
+                            r.variant,
+                            EgoAte {
+                                ate_t_m: m.ego.ate_t_m,
+                                ate_r_rad: m.ego.ate_r_rad,
+                            },
+                        )
+                    })
+                })
+                .collect(),
+        })
+        .collect();
+    let mut table = ego_ate_table(
+        "Ego-pose RMSE of ATE_T [m] and ATE_R [rad] (SE(3)-aligned)",
+        &rows,
+    )?;
+    // Simulated rotations are accurate to a few mrad: three decimals of a
+    // radian would print most of them as 0.001.
+    for column in (2..table.header.len()).step_by(2) {
+        table.set_decimals(column, 4);
+    }
+    Ok(table)
+}
+
+/// CLEAR-MOT per sequence × variant at one IoU kind ("3D"/"BEV"), thresholds 0.25 and 0.5.
+pub fn tracking_table_of(results: &SuiteResults, kind: &str) -> Result<Table> {
+    let mut rows = Vec::new();
+    for s in &results.sequences {
+        for threshold in [0.25, 0.5] {
+            for r in &s.variants {
+                let Some(mot) = r.metrics.as_ref().and_then(|m| m.mot(kind, threshold)) else {
+                    continue;
+                };
+                rows.push(TrackingRow {
+                    sequence: s.name.clone(),
+                    variant: r.variant,
+                    iou_threshold: threshold,
+                    mota_percent: mot.mota.map(|x| 100.0 * x),
+                    motp_percent: mot.motp.map(|x| 100.0 * x),
+                    idsw: mot.id_switches,
+                    fp: mot.false_positives,
+                    fn_: mot.false_negatives,
+                });
+            }
+        }
+    }
+    Ok(tracking_table(
+        &format!("CLEAR-MOT per sequence, {kind} IoU (class-agnostic)"),
+        &rows,
+    )?)
+}
+
+/// Mean of `values` when every sequence has one (a mean over a subset would
+/// not compare across variants).
+fn mean_of_all(values: &[Option<f64>]) -> Option<f64> {
+    if values.is_empty() || values.iter().any(|v| v.is_none_or(|x| !x.is_finite())) {
+        return None;
+    }
+    Some(values.iter().flatten().sum::<f64>() / values.len() as f64)
+}
+
+/// Paper Table "tab_ab3dmot_compare": Method | MOTP [%] at 3D IoU 0.25 and
+/// 0.5, mean over the sequences; the best in bold.
+pub fn motp_table(results: &SuiteResults) -> Result<Table> {
+    let header = ["Method", "MOTP [%] (IoU 0.25)", "MOTP [%] (IoU 0.5)"]
+        .map(String::from)
+        .to_vec();
+    let mut table = Table::new("MOTP, 3D IoU, mean over sequences", header);
+    table.set_decimals(1, 2);
+    table.set_decimals(2, 2);
+    for v in variants_with_metrics(results) {
+        let motp = |threshold: f64| {
+            let per_seq: Vec<Option<f64>> = results
+                .sequences
+                .iter()
+                .map(|s| {
+                    s.metrics(v)
+                        .and_then(|m| m.mot("3D", threshold))
+                        .and_then(|m| m.motp)
+                        .map(|x| 100.0 * x)
+                })
+                .collect();
+            mean_of_all(&per_seq)
+        };
+        table.push_row(vec![
+            Cell::from(v.label()),
+            motp(0.25).into(),
+            motp(0.5).into(),
+        ])?;
+    }
+    table.bold = [1, 2]
+        .map(|column| BoldRule::BestInColumn {
+            column,
+            better: Better::Higher,
+            group_by: vec![],
+        })
+        .to_vec();
+    Ok(table)
+}
+
+/// The moving objects of a sequence in view longest (most ground-truth
+/// frames in any variant's scoring), ties to the smaller id.
+fn longest_moving_objects(s: &SequenceResult) -> Vec<u64> {
+    let moving: BTreeSet<u64> = s.moving_objects.iter().copied().collect();
+    let mut frames: BTreeMap<u64, usize> = BTreeMap::new();
+    for m in s.variants.iter().filter_map(|r| r.metrics.as_ref()) {
+        for o in m.objects.iter().filter(|o| moving.contains(&o.gt_id)) {
+            let f = frames.entry(o.gt_id).or_default();
+            *f = (*f).max(o.gt_frames);
+        }
+    }
+    let mut ids: Vec<(u64, usize)> = frames.into_iter().collect();
+    ids.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    ids.into_iter().map(|(id, _)| id).collect()
+}
+
+/// Paper Table "tab_obj_track": Seq / Obj | per variant TP [%], ATE_T, ATE_R
+/// for the [`OBJECTS_PER_SEQUENCE`] longest-seen moving objects of each sequence.
+pub fn objects_table(results: &SuiteResults) -> Result<Table> {
+    let mut rows = Vec::new();
+    for s in &results.sequences {
+        for id in longest_moving_objects(s)
+            .into_iter()
+            .take(OBJECTS_PER_SEQUENCE)
+        {
+            let per_variant = s
+                .variants
+                .iter()
+                .filter_map(|r| {
+                    let m = r.metrics.as_ref()?;
+                    let o = m.objects.iter().find(|o| o.gt_id == id)?;
+                    Some((
+                        r.variant,
+                        ObjectMetrics {
+                            tp_percent: o.tp_percent,
+                            ate_t_m: o.ate_t_m,
+                            ate_r_rad: o.ate_r_rad,
+                        },
+                    ))
+                })
+                .collect();
+            rows.push(ObjectRow {
+                sequence: s.name.clone(),
+                object_id: id,
+                per_variant,
+            });
+        }
+    }
+    Ok(object_table(
+        "Moving objects: TP [%] (3D IoU ≥ 0.25) and ATE of the associated track",
+        &rows,
+    )?)
+}
+
+/// Paper Table "tab_time_consume" for one variant: per-stage mean / p95 ms
+/// and FPS, pooled over every frame of every sequence.
+pub fn timing_table_of(results: &SuiteResults, variant: Variant) -> Result<Option<Table>> {
+    let runs: Vec<&VariantMetrics> = results
+        .sequences
+        .iter()
+        .filter_map(|s| s.metrics(variant))
+        .collect();
+    let Some(first) = runs.first() else {
+        return Ok(None);
+    };
+    let mut acc = first.timing_accumulator();
+    for m in &runs[1..] {
+        acc.merge(&m.timing_accumulator());
+    }
+    // stages in pipeline order, as the first run lists them
+    let rows: Vec<TimingRow> = first
+        .timings
+        .iter()
+        .filter_map(|s| TimingRow::from_accumulator(&acc, &s.stage))
+        .collect();
+    Ok(Some(timing_table(
+        &format!("{}: time per scan by module", variant.label()),
+        &rows,
+    )?))
+}
+
+/// Seq | Variant | frames | before init | ATE max | RPE | wall FPS | status.
+pub fn runs_table(results: &SuiteResults) -> Result<Table> {
+    let header = [
+        "Seq",
+        "Variant",
+        "frames",
+        "estimated",
+        "before init",
+        "ATE_T max [m]",
+        "RPE_T [m]",
+        "RPE_R [rad]",
+        "wall FPS",
+        "status",
+    ]
+    .map(String::from)
+    .to_vec();
+    let mut table = Table::new("Runs", header);
+    table.set_decimals(7, 4);
+    table.set_decimals(8, 1);
+    for s in &results.sequences {
+        for r in &s.variants {
+            let mut row = vec![
+                Cell::from(s.name.as_str()),
+                Cell::from(r.variant.label()),
+                Cell::from(s.frames),
+            ];
+            match &r.metrics {
+                Some(m) => row.extend([
+                    Cell::from(m.frames_estimated),
+                    Cell::from(m.frames_before_init),
+                    Cell::Num(m.ego.ate_max_m),
+                    m.ego.rpe_t_m.into(),
+                    m.ego.rpe_r_rad.into(),
+                    Cell::Num(m.fps),
+                    Cell::from("ok"),
+                ]),
+                None => {
+                    row.extend(std::iter::repeat_n(Cell::Missing, 6));
+                    row.push(Cell::from("not available"));
+                }
+            }
+            table.push_row(row)?;
+        }
+    }
+    Ok(table)
+}
+
+/// One row of `tracks.csv` (world frame of the estimate).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackCsvRow {
+    pub frame: u64,
+    pub t_s: f64,
+    pub id: u64,
+    pub center_world: Vector3<f64>,
+    pub velocity_world_mps: Vector3<f64>,
+}
+
+/// Reads the columns of `tracks.csv` the plots need, by header name.
+pub fn read_tracks_csv(path: &Path) -> Result<Vec<TrackCsvRow>> {
+    let text = std::fs::read_to_string(path).map_err(|source| SuiteError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = match lines.next() {
+        Some((_, h)) => h.split(',').map(str::trim).collect(),
+        None => return Ok(Vec::new()),
+    };
+    let wanted = ["frame", "t_s", "id", "x", "y", "z", "vx", "vy", "vz"];
+    let mut columns = [0usize; 9];
+    for (slot, name) in columns.iter_mut().zip(wanted) {
+        *slot = header
+            .iter()
+            .position(|h| *h == name)
+            .ok_or_else(|| SuiteError::Parse {
+                path: path.to_path_buf(),
+                line: 1,
+                field: name.to_string(),
+                why: "column missing from the header".into(),
+            })?;
+    }
+    let mut rows = Vec::new();
+    for (index, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').collect();
+        let parse_err = |k: usize, why: String| SuiteError::Parse {
+            path: path.to_path_buf(),
+            line: index + 1,
+            field: wanted[k].to_string(),
+            why,
+        };
+        let mut values = [0.0f64; 9];
+        for (k, (&col, value)) in columns.iter().zip(values.iter_mut()).enumerate() {
+            let raw = fields
+                .get(col)
+                .ok_or_else(|| parse_err(k, "missing".into()))?;
+            *value = raw
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| parse_err(k, format!("`{raw}`: {e}")))?;
+            if !value.is_finite() {
+                return Err(parse_err(k, format!("`{raw}` is not finite")));
+            }
+        }
+        for k in [0, 2] {
+            if values[k] < 0.0 || values[k].fract() != 0.0 {
+                return Err(parse_err(k, format!("`{}` is not an index", values[k])));
+            }
+        }
+        rows.push(TrackCsvRow {
+            frame: values[0] as u64,
+            t_s: values[1],
+            id: values[2] as u64,
+            center_world: Vector3::new(values[3], values[4], values[5]),
+            velocity_world_mps: Vector3::new(values[6], values[7], values[8]),
+        });
+    }
+    Ok(rows)
+}
+
+/// Evenly thins `points` to at most `max` (keeping the last one).
+fn thin<T: Clone>(points: &[T], max: usize) -> Vec<T> {
+    if points.len() <= max || max < 2 {
+        return points.to_vec();
+    }
+    let step = points.len().div_ceil(max - 1);
+    let mut out: Vec<T> = points.iter().step_by(step).cloned().collect();
+    if !(points.len() - 1).is_multiple_of(step)
+        && let Some(last) = points.last()
+    {
+        out.push(last.clone());
+    }
+    out
+}
+
+/// Ego XY plot, error-over-time plot and each variant's ATE alignment.
+struct EgoPlots {
+    plots: Vec<Plot>,
+    alignments: BTreeMap<Variant, Alignment>,
+    notes: Vec<String>,
+}
+
+fn ego_plots(s: &SequenceResult, suite_dir: &Path) -> EgoPlots {
+    let mut out = EgoPlots {
+        plots: Vec::new(),
+        alignments: BTreeMap::new(),
+        notes: Vec::new(),
+    };
+    let opts = EgoEvalOptions::default();
+    let truth = match load_truth(&suite_dir.join(&s.dataset_dir), &opts) {
+        Ok(t) => t,
+        Err(e) => {
+            out.notes.push(format!(
+                "ego plots left out: {}",
+                crate::suite::error_chain(&e)
+            ));
+            return out;
+        }
+    };
+    let truth_xy: Vec<(f64, f64)> = truth
+        .poses
+        .iter()
+        .map(|(_, p)| (p.translation.vector.x, p.translation.vector.y))
+        .collect();
+    let mut xy = vec![Series2D::truth("truth", thin(&truth_xy, MAX_TRUTH_POINTS))];
+    let mut errors = Vec::new();
+    for r in s.variants.iter().filter(|r| r.metrics.is_some()) {
+        let path = suite_dir.join(&r.run_dir).join("poses_tum.txt");
+        let evaluated = load_estimate(&path, &truth, &opts)
+            .and_then(|est| evaluate_trajectories(&truth, &est, &opts).map(|e| (est, e)));
+        let (estimate, evaluation) = match evaluated {
+            Ok(x) => x,
+            Err(e) => {
+                out.notes.push(format!(
+                    "{} left out of the ego plots: {}",
+                    r.variant.label(),
+                    crate::suite::error_chain(&e)
+                ));
+                continue;
+            }
+        };
+        let alignment = evaluation.ate.alignment;
+        let points = estimate
+            .poses
+            .iter()
+            .map(|(_, p)| {
+                let q = alignment.transform_pose(p).translation.vector;
+                (q.x, q.y)
+            })
+            .collect();
+        let rgb = variant_rgb(r.variant);
+        xy.push(Series2D::line(r.variant.label(), points).with_rgb(rgb));
+        let error_points = evaluation
+            .ate
+            .per_pose
+            .iter()
+            .map(|&(t, e_m, _)| (t, e_m))
+            .collect();
+        errors.push(Series2D::line(r.variant.label(), error_points).with_rgb(rgb));
+        out.alignments.insert(r.variant, alignment);
+    }
+    if errors.is_empty() {
+        return out;
+    }
+    out.plots.push(Plot {
+        file_name: format!("{}_ego_xy.svg", s.name),
+        title: format!(
+            "{}: ego trajectory, top view (aligned estimates vs truth)",
+            s.name
+        ),
+        kind: PlotKind::TrajectoriesXy { series: xy },
+    });
+    out.plots.push(Plot {
+        file_name: format!("{}_ego_error.svg", s.name),
+        title: format!("{}: ego translation error over time", s.name),
+        kind: PlotKind::ErrorOverTime {
+            y_desc: "translation error [m]".into(),
+            series: errors,
+        },
+    });
+    out
+}
+
+/// Trajectory and speed plots of the longest-tracked moving objects, from
+/// the preferred variant's `tracks.csv` moved by its ego alignment.
+fn object_plots(
+    s: &SequenceResult,
+    suite_dir: &Path,
+    alignments: &BTreeMap<Variant, Alignment>,
+) -> (Vec<Plot>, Vec<String>) {
+    let mut notes = Vec::new();
+    let Some((variant, metrics, alignment)) = TRACK_PLOT_PREFERENCE.iter().find_map(|&v| {
+        let m = s.metrics(v)?;
+        Some((v, m, alignments.get(&v)?))
+    }) else {
+        return (Vec::new(), notes);
+    };
+    let moving: BTreeSet<u64> = s.moving_objects.iter().copied().collect();
+    let mut candidates: Vec<_> = metrics
+        .objects
+        .iter()
+        .filter(|o| moving.contains(&o.gt_id) && o.track_id.is_some())
+        .collect();
+    candidates.sort_by(|a, b| {
+        b.tracked_frames
+            .cmp(&a.tracked_frames)
+            .then(a.gt_id.cmp(&b.gt_id))
+    });
+    candidates.truncate(OBJECT_PLOTS_PER_SEQUENCE);
+    if candidates.is_empty() {
+        return (Vec::new(), notes);
+    }
+    let run_dir = s
+        .variant(variant)
+        .map_or_else(PathBuf::new, |r| suite_dir.join(&r.run_dir));
+    let loaded = read_tracks_csv(&run_dir.join("tracks.csv")).and_then(|rows| {
+        let truth = Dataset::open(&suite_dir.join(&s.dataset_dir))
+            .and_then(|d| d.box_truth())
+            .map_err(|e| SuiteError::Data(crate::suite::error_chain(&e)))?;
+        Ok((rows, truth))
+    });
+    let (rows, truth) = match loaded {
+        Ok(x) => x,
+        Err(e) => {
+            notes.push(format!(
+                "object plots left out: {}",
+                crate::suite::error_chain(&e)
+            ));
+            return (Vec::new(), notes);
+        }
+    };
+    let rgb = variant_rgb(variant);
+    let mut plots = Vec::new();
+    for o in candidates {
+        let Some(track_id) = o.track_id else {
+            continue;
+        };
+        let gt_id = o.gt_id;
+        let true_boxes: Vec<_> = truth
+            .iter()
+            .flatten()
+            .filter(|b| u64::from(b.id) == gt_id)
+            .collect();
+        let est_rows: Vec<&TrackCsvRow> = rows.iter().filter(|r| r.id == track_id).collect();
+        if true_boxes.is_empty() || est_rows.is_empty() {
+            notes.push(format!(
+                "object {gt_id} (track {track_id}) left out: no truth boxes or track rows"
+            ));
+            continue;
+        }
+        let true_xy = true_boxes
+            .iter()
+            .map(|b| (b.t_world_box.translation.x, b.t_world_box.translation.y))
+            .collect();
+        let true_speed = true_boxes
+            .iter()
+            .map(|b| (b.t_s, b.velocity_world_mps.xy().norm()))
+            .collect();
+        let est_xy = est_rows
+            .iter()
+            .map(|r| {
+                let pose = Isometry3::from_parts(
+                    Translation3::from(r.center_world),
+                    UnitQuaternion::identity(),
+                );
+                let c = alignment.transform_pose(&pose).translation.vector;
+                (c.x, c.y)
+            })
+            .collect();
+        let est_speed = est_rows
+            .iter()
+            .map(|r| {
+                (
+                    r.t_s,
+                    (alignment.rotation * r.velocity_world_mps).xy().norm(),
+                )
+            })
+            .collect();
+        let label = format!("{} track {track_id}", variant.label());
+        let what = format!("{} {gt_id} ({})", s.name, o.class);
+        plots.push(Plot {
+            file_name: format!("{}_obj{gt_id}_xy.svg", s.name),
+            title: format!("{what}: estimated vs true trajectory, top view"),
+            kind: PlotKind::ObjectTracks {
+                truth: vec![Series2D::truth(format!("truth {gt_id}"), true_xy)],
+                est: vec![Series2D::line(label.clone(), est_xy).with_rgb(rgb)],
+            },
+        });
+        plots.push(Plot {
+            file_name: format!("{}_obj{gt_id}_speed.svg", s.name),
+            title: format!("{what}: estimated vs true speed"),
+            kind: PlotKind::Speed {
+                series: vec![
+                    Series2D::truth(format!("truth {gt_id}"), true_speed),
+                    Series2D::line(label, est_speed).with_rgb(rgb),
+                ],
+            },
+        });
+    }
+    (plots, notes)
+}
+
+/// The section of one sequence: its plots, and notes on what could not be drawn.
+fn sequence_section(s: &SequenceResult, suite_dir: &Path) -> Section {
+    let mut text = format!(
+        "Family `{}`, seed {}, {} frames; dataset `{}`; {} moving objects.",
+        s.family,
+        s.seed,
+        s.frames,
+        s.dataset_dir.display(),
+        s.moving_objects.len()
+    );
+    if let Some(e) = &s.error {
+        let _ = write!(text, "\n\nNot available: {e}");
+        return Section {
+            heading: format!("Sequence {}", s.name),
+            text,
+            ..Section::default()
+        };
+    }
+    let ego = ego_plots(s, suite_dir);
+    let (objects, object_notes) = object_plots(s, suite_dir, &ego.alignments);
+    for note in ego.notes.iter().chain(&object_notes) {
+        let _ = write!(text, "\n\nNote: {note}");
+    }
+    Section {
+        heading: format!("Sequence {}", s.name),
+        text,
+        tables: Vec::new(),
+        plots: ego.plots.into_iter().chain(objects).collect(),
+    }
+}
+
+/// One bullet per failed sequence or variant.
+fn failures(results: &SuiteResults) -> Vec<String> {
+    let mut out = Vec::new();
+    for s in &results.sequences {
+        if let Some(e) = &s.error {
+            out.push(format!("- {}: not available: {e}", s.name));
+        }
+        for r in &s.variants {
+            if let Some(e) = &r.error {
+                out.push(format!(
+                    "- {} / {}: not available: {e}",
+                    s.name,
+                    r.variant.label()
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// The whole report; `suite_dir` is where the results' relative paths start.
+pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> {
+    let variant_names: Vec<&str> = results.variants.iter().map(|v| v.name()).collect();
+    let seeds: Vec<String> = results.seeds.iter().map(u64::to_string).collect();
+    let failed = failures(results);
+    let mut overview = format!(
+        "Families {}, seeds {}, {} s each; variants {}. Regenerate with \
+         `limot eval suite --families {} --seeds {} --duration {} --variants {}`.",
+        results.families.join(", "),
+        seeds.join(", "),
+        results.duration_s,
+        variant_names.join(", "),
+        results.families.join(","),
+        seeds.join(","),
+        results.duration_s,
+        variant_names.join(","),
+    );
+    if !failed.is_empty() {
+        let _ = write!(
+            overview,
+            "\n\n{} run(s) not available (see Failures).",
+            failed.len()
+        );
+    }
+    let mut sections = vec![
+        Section {
+            heading: "Suite".into(),
+            text: overview,
+            tables: vec![runs_table(results)?],
+            plots: Vec::new(),
+        },
+        Section {
+            heading: "Ego-pose accuracy".into(),
+            text: "RMSE of the absolute trajectory error after SE(3) alignment of the \
+                   estimated LiDAR poses to the truth; best variant per sequence in bold, \
+                   mean row only where every sequence has a value."
+                .into(),
+            tables: vec![ego_table(results)?],
+            plots: Vec::new(),
+        },
+        Section {
+            heading: "Multi-object tracking".into(),
+            text: "Confirmed tracks matched to a detection in the frame, scored against the \
+                   camera-visible ground-truth boxes in the true world frame."
+                .into(),
+            tables: vec![
+                motp_table(results)?,
+                tracking_table_of(results, "3D")?,
+                tracking_table_of(results, "BEV")?,
+            ],
+            plots: Vec::new(),
+        },
+        Section {
+            heading: "Object pose accuracy".into(),
+            text: format!(
+                "The {OBJECTS_PER_SEQUENCE} moving objects (not parked, ≥ {} m/s at some \
+                 frame) of each sequence seen in the most frames. TP = frames matched at 3D \
+                 IoU ≥ 0.25 over frames in view; ATE of the track matched most often.",
+                crate::suite::MOVING_SPEED_MPS
+            ),
+            tables: vec![objects_table(results)?],
+            plots: Vec::new(),
+        },
+    ];
+    let mut timing = Vec::new();
+    for &v in &results.variants {
+        if let Some(t) = timing_table_of(results, v)? {
+            timing.push(t);
+        }
+    }
+    sections.push(Section {
+        heading: "Running time".into(),
+        text: "Wall time per scan of each pipeline stage over every frame of every sequence \
+               (FPS = 1000 / mean). Machine-dependent: compare variants within one report."
+            .into(),
+        tables: timing,
+        plots: Vec::new(),
+    });
+    for s in &results.sequences {
+        sections.push(sequence_section(s, suite_dir));
+    }
+    if !failed.is_empty() {
+        sections.push(Section {
+            heading: "Failures".into(),
+            text: failed.join("\n"),
+            ..Section::default()
+        });
+    }
+    Ok(Report {
+        title: "limot evaluation suite".into(),
+        sections,
+    })
+}
+
+/// Builds the report of `results` (paths relative to `suite_dir`) and writes
+/// it into `report_dir` (README.md + SVGs). Returns the README path.
+pub fn write_suite_report(
+    report_dir: &Path,
+    results: &SuiteResults,
+    suite_dir: &Path,
+) -> Result<PathBuf> {
+    let report = build_report(results, suite_dir)?;
+    Ok(write_report(report_dir, &report)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::suite::{
+        EgoMetrics, MotMetrics, ObjectMetricsRecord, RESULTS_FORMAT_VERSION, StageSamples,
+        VariantResult,
+    };
+
+    fn object(
+        gt_id: u64,
+        gt_frames: usize,
+        tp_percent: f64,
+        ate: Option<f64>,
+    ) -> ObjectMetricsRecord {
+        ObjectMetricsRecord {
+            gt_id,
+            class: "Car".into(),
+            gt_frames,
+            tracked_frames: (tp_percent / 100.0 * gt_frames as f64).round() as usize,
+            tp_percent,
+            track_id: ate.map(|_| gt_id + 100),
+            ate_t_m: ate,
+            ate_r_rad: ate.map(|a| a / 10.0),
+        }
+    }
+
+    fn metrics(ate_t_m: f64, motp: f64, total_ms: &[f64]) -> VariantMetrics {
+        VariantMetrics {
+            frames_estimated: total_ms.len(),
+            frames_before_init: 2,
+            wall_time_s: 1.0,
+            fps: total_ms.len() as f64,
+            ego: EgoMetrics {
+                ate_t_m,
+                ate_r_rad: ate_t_m / 100.0,
+                ate_max_m: 2.0 * ate_t_m,
+                pairs: total_ms.len(),
+                rpe_t_m: Some(0.01),
+                rpe_r_rad: None,
+            },
+            clear_mot: ["3D", "BEV"]
+                .into_iter()
+                .flat_map(|kind| {
+                    [0.25, 0.5].map(|thr| MotMetrics {
+                        iou_kind: kind.into(),
+                        iou_threshold: thr,
+                        mota: Some(0.5),
+                        motp: Some(motp + thr / 10.0),
+                        id_switches: 1,
+                        false_positives: 2,
+                        false_negatives: 3,
+                        matches: 10,
+                        gt_count: 13,
+                    })
+                })
+                .collect(),
+            objects: vec![
+                object(1, 30, 50.0, Some(0.3)),
+                object(2, 40, 0.0, None),
+                object(3, 10, 90.0, Some(0.2)),
+                object(4, 50, 80.0, Some(0.1)), // parked: not in moving_objects
+            ],
+            timings: vec![
+                StageSamples {
+                    stage: "features".into(),
+                    ms: total_ms.iter().map(|t| t / 2.0).collect(),
+                },
+                StageSamples {
+                    stage: "total".into(),
+                    ms: total_ms.to_vec(),
+                },
+            ],
+        }
+    }
+
+    fn ok(variant: Variant, m: VariantMetrics) -> VariantResult {
+        VariantResult {
+            variant,
+            run_dir: PathBuf::from("runs/x").join(variant.name()),
+            metrics: Some(m),
+            error: None,
+        }
+    }
+
+    fn failed(variant: Variant) -> VariantResult {
+        VariantResult {
+            variant,
+            run_dir: PathBuf::from("runs/x").join(variant.name()),
+            metrics: None,
+            error: Some("variant `limot` is not implemented yet".into()),
+        }
+    }
+
+    fn sequence(name: &str, variants: Vec<VariantResult>) -> SequenceResult {
+        SequenceResult {
+            name: name.into(),
+            family: "urban".into(),
+            seed: 1,
+            frames: 40,
+            dataset_dir: PathBuf::from("data").join(name),
+            moving_objects: vec![1, 2, 3],
+            error: None,
+            variants,
+        }
+    }
+
+    fn results() -> SuiteResults {
+        SuiteResults {
+            format_version: RESULTS_FORMAT_VERSION,
+            families: vec!["urban".into()],
+            seeds: vec![1, 2],
+            duration_s: 4.0,
+            variants: vec![Variant::Lio, Variant::Dynafilt, Variant::Limot],
+            sequences: vec![
+                sequence(
+                    "urban_s1",
+                    vec![
+                        ok(Variant::Lio, metrics(0.2, 0.6, &[10.0, 20.0])),
+                        ok(Variant::Dynafilt, metrics(0.1, 0.7, &[30.0])),
+                        failed(Variant::Limot),
+                    ],
+                ),
+                sequence(
+                    "urban_s2",
+                    vec![
+                        ok(Variant::Lio, metrics(0.4, 0.8, &[30.0])),
+                        ok(Variant::Dynafilt, metrics(0.5, 0.7, &[40.0])),
+                        failed(Variant::Limot),
+                    ],
+                ),
+            ],
+        }
+    }
+
+    fn cell(t: &Table, row: usize, header: &str) -> Cell {
+        let col = t.header.iter().position(|h| h == header).unwrap();
+        t.rows[row][col].clone()
+    }
+
+    #[test]
+    fn ego_table_has_a_column_pair_per_variant_with_figures_and_a_mean() {
+        let t = ego_table(&results()).unwrap();
+        assert_eq!(
+            t.header,
+            [
+                "Seq",
+                "LIO ATE_T [m]",
+                "LIO ATE_R [rad]",
+                "LIO-Dynafilt ATE_T [m]",
+                "LIO-Dynafilt ATE_R [rad]"
+            ]
+        );
+        assert_eq!(t.rows.len(), 3);
+        assert_eq!(cell(&t, 2, "Seq"), Cell::Text("mean".into()));
+        for (header, mean) in [("LIO ATE_T [m]", 0.3), ("LIO-Dynafilt ATE_T [m]", 0.3)] {
+            let Cell::Num(v) = cell(&t, 2, header) else {
+                panic!("{header}: no mean")
+            };
+            assert!((v - mean).abs() < 1e-12, "{header}: {v}");
+        }
+        let md = t.to_markdown().unwrap();
+        // best per row in bold: dynafilt on s1, lio on s2; ATE_R at 4 decimals
+        assert!(md.contains("**0.100**") && md.contains("**0.400**"), "{md}");
+        assert!(md.contains("**0.0010**"), "{md}");
+    }
+
+    #[test]
+    fn motp_table_means_over_sequences_per_variant() {
+        let t = motp_table(&results()).unwrap();
+        assert_eq!(t.rows.len(), 2, "limot has no figures");
+        // lio: (0.6 + 0.8) / 2 + 0.025 → 72.5 %; dynafilt 72.5 % too at 0.25
+        let Cell::Num(lio) = cell(&t, 0, "MOTP [%] (IoU 0.25)") else {
+            panic!()
+        };
+        assert!((lio - 72.5).abs() < 1e-9, "{lio}");
+        let Cell::Num(dyn_05) = cell(&t, 1, "MOTP [%] (IoU 0.5)") else {
+            panic!()
+        };
+        assert!((dyn_05 - 75.0).abs() < 1e-9, "{dyn_05}");
+    }
+
+    #[test]
+    fn object_table_lists_the_longest_seen_moving_objects() {
+        let t = objects_table(&results()).unwrap();
+        let labels: Vec<Cell> = t.rows.iter().map(|r| r[0].clone()).collect();
+        // object 4 is parked; the others by gt_frames (40, 30, 10)
+        let expected: Vec<Cell> = [
+            "urban_s1 / 2",
+            "urban_s1 / 1",
+            "urban_s1 / 3",
+            "urban_s2 / 2",
+            "urban_s2 / 1",
+            "urban_s2 / 3",
+            "mean",
+        ]
+        .map(|s| Cell::Text(s.into()))
+        .to_vec();
+        assert_eq!(labels, expected);
+        assert_eq!(cell(&t, 0, "LIO ATE_T [m]"), Cell::Missing);
+        assert_eq!(cell(&t, 1, "LIO TP [%]"), Cell::Num(50.0));
+    }
+
+    #[test]
+    fn timing_pools_every_frame_of_every_sequence() {
+        let r = results();
+        let t = timing_table_of(&r, Variant::Lio).unwrap().unwrap();
+        assert_eq!(t.rows.len(), 2);
+        assert_eq!(t.rows[1][0], Cell::Text("total".into()));
+        // (10 + 20 + 30) / 3 = 20 ms → 50 FPS
+        let Cell::Num(mean) = t.rows[1][1] else {
+            panic!()
+        };
+        let Cell::Num(fps) = t.rows[1][3] else {
+            panic!()
+        };
+        assert!(
+            (mean - 20.0).abs() < 1e-6 && (fps - 50.0).abs() < 1e-3,
+            "{mean} {fps}"
+        );
+        assert!(timing_table_of(&r, Variant::Limot).unwrap().is_none());
+    }
+
+    #[test]
+    fn failed_runs_show_as_not_available() {
+        let r = results();
+        let t = runs_table(&r).unwrap();
+        assert_eq!(t.rows.len(), 6);
+        assert_eq!(cell(&t, 2, "status"), Cell::Text("not available".into()));
+        assert_eq!(cell(&t, 2, "RPE_T [m]"), Cell::Missing);
+        assert_eq!(cell(&t, 0, "status"), Cell::Text("ok".into()));
+        let f = failures(&r);
+        assert_eq!(f.len(), 2);
+        assert!(f[0].contains("urban_s1 / LIMOT: not available: variant `limot`"));
+    }
+
+    #[test]
+    fn report_without_run_files_notes_the_missing_plots() {
+        let dir = Path::new("/nonexistent/limot-suite");
+        let report = build_report(&results(), dir).unwrap();
+        let seq = report
+            .sections
+            .iter()
+            .find(|s| s.heading == "Sequence urban_s1")
+            .unwrap();
+        assert!(seq.plots.is_empty());
+        assert!(seq.text.contains("ego plots left out"), "{}", seq.text);
+        assert!(report.sections.iter().any(|s| s.heading == "Failures"));
+    }
+
+    #[test]
+    fn tracks_csv_is_read_by_header_and_errors_name_line_and_field() {
+        let dir = std::env::temp_dir().join(format!("limot-suite-report-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("tracks.csv");
+        std::fs::write(
+            &path,
+            "frame,t_s,id,class,x,y,z,yaw_rad,l,w,h,vx,vy,vz,lifecycle,motion,predicted\n\
+             3,0.3,7,Car,1,2,3,0.1,4,2,1.5,5,0,0,Confirmed,Dynamic,false\n",
+        )
+        .unwrap();
+        let rows = read_tracks_csv(&path).unwrap();
+        assert_eq!(rows.len(), 1);
+        assert_eq!((rows[0].frame, rows[0].id), (3, 7));
+        assert_eq!(rows[0].center_world, Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(rows[0].velocity_world_mps.x, 5.0);
+        std::fs::write(
+            &path,
+            "frame,t_s,id,x,y,z,vx,vy,vz\n1,0.1,2,1,2,3,0,0,0\n1,0.1,2,1,nan,3,0,0,0\n",
+        )
+        .unwrap();
+        let e = read_tracks_csv(&path).unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("`y`"), "{e}");
+        std::fs::write(&path, "frame,t_s,x\n").unwrap();
+        let e = read_tracks_csv(&path).unwrap_err().to_string();
+        assert!(e.contains("line 1") && e.contains("`id`"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn thinning_keeps_first_and_last_and_bounds_the_count() {
+        let pts: Vec<usize> = (0..1001).collect();
+        let t = thin(&pts, 100);
+        assert!(t.len() <= 100, "{}", t.len());
+        assert_eq!((t[0], *t.last().unwrap()), (0, 1000));
+        assert_eq!(thin(&pts[..5], 100), pts[..5].to_vec());
+    }
+}

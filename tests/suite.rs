@@ -1,0 +1,229 @@
+//! `limot eval suite` / `limot report` on one short urban sequence (seed 1,
+//! 4 s) with lio and dynafilt, plus limot (which may not exist yet: it must
+//! then be recorded as not available without aborting the suite).
+
+use limot::report::Variant;
+use limot::suite::{RESULTS_FILE, SuiteResults, SuiteSpec, run_suite};
+use limot::suite_report::write_suite_report;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("suite")
+        .join(name);
+    let _ = fs::remove_dir_all(&dir);
+    dir
+}
+
+fn spec(out_dir: PathBuf, duration_s: f64, variants: Vec<Variant>) -> SuiteSpec {
+    SuiteSpec {
+        families: vec!["urban".into()],
+        seeds: vec![1],
+        duration_s,
+        variants,
+        out_dir,
+    }
+}
+
+/// The suite run once per test binary, with its report in OUT/report.
+fn suite() -> &'static (SuiteResults, PathBuf) {
+    static SUITE: OnceLock<(SuiteResults, PathBuf)> = OnceLock::new();
+    SUITE.get_or_init(|| {
+        let out = scratch("main");
+        let variants = vec![Variant::Lio, Variant::Dynafilt, Variant::Limot];
+        let results = run_suite(&spec(out.clone(), 4.0, variants), false).unwrap();
+        write_suite_report(&out.join("report"), &results, &out).unwrap();
+        (results, out)
+    })
+}
+
+#[test]
+fn results_json_round_trips() {
+    let (results, out) = suite();
+    let (loaded, dir) = SuiteResults::load(&out.join(RESULTS_FILE)).unwrap();
+    assert_eq!(&loaded, results);
+    assert_eq!(&dir, out);
+    // a directory works as well
+    let (loaded, _) = SuiteResults::load(out).unwrap();
+    assert_eq!(&loaded, results);
+}
+
+#[test]
+fn every_run_tracks_the_ego_to_half_a_metre_and_is_scored() {
+    let (results, _) = suite();
+    assert_eq!(results.sequences.len(), 1);
+    let s = &results.sequences[0];
+    assert_eq!((s.name.as_str(), s.frames), ("urban_s1", 40));
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert!(!s.moving_objects.is_empty());
+    for v in [Variant::Lio, Variant::Dynafilt] {
+        let r = s.variant(v).unwrap();
+        let m = r
+            .metrics
+            .as_ref()
+            .unwrap_or_else(|| panic!("{v}: {:?}", r.error));
+        assert!(
+            m.ego.ate_t_m.is_finite() && m.ego.ate_t_m < 0.5,
+            "{v}: ATE_T {} m",
+            m.ego.ate_t_m
+        );
+        assert!(m.ego.ate_r_rad.is_finite() && m.ego.ate_r_rad < 0.1);
+        assert_eq!(m.frames_estimated + m.frames_before_init, s.frames);
+        for (kind, thr) in [("3D", 0.25), ("3D", 0.5), ("BEV", 0.25), ("BEV", 0.5)] {
+            let mot = m
+                .mot(kind, thr)
+                .unwrap_or_else(|| panic!("{v}: no {kind} {thr}"));
+            assert!(
+                mot.gt_count > 0 && mot.matches > 0,
+                "{v} {kind} {thr}: {mot:?}"
+            );
+            assert!(mot.motp.is_some_and(|p| p >= thr && p <= 1.0));
+        }
+        assert!(m.objects.iter().any(|o| o.tp_percent > 0.0));
+        let total = m.timings.iter().find(|t| t.stage == "total").unwrap();
+        assert_eq!(total.ms.len(), m.frames_estimated);
+        assert!(total.ms.iter().all(|ms| ms.is_finite() && *ms > 0.0));
+        assert!(m.fps > 0.0);
+    }
+}
+
+#[test]
+fn a_failing_variant_is_recorded_and_the_others_still_run() {
+    let (results, _) = suite();
+    let limot = results.sequences[0].variant(Variant::Limot).unwrap();
+    // limot either works (then it is scored) or says why it is not available
+    match (&limot.metrics, &limot.error) {
+        (Some(m), None) => assert!(m.ego.ate_t_m.is_finite()),
+        (None, Some(e)) => assert!(e.contains("limot"), "{e}"),
+        other => panic!("inconsistent limot result {other:?}"),
+    }
+}
+
+/// Links `](file.svg)` of a README.
+fn svg_links(readme: &str) -> Vec<String> {
+    readme
+        .split("](")
+        .skip(1)
+        .filter_map(|rest| rest.split(')').next())
+        .filter(|target| target.ends_with(".svg"))
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn report_has_variant_columns_and_existing_plots() {
+    let (_, out) = suite();
+    let report = out.join("report");
+    let readme = fs::read_to_string(report.join("README.md")).unwrap();
+    for column in [
+        "LIO ATE_T [m]",
+        "LIO-Dynafilt ATE_T [m]",
+        "LIO-Dynafilt TP [%]",
+        "MOTP [%] (IoU 0.25)",
+        "**LIO-Dynafilt: time per scan by module**",
+    ] {
+        assert!(
+            readme.contains(column),
+            "README lacks {column:?}:\n{readme}"
+        );
+    }
+    let links = svg_links(&readme);
+    assert!(
+        links.contains(&"urban_s1_ego_xy.svg".to_string()),
+        "{links:?}"
+    );
+    assert!(
+        links.contains(&"urban_s1_ego_error.svg".to_string()),
+        "{links:?}"
+    );
+    assert!(
+        links.iter().any(|l| l.ends_with("_speed.svg")),
+        "no object speed plot: {links:?}"
+    );
+    for link in &links {
+        let svg = fs::read_to_string(report.join(link)).unwrap();
+        assert!(svg.contains("<svg") && svg.contains("<polyline"), "{link}");
+    }
+}
+
+#[test]
+fn limot_report_re_renders_the_same_readme() {
+    let (_, out) = suite();
+    let again = scratch("rerender");
+    let status = Command::new(env!("CARGO_BIN_EXE_limot"))
+        .arg("report")
+        .arg(out.join(RESULTS_FILE))
+        .arg("--out")
+        .arg(&again)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&status.stdout);
+    assert!(
+        stdout.contains("| urban_s1 |"),
+        "ego table printed:\n{stdout}"
+    );
+    let first = fs::read_to_string(out.join("report").join("README.md")).unwrap();
+    let second = fs::read_to_string(again.join("README.md")).unwrap();
+    assert_eq!(first, second);
+    for link in svg_links(&second) {
+        assert!(fs::metadata(again.join(&link)).unwrap().len() > 0, "{link}");
+    }
+}
+
+#[test]
+fn a_corrupt_dataset_fails_its_runs_without_aborting_the_suite() {
+    let (_, main_out) = suite();
+    let out = scratch("corrupt");
+    // the same scenario, so the suite reuses the copied dataset
+    let data = out.join("data").join("urban_s1");
+    copy_dir(&main_out.join("data").join("urban_s1"), &data);
+    let scan = data.join("scans").join("000020.bin");
+    let bytes = fs::read(&scan).unwrap();
+    fs::write(&scan, &bytes[..bytes.len() / 2]).unwrap();
+    let results = run_suite(&spec(out.clone(), 4.0, vec![Variant::Lio]), false).unwrap();
+    let r = results.sequences[0].variant(Variant::Lio).unwrap();
+    assert!(r.metrics.is_none());
+    let error = r.error.as_deref().unwrap();
+    assert!(error.contains("000020.bin"), "{error}");
+    // saved, and rendered with the failure spelled out
+    let (loaded, _) = SuiteResults::load(&out).unwrap();
+    assert_eq!(loaded, results);
+    let readme = write_suite_report(&out.join("report"), &results, &out).unwrap();
+    let text = fs::read_to_string(readme).unwrap();
+    assert!(text.contains("urban_s1 / LIO: not available"), "{text}");
+}
+
+#[test]
+fn datasets_are_reused_only_for_the_same_scenario() {
+    let out = scratch("reuse");
+    let meta = out.join("data").join("urban_s1").join("meta.toml");
+    let short = spec(out.clone(), 1.0, vec![Variant::Lio]);
+    let first = run_suite(&short, false).unwrap();
+    assert_eq!(first.sequences[0].frames, 10);
+    let written = fs::metadata(&meta).unwrap().modified().unwrap();
+    run_suite(&short, false).unwrap();
+    assert_eq!(fs::metadata(&meta).unwrap().modified().unwrap(), written);
+    let longer = run_suite(&spec(out.clone(), 1.5, vec![Variant::Lio]), false).unwrap();
+    assert_eq!(longer.sequences[0].frames, 15, "re-simulated for 1.5 s");
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    fs::create_dir_all(to).unwrap();
+    for entry in fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
