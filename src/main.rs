@@ -24,7 +24,7 @@ struct Cli {
 enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
-        /// Scenario TOML file, or a built-in scenario name (highway, urban).
+        /// Scenario TOML file, or a built-in scenario name (highway, urban, highway-dense, urban-parked).
         scenario: String,
         /// Output directory.
         #[arg(long)]
@@ -196,7 +196,7 @@ enum EvalCommand {
     /// Simulate a scenario suite (families × seeds), run every variant on each
     /// sequence, score it and write OUT/results.json and OUT/report/README.md.
     Suite {
-        /// Scenario families: built-in names (highway, urban) or TOML files, comma-separated.
+        /// Scenario families: built-in names (highway, urban, highway-dense, urban-parked) or TOML files, comma-separated.
         #[arg(long, default_value = "highway,urban")]
         families: String,
         /// Seeds, comma-separated.

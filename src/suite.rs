@@ -89,7 +89,7 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuiteSpec {
-    /// Scenario files or built-in names (highway, urban).
+    /// Scenario files or built-in names (highway, urban, highway-dense, urban-parked).
     pub families: Vec<String>,
     pub seeds: Vec<u64>,
     pub duration_s: f64,

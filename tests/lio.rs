@@ -1,12 +1,13 @@
 //! The `lio` variant end to end on simulated urban drives without moving
 //! objects (noise-free and default noise), and LiDAR-only on real KITTI scans.
 
-use limot::evaluate::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
-use limot::run::{RunOptions, RunOutput, Source, run, write_output};
+mod common;
+
+use common::ate;
+use limot::run::{RunOptions, Source, run, write_output};
 use limot::simulate::resolve_scenario;
 use limot_sim::scenario::ScenarioSpec;
-use limot_sim::simulation::Simulation;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 fn static_urban(duration_s: f64, noise_free: bool) -> ScenarioSpec {
     let mut spec = resolve_scenario("urban").unwrap();
@@ -30,29 +31,7 @@ fn static_urban(duration_s: f64, noise_free: bool) -> ScenarioSpec {
 }
 
 fn simulate(spec: &ScenarioSpec, name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("limot-lio-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    Simulation::new(spec)
-        .unwrap()
-        .write_dataset(&dir, |_, _| {})
-        .unwrap()
-}
-
-fn ate(dataset: &Path, output: &RunOutput) -> (f64, f64) {
-    let opts = EgoEvalOptions::default();
-    let truth = load_truth(dataset, &opts).unwrap();
-    let estimate = Trajectory {
-        path: dataset.join("estimate"),
-        kind: "lio".into(),
-        poses: output
-            .estimates
-            .iter()
-            .map(|e| (e.t_s, e.t_world_lidar))
-            .collect(),
-        frame_times: None,
-    };
-    let eval = evaluate_trajectories(&truth, &estimate, &opts).unwrap();
-    (eval.ate.ate_t_rmse_m, eval.ate.ate_r_rmse_rad)
+    common::simulate(spec, &format!("lio-{name}"))
 }
 
 #[test]
@@ -154,7 +133,10 @@ fn default_noise_static_urban_meets_the_accuracy_targets() {
 
 #[test]
 fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_raw_scans");
+    let Some(root) = common::data_root("LiDAR-only KITTI scans") else {
+        return;
+    };
+    let dir = root.join("kitti_raw_scans");
     assert!(
         dir.is_dir(),
         "{} is missing (see ../shared/data/README)",

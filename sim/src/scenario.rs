@@ -306,7 +306,7 @@ fn invalid(field: impl Into<String>, message: impl Into<String>) -> ScenarioErro
     }
 }
 
-const BUILTIN_NAMES: &[&str] = &["highway", "urban"];
+const BUILTIN_NAMES: &[&str] = &["highway", "urban", "highway-dense", "urban-parked"];
 
 impl ScenarioSpec {
     /// The default scenarios, equal to `scenarios/<name>.toml`.
@@ -332,6 +332,40 @@ impl ScenarioSpec {
             "urban" => Some(ScenarioSpec {
                 urban: Some(UrbanParams::default()),
                 ..base(Family::Urban, 2)
+            }),
+            // Congested highway: the ego drives at 12 m/s among cars and many
+            // trucks at 9-14 m/s, as densely as the safe gaps allow, so that
+            // vehicles pacing the ego fill much of the view (the case where
+            // moving objects corrupt LiDAR odometry, KITTI tracking 0020).
+            "highway-dense" => Some(ScenarioSpec {
+                ego: EgoSpec {
+                    speed_mps: Some(12.0),
+                    ..EgoSpec::default()
+                },
+                highway: Some(HighwayParams {
+                    vehicles: 32,
+                    speed_min_mps: 9.0,
+                    speed_max_mps: 14.0,
+                    truck_fraction: 0.4,
+                    truck_speed_max_mps: 13.0,
+                    spawn_behind_m: 150.0,
+                    spawn_ahead_m: 250.0,
+                    ..HighwayParams::default()
+                }),
+                ..base(Family::Highway, 1)
+            }),
+            // A street without buildings, every parking place taken and few
+            // trees and poles: parked cars are the main structure, so dropping
+            // every detected box (allfilt) throws most of the map away.
+            "urban-parked" => Some(ScenarioSpec {
+                urban: Some(UrbanParams {
+                    building_fraction: 0.0,
+                    parking_occupancy: 1.0,
+                    tree_spacing_m: 60.0,
+                    pole_spacing_m: 60.0,
+                    ..UrbanParams::default()
+                }),
+                ..base(Family::Urban, 1)
             }),
             _ => None,
         }

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+#[allow(dead_code)] // not every test binary reads real data
 /// `../shared/data` when it exists. When it does not, says loudly that the
 /// `what` tests did not run (they never skip silently while it is there).
 pub fn data_root(what: &str) -> Option<PathBuf> {
@@ -17,4 +18,37 @@ pub fn data_root(what: &str) -> Option<PathBuf> {
         );
         None
     }
+}
+
+/// Simulates `spec` into a fresh temporary dataset directory named after
+/// `name` and the process.
+#[allow(dead_code)] // not every test binary simulates
+pub fn simulate(spec: &limot_sim::scenario::ScenarioSpec, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("limot-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    limot_sim::simulation::Simulation::new(spec)
+        .unwrap()
+        .write_dataset(&dir, |_, _| {})
+        .unwrap()
+}
+
+/// ATE_T [m] and ATE_R [rad] (SE(3) alignment) of a run against the
+/// dataset's ground truth.
+#[allow(dead_code)]
+pub fn ate(dataset: &std::path::Path, output: &limot::run::RunOutput) -> (f64, f64) {
+    use limot::evaluate::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
+    let opts = EgoEvalOptions::default();
+    let truth = load_truth(dataset, &opts).unwrap();
+    let estimate = Trajectory {
+        path: dataset.join("estimate"),
+        kind: "estimate".into(),
+        poses: output
+            .estimates
+            .iter()
+            .map(|e| (e.t_s, e.t_world_lidar))
+            .collect(),
+        frame_times: None,
+    };
+    let eval = evaluate_trajectories(&truth, &estimate, &opts).unwrap();
+    (eval.ate.ate_t_rmse_m, eval.ate.ate_r_rmse_rad)
 }
