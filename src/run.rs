@@ -379,18 +379,26 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
     }
     write("timings.csv", timings)?;
 
-    // Tracks per frame, world frame (our format; KITTI tracking results need
-    // a camera calibration and come with the evaluation tooling).
+    // Tracks per frame: the box in the world frame and in the frame's LiDAR
+    // frame (our format; KITTI tracking results need a camera calibration,
+    // see `write_kitti_tracks`).
     let mut tracks = String::from(
-        "frame,t_s,id,class,x,y,z,yaw_rad,l,w,h,vx,vy,vz,lifecycle,motion,predicted\n",
+        "frame,t_s,id,class,x,y,z,yaw_rad,l,w,h,vx,vy,vz,lifecycle,motion,predicted,\
+         x_lidar,y_lidar,z_lidar,yaw_lidar_rad\n",
     );
     for e in &output.estimates {
         for t in &e.tracks {
             let c = t.center_world;
             let v = t.velocity_world_mps;
+            let lidar = crate::track_kitti::world_box_to_lidar(
+                &t.center_world,
+                &t.size_lwh,
+                t.yaw_rad,
+                &e.t_world_lidar,
+            );
             let _ = writeln!(
                 tracks,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:?},{:?},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{}",
                 e.frame_index,
                 e.t_s,
                 t.id,
@@ -407,7 +415,11 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
                 v.z,
                 t.lifecycle,
                 t.motion,
-                t.predicted
+                t.predicted,
+                lidar.center_lidar.x,
+                lidar.center_lidar.y,
+                lidar.center_lidar.z,
+                lidar.yaw_rad
             );
         }
     }
