@@ -762,9 +762,164 @@ fn factors_touching_only_removed_keys_vanish_with_them() {
     // State 0 has only a unary factor: nothing is left to carry over.
     window.marginalize_frame(0).unwrap();
     assert_eq!(window.factor_count(), 2);
-    assert!(window.marginal_prior().is_none());
+    assert!(window.marginal_priors().is_empty());
     assert_eq!(window.keys(), vec![state(1), state(2)]);
     window.optimize(&gauss_newton()).unwrap();
+}
+
+/// Two independent linear chains (the ego and an object) with an optional
+/// coupling factor per frame, as factors per frame, and the truth; the
+/// measurements are exact plus uniform noise of half-width `noise`.
+fn two_chains(frames: u64, coupled: bool, noise: f64) -> (Vec<Vec<LinearFactor>>, Values) {
+    let ego = state;
+    let object = |k: u64| Key::ObjectMotion { id: 9, frame: k };
+    let mut rng = Rng(frames * 31 + coupled as u64);
+    let mut truth = Values::new();
+    for k in 0..frames {
+        for key in [ego(k), object(k)] {
+            truth.insert(key, Variable::Vector3(rng.vector3(5.0)));
+        }
+    }
+    let value = |key: Key| vector_of(truth.get(&key).unwrap());
+    let mut measure = |exact: DVector<f64>| exact.map(|v| v + noise * rng.uniform(-1.0, 1.0));
+    let mut at: Vec<Vec<LinearFactor>> = (0..frames).map(|_| Vec::new()).collect();
+    for chain in [ego as fn(u64) -> Key, object] {
+        at[0].push(LinearFactor {
+            keys: vec![chain(0)],
+            a: vec![DMatrix::identity(3, 3)],
+            b: measure(value(chain(0))),
+            noise: NoiseModel::diagonal_sigmas(&[0.5; 3]),
+        });
+        for k in 1..frames {
+            let mut f = difference_factor(chain(k - 1), chain(k), 3, 0.2);
+            f.b = measure(value(chain(k)) - value(chain(k - 1)));
+            at[k as usize].push(f);
+        }
+    }
+    if coupled {
+        for k in 0..frames {
+            let mut f = difference_factor(ego(k), object(k), 3, 0.3);
+            f.b = measure(value(object(k)) - value(ego(k)));
+            at[k as usize].push(f);
+        }
+    }
+    (at, truth)
+}
+
+fn solve_window(
+    at: Vec<Vec<LinearFactor>>,
+    window_size: u64,
+    condition: bool,
+) -> SlidingWindowSmoother {
+    let mut window = SlidingWindowSmoother::new();
+    let object = |k: u64| Key::ObjectMotion { id: 9, frame: k };
+    for (k, factors) in at.into_iter().enumerate() {
+        let k = k as u64;
+        for key in [state(k), object(k)] {
+            window
+                .add_variable(key, Variable::Vector3(Vector3::zeros()))
+                .unwrap();
+        }
+        for f in factors {
+            window.add_factor(Box::new(f)).unwrap();
+        }
+        window.optimize(&gauss_newton()).unwrap();
+        if k + 1 >= window_size {
+            let oldest = k + 1 - window_size;
+            if condition {
+                // The coupling factors of the oldest frame: ego held fixed.
+                let n = window
+                    .condition_factors(&[state(oldest)], |f| f.keys().contains(&object(oldest)))
+                    .unwrap();
+                assert_eq!(n, 1);
+                window.marginalize(&[object(oldest)]).unwrap();
+                window.marginalize(&[state(oldest)]).unwrap();
+            } else {
+                window.marginalize_frame(oldest).unwrap();
+            }
+        }
+    }
+    window
+}
+
+#[test]
+fn independent_parts_keep_separate_priors_and_equal_the_batch() {
+    let (at, _) = two_chains(9, false, 1.0);
+    let mut batch_factors: Vec<Box<dyn Factor>> = Vec::new();
+    let mut batch = Values::new();
+    for (k, fs) in at.iter().enumerate() {
+        batch.insert(state(k as u64), Variable::Vector3(Vector3::zeros()));
+        batch.insert(
+            Key::ObjectMotion {
+                id: 9,
+                frame: k as u64,
+            },
+            Variable::Vector3(Vector3::zeros()),
+        );
+        for f in fs {
+            batch_factors.push(Box::new(clone_linear(f)));
+        }
+    }
+    optimize(&batch_factors, &mut batch, &gauss_newton()).unwrap();
+    let window = solve_window(at, 3, false);
+    // One prior per independent chain, each on its own chain's keys only.
+    assert_eq!(window.marginal_priors().len(), 2);
+    assert_priors_separate(&window);
+    for (key, value) in window.values().iter() {
+        let err = (vector_of(value) - vector_of(batch.get(key).unwrap())).amax();
+        assert!(err < 1e-9, "{key}: {err:e}");
+    }
+}
+
+fn assert_priors_separate(window: &SlidingWindowSmoother) {
+    for prior in window.marginal_priors() {
+        let ego = prior
+            .keys()
+            .iter()
+            .filter(|k| matches!(k, Key::EgoVelocity(_)))
+            .count();
+        assert!(ego == 0 || ego == prior.keys().len(), "{:?}", prior.keys());
+    }
+}
+
+#[test]
+fn conditioning_the_oldest_coupling_keeps_the_object_prior_off_the_ego() {
+    // Without conditioning the coupling makes one joint prior.
+    let joint = solve_window(two_chains(9, true, 1.0).0, 3, false);
+    assert_eq!(joint.marginal_priors().len(), 1);
+    let window = solve_window(two_chains(9, true, 1.0).0, 3, true);
+    assert_eq!(window.marginal_priors().len(), 2);
+    assert_priors_separate(&window);
+    // Exact measurements: conditioning at the truth loses nothing.
+    let (at, truth) = two_chains(9, true, 0.0);
+    let window = solve_window(at, 3, true);
+    for (key, value) in window.values().iter() {
+        let err = (vector_of(value) - vector_of(truth.get(key).unwrap())).amax();
+        assert!(err < 1e-9, "{key}: {err:e}");
+    }
+}
+
+#[test]
+fn folding_factors_keeps_the_optimum() {
+    let (at, _) = two_chains(4, true, 1.0);
+    let mut window = solve_window(at, 10, false);
+    let before = window.values().clone();
+    let count = window.factor_count();
+    let keys = window.keys();
+    window.fold_factors(&keys).unwrap();
+    assert_eq!(window.factor_count(), 0, "{count} factors folded");
+    assert_eq!(window.marginal_priors().len(), 1);
+    // Start elsewhere: the folded (linear) problem has the same optimum.
+    for key in &keys {
+        window
+            .set_value(*key, Variable::Vector3(Vector3::new(3.0, -2.0, 1.0)))
+            .unwrap();
+    }
+    window.optimize(&gauss_newton()).unwrap();
+    for (key, value) in window.values().iter() {
+        let err = (vector_of(value) - vector_of(before.get(key).unwrap())).amax();
+        assert!(err < 1e-8, "{key}: {err:e}");
+    }
 }
 
 // ---------------------------------------------------------------------------
@@ -1062,7 +1217,8 @@ fn nonlinear_window_is_exact_without_noise_and_close_to_batch_with_noise() {
     // window must recover the truth exactly, whatever the initial values.
     let (factors_at, truth, initial) = ego_chain(5, 12, 0.0);
     let window = run_window(factors_at, &initial, 5);
-    assert!(window.marginal_prior().is_some());
+    // Poses, velocities and biases are separate chains here: one prior each.
+    assert_eq!(window.marginal_priors().len(), 3);
     for (key, value) in window.values().iter() {
         let err = value.local(truth.get(key).unwrap()).amax();
         assert!(err < 1e-8, "{key}: {err:e}");

@@ -10,6 +10,7 @@
 //!   applies the robust kernel, so factors never do.
 
 pub mod between_factor;
+pub mod conditioned_factor;
 pub mod factor;
 pub mod imu_factor;
 pub mod key;
@@ -21,6 +22,7 @@ pub mod solver;
 pub mod values;
 
 pub use between_factor::BetweenFactor;
+pub use conditioned_factor::ConditionedFactor;
 pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
 pub use key::Key;
 pub use marginalization::{MarginalPriorFactor, MarginalizationConfig, MarginalizationError};

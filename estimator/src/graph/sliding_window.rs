@@ -1,6 +1,12 @@
-//! Fixed-lag smoother: values and factors of the current window plus one
-//! marginal prior summarizing everything marginalized so far.
+//! Fixed-lag smoother: values and factors of the current window plus the
+//! marginal priors summarizing everything marginalized so far.
+//!
+//! Marginalizing folds in only the priors that touch the removed keys, so
+//! independent parts of the window (the ego and each tracked object, once
+//! their coupling at the oldest frame is conditioned away, see
+//! [`SlidingWindowSmoother::condition_factors`]) keep separate small priors.
 
+use super::conditioned_factor::ConditionedFactor;
 use super::factor::Factor;
 use super::key::Key;
 use super::marginalization::{
@@ -33,8 +39,47 @@ pub enum WindowError {
 pub struct SlidingWindowSmoother {
     values: Values,
     factors: Vec<Box<dyn Factor>>,
-    prior: Option<MarginalPriorFactor>,
+    priors: Vec<MarginalPriorFactor>,
     marginalization: MarginalizationConfig,
+}
+
+/// Groups factors that share keys (transitively); returns factor indices
+/// per group, in first-appearance order.
+fn connected_parts(factors: &[&(dyn Factor + 'static)]) -> Vec<Vec<usize>> {
+    let mut parent: Vec<usize> = (0..factors.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut owner: std::collections::HashMap<Key, usize> = std::collections::HashMap::new();
+    for (i, f) in factors.iter().enumerate() {
+        for key in f.keys() {
+            match owner.get(key) {
+                Some(&j) => {
+                    let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                    parent[a.max(b)] = a.min(b);
+                }
+                None => {
+                    owner.insert(*key, i);
+                }
+            }
+        }
+    }
+    let mut parts: Vec<Vec<usize>> = Vec::new();
+    let mut index_of_root: std::collections::HashMap<usize, usize> =
+        std::collections::HashMap::new();
+    for i in 0..factors.len() {
+        let r = root(&mut parent, i);
+        let part = *index_of_root.entry(r).or_insert_with(|| {
+            parts.push(Vec::new());
+            parts.len() - 1
+        });
+        parts[part].push(i);
+    }
+    parts
 }
 
 impl SlidingWindowSmoother {
@@ -76,13 +121,11 @@ impl SlidingWindowSmoother {
         Ok(())
     }
 
-    /// All factors of the window, the marginal prior included.
+    /// All factors of the window, the marginal priors included.
     fn all_factors(&self) -> Vec<&(dyn Factor + 'static)> {
         let mut all: Vec<&(dyn Factor + 'static)> =
             self.factors.iter().map(|f| f.as_ref()).collect();
-        if let Some(prior) = &self.prior {
-            all.push(prior);
-        }
+        all.extend(self.priors.iter().map(|p| p as &(dyn Factor + 'static)));
         all
     }
 
@@ -95,9 +138,9 @@ impl SlidingWindowSmoother {
         Ok(report)
     }
 
-    /// Removes `keys` from the window: every factor touching them (and the
-    /// previous marginal prior) is folded into a new marginal prior at the
-    /// current values. Factors touching only removed keys vanish with them.
+    /// Removes `keys` from the window: every factor and marginal prior
+    /// touching them is folded into a new marginal prior at the current
+    /// values. Factors touching only removed keys vanish with them.
     pub fn marginalize(&mut self, keys: &[Key]) -> Result<(), WindowError> {
         let removed: BTreeSet<Key> = keys.iter().copied().collect();
         if let Some(key) = removed.iter().find(|k| !self.values.contains(k)) {
@@ -106,31 +149,102 @@ impl SlidingWindowSmoother {
         if removed.is_empty() {
             return Ok(());
         }
+        self.fold(|keys| keys.iter().any(|k| removed.contains(k)), &removed)
+    }
+
+    /// Replaces every factor and prior whose keys all lie in `keys` by one
+    /// linear prior at the current values (nothing is removed). Bounds the
+    /// factor count of a long-lived variable, e.g. a parked car's single
+    /// pose node observed in every frame.
+    pub fn fold_factors(&mut self, keys: &[Key]) -> Result<(), WindowError> {
+        let kept: BTreeSet<Key> = keys.iter().copied().collect();
+        if let Some(key) = kept.iter().find(|k| !self.values.contains(k)) {
+            return Err(WindowError::UnknownKey(*key));
+        }
+        self.fold(
+            |keys| !keys.is_empty() && keys.iter().all(|k| kept.contains(k)),
+            &BTreeSet::new(),
+        )
+    }
+
+    /// Folds the factors and priors selected by `select` (on their keys) into
+    /// one new prior, eliminating `removed`.
+    fn fold(
+        &mut self,
+        select: impl Fn(&[Key]) -> bool,
+        removed: &BTreeSet<Key>,
+    ) -> Result<(), WindowError> {
         let (touching, rest): (Vec<_>, Vec<_>) = std::mem::take(&mut self.factors)
             .into_iter()
-            .partition(|f| f.keys().iter().any(|k| removed.contains(k)));
+            .partition(|f| select(f.keys()));
+        let (old_priors, other_priors): (Vec<_>, Vec<_>) = std::mem::take(&mut self.priors)
+            .into_iter()
+            .partition(|p| select(p.keys()));
         let mut to_fold: Vec<&(dyn Factor + 'static)> =
             touching.iter().map(|f| f.as_ref()).collect();
-        // The old prior is always folded in, so there is one prior at a time.
-        if let Some(prior) = &self.prior {
-            to_fold.push(prior);
-        }
-        let removed_keys: Vec<Key> = removed.iter().copied().collect();
-        let new_prior =
-            match marginalize(&to_fold, &self.values, &removed_keys, &self.marginalization) {
-                Ok(p) => p,
+        to_fold.extend(old_priors.iter().map(|p| p as &(dyn Factor + 'static)));
+        // One prior per connected part: parts that share no key (the ego and
+        // each object) stay separate, so the priors stay small and sparse.
+        let mut new_priors = Vec::new();
+        for part in connected_parts(&to_fold) {
+            let factors: Vec<&(dyn Factor + 'static)> = part.iter().map(|&i| to_fold[i]).collect();
+            let removed_keys: Vec<Key> = removed
+                .iter()
+                .filter(|k| factors.iter().any(|f| f.keys().contains(k)))
+                .copied()
+                .collect();
+            match marginalize(&factors, &self.values, &removed_keys, &self.marginalization) {
+                Ok(p) => new_priors.extend(p),
                 Err(e) => {
                     // Leave the window untouched on failure.
+                    drop(to_fold);
                     self.factors = touching.into_iter().chain(rest).collect();
+                    self.priors = old_priors.into_iter().chain(other_priors).collect();
                     return Err(e.into());
                 }
-            };
+            }
+        }
+        drop(to_fold);
         self.factors = rest;
-        self.prior = new_prior;
-        for key in &removed {
+        self.priors = other_priors;
+        self.priors.extend(new_priors);
+        for key in removed {
             self.values.remove(key);
         }
         Ok(())
+    }
+
+    /// Holds the keys in `fixed` at their current values inside every factor
+    /// that touches one of them and that `select` picks (the keys stay in the
+    /// window for the other factors). Used before marginalizing the oldest
+    /// frame: conditioning its object observations on the ego pose keeps
+    /// each object's marginal prior separate from the ego's.
+    pub fn condition_factors(
+        &mut self,
+        fixed: &[Key],
+        select: impl Fn(&dyn Factor) -> bool,
+    ) -> Result<usize, WindowError> {
+        let mut held = Values::new();
+        for key in fixed {
+            let value = self.values.get(key).ok_or(WindowError::UnknownKey(*key))?;
+            held.insert(*key, *value);
+        }
+        let mut conditioned = 0;
+        let factors = std::mem::take(&mut self.factors);
+        for factor in factors {
+            let touches = factor.keys().iter().any(|k| held.contains(k));
+            if touches && select(factor.as_ref()) {
+                // With every key fixed the factor says nothing about the
+                // rest of the window and is dropped.
+                if let Ok(c) = ConditionedFactor::new(factor, held.clone()) {
+                    self.factors.push(Box::new(c));
+                    conditioned += 1;
+                }
+            } else {
+                self.factors.push(factor);
+            }
+        }
+        Ok(conditioned)
     }
 
     /// Marginalizes every key of frame `frame`; returns the removed keys.
@@ -162,8 +276,9 @@ impl SlidingWindowSmoother {
         self.values.keys().copied().collect()
     }
 
-    pub fn marginal_prior(&self) -> Option<&MarginalPriorFactor> {
-        self.prior.as_ref()
+    /// The marginal priors (one per independent part of the window).
+    pub fn marginal_priors(&self) -> &[MarginalPriorFactor] {
+        &self.priors
     }
 
     /// Smallest frame index among the window's keys.

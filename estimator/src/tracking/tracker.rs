@@ -52,6 +52,9 @@ pub struct TrackOutput {
     pub motion: Motion,
     /// No detection matched this frame: the box is the trajectory prediction.
     pub predicted: bool,
+    /// Index (into the slice given to [`Tracker::update`]) of the detection
+    /// this track matched or was started from this frame.
+    pub detection_index: Option<usize>,
 }
 
 /// Errors of [`Tracker`].
@@ -152,15 +155,19 @@ impl Tracker {
 
         // Usable detections only; count what we drop.
         let mut usable: Vec<&WorldDetection> = Vec::with_capacity(detections.len());
-        for det in detections {
+        let mut usable_index: Vec<usize> = Vec::with_capacity(detections.len());
+        for (index, det) in detections.iter().enumerate() {
             if !det.is_valid() {
                 self.garbage_detections += 1;
             } else if det.score < self.config.min_score {
                 self.low_score_detections += 1;
             } else {
                 usable.push(det);
+                usable_index.push(index);
             }
         }
+        let mut observed_by: std::collections::HashMap<u64, usize> =
+            std::collections::HashMap::new();
 
         // Score matrix between predicted track centres and detections.
         let predicted: Vec<(Vector3<f64>, ObjectClass)> = self
@@ -192,6 +199,7 @@ impl Tracker {
                 size_lwh: det.size_lwh,
             };
             track.record_hit(measured, &self.config)?;
+            observed_by.insert(track.id(), usable_index[j]);
             track_matched[i] = true;
             det_matched[j] = true;
         }
@@ -203,7 +211,7 @@ impl Tracker {
         let config = &self.config;
         self.tracks.retain(|t| !t.is_lost(config));
 
-        for (det, matched) in usable.iter().zip(&det_matched) {
+        for ((det, matched), &index) in usable.iter().zip(&det_matched).zip(&usable_index) {
             if *matched {
                 continue;
             }
@@ -214,6 +222,7 @@ impl Tracker {
                 size_lwh: det.size_lwh,
             };
             let track = Track::new(self.next_id, det.class, first, &self.config)?;
+            observed_by.insert(self.next_id, index);
             self.next_id += 1;
             self.tracks.push(track);
         }
@@ -234,6 +243,7 @@ impl Tracker {
                     lifecycle: t.lifecycle(),
                     motion: t.motion(),
                     predicted: t.consecutive_misses() > 0,
+                    detection_index: observed_by.get(&t.id()).copied(),
                 }
             })
             .collect())
@@ -252,6 +262,29 @@ mod tests {
             class: ObjectClass::Car,
             score: 0.9,
         }
+    }
+
+    #[test]
+    fn outputs_name_the_detection_each_track_used() {
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        let mut garbage = car_at(0.0, 0.0);
+        garbage.center_world.x = f64::NAN;
+        // Index 0 is garbage (skipped), 1 and 2 start tracks.
+        let out = tracker
+            .update(0.0, &[garbage, car_at(10.0, 0.0), car_at(30.0, 5.0)])
+            .unwrap();
+        let by_x = |out: &[TrackOutput], x: f64| {
+            out.iter()
+                .find(|t| (t.center_world.x - x).abs() < 1.0)
+                .map(|t| t.detection_index)
+                .unwrap()
+        };
+        assert_eq!(by_x(&out, 10.0), Some(1));
+        assert_eq!(by_x(&out, 30.0), Some(2));
+        // Next frame: only the car at 30 m is seen, listed first; the other coasts.
+        let out = tracker.update(0.1, &[car_at(30.1, 5.0)]).unwrap();
+        assert_eq!(by_x(&out, 30.0), Some(0));
+        assert_eq!(by_x(&out, 10.0), None);
     }
 
     #[test]
