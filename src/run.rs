@@ -38,10 +38,6 @@ pub enum RunError {
         "{path}: not a limot dataset (meta.toml), a KITTI raw drive (velodyne_points/) or a directory of KITTI .bin scans"
     )]
     UnknownSource { path: PathBuf },
-    #[error(
-        "variant `{0}` is not implemented yet (lio, allfilt and dynafilt are; limot arrives with the joint graph)"
-    )]
-    VariantNotImplemented(&'static str),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -217,7 +213,7 @@ pub fn run(
         Variant::Lio => EstimatorVariant::Lio,
         Variant::Allfilt => EstimatorVariant::Allfilt,
         Variant::Dynafilt => EstimatorVariant::Dynafilt,
-        other => return Err(RunError::VariantNotImplemented(other.name())),
+        Variant::Limot => EstimatorVariant::Limot,
     };
     let imu = if options.lidar_only {
         None

@@ -1,5 +1,6 @@
 //! Estimator configuration with the paper's / LIO-SAM's defaults.
 
+use super::objects::ObjectGraphConfig;
 use crate::filter::FilterConfig;
 use crate::graph::solver::SolverConfig;
 use crate::imu::ImuNoise;
@@ -28,6 +29,9 @@ pub enum Variant {
     /// Drop the features inside the boxes of dynamic tracks, each point
     /// tested against its track's predicted box at the point's own time.
     Dynafilt,
+    /// `dynafilt` plus the joint graph: confirmed objects' poses and pose
+    /// changes are optimized with the ego states (the paper's LIMOT).
+    Limot,
 }
 
 #[derive(Debug, Clone)]
@@ -37,6 +41,8 @@ pub struct EstimatorConfig {
     /// Box inflation and time bins of the object filter.
     pub filter: FilterConfig,
     pub tracker: TrackerConfig,
+    /// Noise of the object factors (`limot`).
+    pub objects: ObjectGraphConfig,
     /// `dynafilt` uses only confirmed tracks (the paper's initialised
     /// objects); `false` also uses tentative tracks already judged dynamic,
     /// which catches objects in their first frames.
@@ -117,6 +123,7 @@ impl Default for EstimatorConfig {
                 ..FilterConfig::default()
             },
             tracker: TrackerConfig::default(),
+            objects: ObjectGraphConfig::default(),
             record_feature_indices: false,
             filter_confirmed_only: false,
             window_size: 5,

@@ -15,6 +15,7 @@
 use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 use super::initialization::{NotStatic, moving_init, static_init};
+use super::objects::ObjectGraph;
 use crate::filter::{BoxAtTime, FilterError, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
@@ -160,6 +161,8 @@ pub struct Estimator {
     /// The valid detections of the frame being processed.
     frame_detections: Vec<Detection>,
     tracker: Tracker,
+    /// Objects in the joint graph (`limot`).
+    objects: ObjectGraph,
     invalid_detections: u64,
 }
 
@@ -175,6 +178,7 @@ impl Estimator {
             .map_err(EstimatorError::FilterConfig)?;
         let tracker = Tracker::new(config.tracker.clone()).map_err(EstimatorError::Tracker)?;
         let map = LocalMap::new(config.local_map);
+        let objects = ObjectGraph::new(config.objects.clone());
         Ok(Estimator {
             gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
             t_lidar_imu: extrinsics.t_lidar_imu,
@@ -194,6 +198,7 @@ impl Estimator {
             deskewed: Vec::new(),
             frame_detections: Vec::new(),
             tracker,
+            objects,
             invalid_detections: 0,
         })
     }
@@ -624,6 +629,30 @@ impl Estimator {
                     .map_err(&window_error)?;
             }
         }
+        // limot: the tracker runs before the graph (on the matched pose) so
+        // the confirmed objects join this frame's optimization.
+        let mut joint_tracks = None;
+        if self.config.variant == Variant::Limot {
+            let clock = Instant::now();
+            let guess = matched
+                .as_ref()
+                .map_or(initial_t_world_lidar, |m| m.t_world_lidar);
+            let tracks = self.track_objects(t_s, &guess, &motion)?;
+            self.objects
+                .add_frame(
+                    &mut self.smoother,
+                    k,
+                    self.window_frames.back().copied(),
+                    t_s,
+                    &tracks,
+                    &self.frame_detections,
+                    &motion,
+                    &guess,
+                    &self.t_imu_lidar,
+                )
+                .map_err(&window_error)?;
+            joint_tracks = Some((tracks, clock.elapsed()));
+        }
         self.window_frames.push_back(k);
         self.smoother
             .optimize(&self.config.solver)
@@ -634,13 +663,15 @@ impl Estimator {
             })?;
         while self.window_frames.len() > self.config.window_size.max(2) {
             let oldest = self.window_frames.pop_front().expect("non-empty window");
+            self.objects
+                .condition_oldest(&mut self.smoother, oldest)
+                .map_err(&window_error)?;
             self.smoother
                 .marginalize_frame(oldest)
-                .map_err(|source| EstimatorError::Graph {
-                    frame_index,
-                    t_s,
-                    source,
-                })?;
+                .map_err(&window_error)?;
+            self.objects
+                .after_marginalize(&mut self.smoother, oldest)
+                .map_err(&window_error)?;
         }
         let values = self.smoother.values();
         let state = EgoState {
@@ -658,8 +689,17 @@ impl Estimator {
         self.update_map(frame_index, scan.t_s, &t_world_lidar, &features, false)?;
         timings.map_update = clock.elapsed();
         let clock = Instant::now();
-        let tracks = self.track_objects(t_s, &t_world_lidar, &motion)?;
-        timings.tracking = clock.elapsed();
+        let tracks = match joint_tracks {
+            Some((tracks, tracking_time)) => {
+                timings.tracking = tracking_time;
+                self.with_object_estimates(tracks, k, t_s)
+            }
+            None => {
+                let tracks = self.track_objects(t_s, &t_world_lidar, &motion)?;
+                timings.tracking = clock.elapsed();
+                tracks
+            }
+        };
         Ok(FrameEstimate {
             frame_index,
             t_s,
@@ -896,7 +936,7 @@ impl Estimator {
                     })
                     .collect(),
             ),
-            Variant::Dynafilt => FeatureFilter::Moving(
+            Variant::Dynafilt | Variant::Limot => FeatureFilter::Moving(
                 self.tracker
                     .tracks()
                     .iter()
@@ -909,6 +949,28 @@ impl Estimator {
                     .collect(),
             ),
         }
+    }
+
+    /// The tracks with the joint graph's smoothed pose and velocity for the
+    /// objects it holds at frame `frame` (moved from each node's detection
+    /// time to the frame time `t_s` with its velocity).
+    fn with_object_estimates(
+        &self,
+        mut tracks: Vec<TrackOutput>,
+        frame: u64,
+        t_s: f64,
+    ) -> Vec<TrackOutput> {
+        let estimates = self.objects.estimates(&self.smoother, frame, t_s);
+        for track in &mut tracks {
+            if let Some(e) = estimates.get(&track.id) {
+                let v = e.velocity_world_mps;
+                track.center_world = e.t_world_object.translation.vector - v * (e.t_s - t_s);
+                let heading = e.t_world_object.rotation * Vector3::x();
+                track.yaw_rad = heading.y.atan2(heading.x);
+                track.velocity_world_mps = v;
+            }
+        }
+        tracks
     }
 
     /// Moves the frame's detections into the world with the pose of the

@@ -6,7 +6,9 @@ pub mod config;
 pub mod estimate;
 pub mod estimator;
 pub mod initialization;
+pub mod objects;
 
 pub use config::{EstimatorConfig, Mode, Variant};
 pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 pub use estimator::{Estimator, EstimatorError};
+pub use objects::{ObjectEstimate, ObjectGraphConfig};
