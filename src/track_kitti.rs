@@ -177,6 +177,7 @@ pub fn detection_to_world(det: &Detection, t_world_lidar: &Isometry3<f64>) -> Wo
         yaw_rad: rotate_yaw(t_world_lidar, det.yaw_rad),
         class: det.class,
         score: det.score,
+        time_offset_s: det.time_offset_s,
     }
 }
 

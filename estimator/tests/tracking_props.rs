@@ -296,6 +296,7 @@ fn car(center_world: Vector3<f64>, yaw_rad: f64) -> WorldDetection {
         yaw_rad,
         class: ObjectClass::Car,
         score: 0.9,
+        time_offset_s: 0.0,
     }
 }
 

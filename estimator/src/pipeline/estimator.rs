@@ -995,6 +995,7 @@ impl Estimator {
                     yaw_rad: heading.y.atan2(heading.x),
                     class: d.class,
                     score: d.score,
+                    time_offset_s: d.time_offset_s,
                 }
             })
             .collect();

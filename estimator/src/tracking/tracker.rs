@@ -22,6 +22,11 @@ pub struct WorldDetection {
     pub yaw_rad: f64,
     pub class: ObjectClass,
     pub score: f64,
+    /// When the sensor saw the object, relative to the update time, s (a
+    /// rolling LiDAR sees each object at its own time within the sweep: at
+    /// 15 m/s, 0.1 s is 1.5 m). The box joins the track's history at
+    /// that time.
+    pub time_offset_s: f64,
 }
 
 impl WorldDetection {
@@ -30,6 +35,7 @@ impl WorldDetection {
         self.center_world.iter().all(|v| v.is_finite())
             && self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.yaw_rad.is_finite()
+            && self.time_offset_s.is_finite()
             && self.score.is_finite()
     }
 }
@@ -193,9 +199,9 @@ impl Tracker {
             let det = usable[j];
             let track = &mut self.tracks[i];
             let measured = TimedBox {
-                t_s,
+                t_s: t_s + det.time_offset_s,
                 center_world: det.center_world,
-                yaw_rad: track.unwrap_yaw(t_s, det.yaw_rad),
+                yaw_rad: track.unwrap_yaw(t_s + det.time_offset_s, det.yaw_rad),
                 size_lwh: det.size_lwh,
             };
             track.record_hit(measured, &self.config)?;
@@ -216,7 +222,7 @@ impl Tracker {
                 continue;
             }
             let first = TimedBox {
-                t_s,
+                t_s: t_s + det.time_offset_s,
                 center_world: det.center_world,
                 yaw_rad: det.yaw_rad,
                 size_lwh: det.size_lwh,
@@ -261,6 +267,7 @@ mod tests {
             yaw_rad: 0.0,
             class: ObjectClass::Car,
             score: 0.9,
+            time_offset_s: 0.0,
         }
     }
 
