@@ -963,7 +963,9 @@ impl Estimator {
         let estimates = self.objects.estimates(&self.smoother, frame, t_s);
         for track in &mut tracks {
             if let Some(e) = estimates.get(&track.id) {
-                let v = e.velocity_world_mps;
+                // A chain's first node has no pose change yet: the tracker's
+                // velocity moves it to the frame time.
+                let v = e.velocity_world_mps.unwrap_or(track.velocity_world_mps);
                 track.center_world = e.t_world_object.translation.vector - v * (e.t_s - t_s);
                 let heading = e.t_world_object.rotation * Vector3::x();
                 track.yaw_rad = heading.y.atan2(heading.x);
