@@ -437,18 +437,22 @@ fn run_demo(
             r.false_negatives
         );
     }
-    let e = &s.estimator;
-    println!(
-        "estimator {}: ego ATE_T {:.3} m, ATE_R {:.4} rad over {} frames ({} before initialisation), {:.1} ms/frame, {:.1} FPS",
-        e.variant,
-        e.ate_t_m,
-        e.ate_r_rad,
-        e.frames_estimated,
-        e.frames_before_init,
-        e.mean_frame_ms,
-        e.fps
-    );
-    println!("trajectory: {}", e.trajectory.display());
+    for e in &s.estimators {
+        println!(
+            "estimator {}: ego ATE_T {:.3} m, ATE_R {:.4} rad over {} frames ({} before initialisation); \
+             tracks MOTA {:.1} %, MOTP {:.1} % (3D IoU 0.25); {:.1} ms/frame, {:.1} FPS; {}",
+            e.variant,
+            e.ate_t_m,
+            e.ate_r_rad,
+            e.frames_estimated,
+            e.frames_before_init,
+            e.tracks.mota.unwrap_or(f64::NAN) * 100.0,
+            e.tracks.motp.unwrap_or(f64::NAN) * 100.0,
+            e.mean_frame_ms,
+            e.fps,
+            e.trajectory.display()
+        );
+    }
     println!("report: {}", s.report_readme.display());
     Ok(())
 }

@@ -27,16 +27,21 @@ fn demo_simulates_scores_and_writes_a_report() {
         assert!(r.false_negatives > 0);
         assert_eq!(r.id_switches, 0, "oracle ids cannot switch");
     }
-    // the lio estimator ran on the dataset and follows the truth
-    let e = &s.estimator;
-    assert_eq!(e.frames_estimated + e.frames_before_init, 30);
-    assert!(e.frames_before_init <= 10, "{}", e.frames_before_init);
-    assert!(e.ate_t_m < 0.1, "lio ATE_T {} m", e.ate_t_m);
-    assert!(e.trajectory.is_file());
+    // lio and limot ran on the dataset and follow the truth
+    let names: Vec<&str> = s.estimators.iter().map(|e| e.variant).collect();
+    assert_eq!(names, ["lio", "limot"]);
+    for e in &s.estimators {
+        assert_eq!(e.frames_estimated + e.frames_before_init, 30);
+        assert!(e.frames_before_init <= 10, "{}", e.frames_before_init);
+        assert!(e.ate_t_m < 0.1, "{} ATE_T {} m", e.variant, e.ate_t_m);
+        assert!(e.trajectory.is_file());
+        assert!(e.tracks.mota.is_some(), "{}: tracks scored", e.variant);
+    }
     let readme = fs::read_to_string(&s.report_readme).unwrap();
     for needle in [
         "MOTA %",
         "ATE_T [m]",
+        "| limot ",
         "ego_trajectory.svg",
         "ego_speed.svg",
         "objects.svg",
