@@ -197,7 +197,7 @@ enum EvalCommand {
     /// sequence, score it and write OUT/results.json and OUT/report/README.md.
     Suite {
         /// Scenario families: built-in names (highway, urban, highway-dense, urban-parked) or TOML files, comma-separated.
-        #[arg(long, default_value = "highway,urban")]
+        #[arg(long, default_value = "highway,highway-dense,urban,urban-parked")]
         families: String,
         /// Seeds, comma-separated.
         #[arg(long, default_value = "1,2")]
@@ -206,7 +206,7 @@ enum EvalCommand {
         #[arg(long, default_value_t = 30.0)]
         duration: f64,
         /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
-        #[arg(long, default_value = "lio,allfilt,dynafilt")]
+        #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
         variants: String,
         /// Output directory (datasets in OUT/data are reused when their scenario matches).
         #[arg(long, default_value = "reports/suite")]
