@@ -238,7 +238,7 @@ pub fn run(
         (first + m).min(source.frame_count())
     });
     let frames = end - first;
-    let bar = frame_progress_bar(frames, options.progress);
+    let bar = frame_progress_bar(frames, options.progress, options.variant.name());
     let estimator_error = |source| RunError::Estimator {
         path: source_path.to_path_buf(),
         source,

@@ -90,8 +90,8 @@ impl Overrides {
     }
 }
 
-/// The progress bar of a simulation over `total` frames (hidden unless `visible`).
-pub fn frame_progress_bar(total: usize, visible: bool) -> ProgressBar {
+/// A per-frame progress bar over `total` frames labelled `label` (hidden unless `visible`).
+pub fn frame_progress_bar(total: usize, visible: bool, label: &str) -> ProgressBar {
     if !visible {
         return ProgressBar::hidden();
     }
@@ -102,7 +102,7 @@ pub fn frame_progress_bar(total: usize, visible: bool) -> ProgressBar {
         .expect("static template")
         .progress_chars("=> "),
     );
-    bar.set_message("simulate");
+    bar.set_message(label.to_string());
     bar
 }
 
@@ -131,7 +131,7 @@ pub fn simulate(
     let started = Instant::now();
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
-    let bar = frame_progress_bar(total, progress);
+    let bar = frame_progress_bar(total, progress, "simulate");
     let (mut points, mut detections) = (0, 0);
     let dataset_dir = sim.write_dataset(out, |frame, _| {
         points += frame.recorded.scan.points.len();
