@@ -170,9 +170,12 @@ fn limot_objects_beat_the_tracker_and_the_detections_on_the_congested_highway() 
     assert!(limot.rmse_m() < dynafilt.rmse_m());
     assert!(limot.median_speed_err_mps() < 0.5);
     assert!(limot.median_speed_err_mps() < dynafilt.median_speed_err_mps());
-    // The objects must not break the ego (measured 0.32 m vs 0.31 m).
+    // Ego: dynamic objects' observations are conditioned on the ego (see
+    // ObjectGraphConfig::dynamic_objects_inform_ego), static ones inform it;
+    // limot stays at dynafilt's level or below (measured 0.272 m vs 0.277 m;
+    // lio 1.40 m, tests/variants.rs).
     assert!(
-        ate_limot < 1.25 * ate_dynafilt,
+        ate_limot <= 1.05 * ate_dynafilt,
         "{ate_limot} vs {ate_dynafilt}"
     );
     let _ = std::fs::remove_dir_all(&dir);
