@@ -426,3 +426,131 @@ fn wrap_angle(a: f64) -> f64 {
     let w = (a + PI).rem_euclid(2.0 * PI) - PI;
     if w <= -PI { w + 2.0 * PI } else { w }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::graph::{PriorFactor, SolverConfig};
+
+    const WINDOW: usize = 3;
+
+    fn ego_pose(k: u64) -> Isometry3<f64> {
+        Isometry3::translation(2.0 * k as f64, 0.0, 0.0)
+    }
+
+    /// One object seen every frame, static for the first `static_frames`
+    /// frames (parked at x = 20) then driving off along x at 5 m/s.
+    fn object_at(k: u64, static_frames: u64) -> Vector3<f64> {
+        let moving = k.saturating_sub(static_frames) as f64 * 0.5;
+        Vector3::new(20.0 + moving, 3.0, 0.0)
+    }
+
+    #[test]
+    fn a_parked_object_that_drives_off_switches_from_one_node_to_a_chain() {
+        let t_imu_lidar = Isometry3::translation(0.3, 0.0, 0.2);
+        let mut smoother = SlidingWindowSmoother::new();
+        let mut objects = ObjectGraph::new(ObjectGraphConfig::default());
+        let mut frames: std::collections::VecDeque<u64> = Default::default();
+        let static_frames = 4;
+        let mut seen_static = false;
+        for k in 0..12u64 {
+            let t_s = 0.1 * k as f64;
+            let t_world_lidar = ego_pose(k);
+            let ego_key = Key::EgoPose(k);
+            let t_world_imu = t_world_lidar * t_imu_lidar.inverse();
+            smoother
+                .add_variable(ego_key, Variable::Pose(t_world_imu))
+                .unwrap();
+            smoother
+                .add_factor(Box::new(PriorFactor::new(
+                    ego_key,
+                    Variable::Pose(t_world_imu),
+                    NoiseModel::diagonal_sigmas(&[0.01; 6]),
+                )))
+                .unwrap();
+            let center_world = object_at(k, static_frames);
+            let moving = k >= static_frames;
+            let track = TrackOutput {
+                id: 7,
+                class: ObjectClass::Car,
+                center_world,
+                yaw_rad: 0.0,
+                size_lwh: Vector3::new(4.5, 1.8, 1.5),
+                velocity_world_mps: if moving {
+                    Vector3::new(5.0, 0.0, 0.0)
+                } else {
+                    Vector3::zeros()
+                },
+                lifecycle: Lifecycle::Confirmed,
+                motion: if moving {
+                    Motion::Dynamic
+                } else {
+                    Motion::Static
+                },
+                predicted: false,
+                detection_index: Some(0),
+            };
+            let detection = Detection {
+                center_lidar: t_world_lidar
+                    .inverse_transform_point(&center_world.into())
+                    .coords,
+                size_lwh: track.size_lwh,
+                yaw_rad: 0.0,
+                class: ObjectClass::Car,
+                score: 0.9,
+                time_offset_s: 0.0,
+            };
+            let motion = SweepMotion::from_poses(vec![(t_s, t_world_lidar)]).unwrap();
+            objects
+                .add_frame(
+                    &mut smoother,
+                    k,
+                    frames.back().copied(),
+                    t_s,
+                    &[track],
+                    &[detection],
+                    &motion,
+                    &t_world_lidar,
+                    &t_imu_lidar,
+                )
+                .unwrap();
+            frames.push_back(k);
+            smoother.optimize(&SolverConfig::default()).unwrap();
+            let estimates = objects.estimates(&smoother, k, t_s);
+            let e = estimates[&7];
+            let error = (e.t_world_object.translation.vector - center_world).norm();
+            assert!(error < 1e-6, "frame {k}: error {error}");
+            assert_eq!(e.is_static, !moving, "frame {k}");
+            seen_static |= e.is_static;
+            if k >= static_frames + 3 {
+                let v = e.velocity_world_mps.expect("a chain of 3 pose changes");
+                assert!(
+                    (v - Vector3::new(5.0, 0.0, 0.0)).norm() < 1e-6,
+                    "frame {k}: {v}"
+                );
+            }
+            while frames.len() > WINDOW {
+                let oldest = frames.pop_front().unwrap();
+                objects.condition_oldest(&mut smoother, oldest).unwrap();
+                smoother.marginalize_frame(oldest).unwrap();
+                objects.after_marginalize(&mut smoother, oldest).unwrap();
+            }
+            // The static node leaves once no frame in the window observes it.
+            let has_static = smoother.values().contains(&Key::StaticObjectPose { id: 7 });
+            assert_eq!(
+                has_static,
+                k < static_frames + WINDOW as u64 - 1,
+                "frame {k}"
+            );
+            // Its observations were folded: never more than one factor on it.
+            let on_static = smoother
+                .factors()
+                .iter()
+                .filter(|f| f.keys() == [Key::StaticObjectPose { id: 7 }])
+                .count();
+            assert!(on_static <= 1, "frame {k}: {on_static} unary factors");
+        }
+        assert!(seen_static);
+        assert_eq!(objects.len(), 1);
+    }
+}
