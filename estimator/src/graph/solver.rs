@@ -1,6 +1,8 @@
 //! Sparse nonlinear least squares on the factor graph: Levenberg–Marquardt
 //! with Nielsen damping, robust kernels by IRLS, normal equations assembled
-//! block by block and solved with faer's sparse Cholesky (AMD ordering).
+//! block by block and solved with faer's supernodal sparse Cholesky, the
+//! variables laid out in a block-AMD elimination order (see
+//! `SparseCholesky`).
 //!
 //! Conventions: the step `δ` is a stacked right perturbation of every
 //! variable in [`VariableIndex`] order; `H = JᵀJ`, `g = Jᵀr` of the whitened,
@@ -9,13 +11,18 @@
 use super::factor::Factor;
 use super::key::Key;
 use super::values::Values;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::linalg::{SupernodalThreshold, amd};
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
-use faer::{Mat, Side};
-use nalgebra::{DMatrix, DVector};
+use faer::{Conj, Mat, Side};
+use nalgebra::{DMatrix, DMatrixView, DVector};
 use std::borrow::Borrow;
 use std::collections::{BTreeMap, HashMap};
+use std::hash::{BuildHasherDefault, Hasher};
 use std::time::{Duration, Instant};
 
 /// Why an optimization (or a linearization) failed.
@@ -200,13 +207,45 @@ impl FactorGraph {
     }
 }
 
+/// A cheap hasher for `(usize, usize)` block keys (FxHash's mixing): the
+/// normal equations look blocks up once per factor and key pair, and SipHash
+/// showed up in profiles.
+#[derive(Debug, Clone, Copy, Default)]
+struct BlockKeyHasher(u64);
+
+impl Hasher for BlockKeyHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+
+    fn write_usize(&mut self, i: usize) {
+        self.write_u64(i as u64);
+    }
+
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Map keyed by `(row position, col position)` of a block.
+type BlockMap<V> = HashMap<(usize, usize), V, BuildHasherDefault<BlockKeyHasher>>;
+
 /// The normal equations `H·δ = -g` of a set of factors, kept as dense blocks
 /// per pair of variables (lower triangle: row position ≥ column position).
 #[derive(Debug, Clone)]
 pub struct NormalEquations {
     pub index: VariableIndex,
-    /// `(row position, col position)` → block, for row ≥ col.
-    blocks: HashMap<(usize, usize), DMatrix<f64>>,
+    /// `(row position, col position)` → offset of the block in
+    /// `block_values` (column-major, `dims[row] × dims[col]`), for row ≥ col.
+    /// One flat buffer instead of a matrix per block: no allocation per block.
+    blocks: BlockMap<usize>,
+    block_values: Vec<f64>,
     /// `Jᵀr` over the whole tangent vector.
     pub gradient: DVector<f64>,
     /// Total (robust) cost at the linearization point.
@@ -214,14 +253,20 @@ pub struct NormalEquations {
 }
 
 impl NormalEquations {
+    /// Column-major values of block `(pr, pc)` stored at `offset`.
+    fn block_slice(&self, pr: usize, pc: usize, offset: usize) -> &[f64] {
+        &self.block_values[offset..offset + self.index.dims[pr] * self.index.dims[pc]]
+    }
+
     /// The full symmetric `H` as a dense matrix (tests, marginalization).
     pub fn dense_hessian(&self) -> DMatrix<f64> {
         let n = self.index.total_dim();
         let mut h = DMatrix::zeros(n, n);
-        for (&(pr, pc), block) in &self.blocks {
+        for (&(pr, pc), &offset) in &self.blocks {
             let (ro, rd) = (self.index.offsets[pr], self.index.dims[pr]);
             let (co, cd) = (self.index.offsets[pc], self.index.dims[pc]);
-            h.view_mut((ro, co), (rd, cd)).copy_from(block);
+            let block = DMatrixView::from_slice(self.block_slice(pr, pc, offset), rd, cd);
+            h.view_mut((ro, co), (rd, cd)).copy_from(&block);
             if pr != pc {
                 h.view_mut((co, ro), (cd, rd)).copy_from(&block.transpose());
             }
@@ -239,19 +284,22 @@ impl NormalEquations {
     pub fn hessian_diagonal(&self) -> DVector<f64> {
         let mut d = DVector::zeros(self.index.total_dim());
         for p in 0..self.index.len() {
-            let o = self.index.offsets[p];
-            if let Some(block) = self.blocks.get(&(p, p)) {
-                for i in 0..self.index.dims[p] {
-                    d[o + i] = block[(i, i)];
+            let (o, dim) = (self.index.offsets[p], self.index.dims[p]);
+            if let Some(&offset) = self.blocks.get(&(p, p)) {
+                let block = self.block_slice(p, p, offset);
+                for i in 0..dim {
+                    d[o + i] = block[i * dim + i];
                 }
             }
         }
         d
     }
 
-    /// The CSC pattern of the lower triangle of `H` (see [`BlockPattern`]).
+    /// The CSC pattern of the lower triangle of `H` (see [`BlockPattern`]),
+    /// columns in variable order.
     pub fn pattern(&self) -> BlockPattern {
-        BlockPattern::new(self)
+        let order: Vec<usize> = (0..self.index.len()).collect();
+        BlockPattern::new(self, &order)
     }
 
     /// Lower triangle of `H + diag(damping)` as a faer CSC matrix. Every
@@ -261,50 +309,85 @@ impl NormalEquations {
     }
 }
 
-/// Compressed-column pattern of the lower triangle of a block-sparse `H`:
-/// for the column of variable `pc`, the rows of its diagonal block (from the
-/// diagonal down), then those of every block `(pr, pc)`, `pr > pc`, in
-/// increasing `pr`. Built once per factor set, so each LM iteration writes
-/// its values straight into place (no triplet sorting) and the symbolic
-/// Cholesky analysis is reused.
+/// Where an off-diagonal block `(pr, pc)` lands in a [`BlockPattern`].
+#[derive(Debug, Clone, Copy)]
+struct BlockSlot {
+    /// Sum of the heights of the blocks above it in the off-diagonal part of
+    /// its column variable's columns.
+    offset: usize,
+    /// The layout puts `pr` before `pc`: the block is stored transposed, in
+    /// `pr`'s columns.
+    transposed: bool,
+}
+
+/// Compressed-column pattern of the lower triangle of a block-sparse `H`,
+/// with the variables laid out in a given order (the identity, or a
+/// fill-reducing elimination order so the Cholesky needs no permutation):
+/// for the columns of each variable, the rows of its diagonal block (from
+/// the diagonal down), then those of every variable coupled to it that comes
+/// later in the layout, in layout order. Built once per factor set, so each
+/// LM iteration writes its values straight into place (no triplet sorting)
+/// and the symbolic Cholesky analysis is reused.
 #[derive(Debug, Clone)]
 pub struct BlockPattern {
     symbolic: SymbolicSparseColMat<usize>,
-    /// `(pr, pc)` (`pr > pc`) → sum of the heights of the blocks above it in
-    /// the off-diagonal part of `pc`'s columns.
-    block_row_offset: HashMap<(usize, usize), usize>,
+    /// Variable position → its first column in the layout.
+    columns: Vec<usize>,
+    /// `(pr, pc)` (`pr > pc`) → where the block is stored.
+    slots: BlockMap<BlockSlot>,
     /// Number of blocks (diagonal ones included) of the `H` it was built for.
     block_count: usize,
 }
 
 impl BlockPattern {
-    fn new(normal: &NormalEquations) -> BlockPattern {
+    /// `order[q]` is the variable (position in `normal.index`) laid out `q`-th.
+    fn new(normal: &NormalEquations, order: &[usize]) -> BlockPattern {
         let index = &normal.index;
         let n_vars = index.len();
+        debug_assert_eq!(order.len(), n_vars);
+        let mut layout_position = vec![0usize; n_vars];
+        let mut columns = vec![0usize; n_vars];
+        let mut next_column = 0;
+        for (q, &p) in order.iter().enumerate() {
+            layout_position[p] = q;
+            columns[p] = next_column;
+            next_column += index.dims[p];
+        }
+        // Column variable → the variables below it in the layout.
         let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n_vars];
         for &(pr, pc) in normal.blocks.keys() {
             if pr != pc {
-                rows_of[pc].push(pr);
+                if layout_position[pr] > layout_position[pc] {
+                    rows_of[pc].push(pr);
+                } else {
+                    rows_of[pr].push(pc);
+                }
             }
         }
-        let mut block_row_offset = HashMap::with_capacity(normal.blocks.len());
+        let mut slots = BlockMap::with_capacity_and_hasher(normal.blocks.len(), Default::default());
         let n = index.total_dim();
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::new();
         col_ptr.push(0usize);
-        for (pc, rows) in rows_of.iter_mut().enumerate() {
-            rows.sort_unstable();
+        for &p in order {
+            let rows = &mut rows_of[p];
+            rows.sort_unstable_by_key(|&r| layout_position[r]);
             let mut offset = 0;
-            for &pr in rows.iter() {
-                block_row_offset.insert((pr, pc), offset);
-                offset += index.dims[pr];
+            for &r in rows.iter() {
+                slots.insert(
+                    (p.max(r), p.min(r)),
+                    BlockSlot {
+                        offset,
+                        transposed: p > r,
+                    },
+                );
+                offset += index.dims[r];
             }
-            let (co, cd) = (index.offsets[pc], index.dims[pc]);
-            for cc in 0..cd {
-                row_idx.extend(co + cc..co + cd);
-                for &pr in rows.iter() {
-                    let ro = index.offsets[pr];
-                    row_idx.extend(ro..ro + index.dims[pr]);
+            let (c0, d) = (columns[p], index.dims[p]);
+            for cc in 0..d {
+                row_idx.extend(c0 + cc..c0 + d);
+                for &r in rows.iter() {
+                    row_idx.extend(columns[r]..columns[r] + index.dims[r]);
                 }
                 col_ptr.push(row_idx.len());
             }
@@ -313,7 +396,8 @@ impl BlockPattern {
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
         BlockPattern {
             symbolic,
-            block_row_offset,
+            columns,
+            slots,
             block_count: normal.blocks.len(),
         }
     }
@@ -330,40 +414,73 @@ impl BlockPattern {
             && normal
                 .blocks
                 .keys()
-                .all(|&(pr, pc)| pr == pc || self.block_row_offset.contains_key(&(pr, pc)))
+                .all(|&(pr, pc)| pr == pc || self.slots.contains_key(&(pr, pc)))
     }
 
-    /// The CSC values of the lower triangle of `H + diag(damping)`.
-    fn fill(&self, normal: &NormalEquations, damping: &DVector<f64>) -> Vec<f64> {
-        let index = &normal.index;
-        let col_ptr = self.symbolic.col_ptr();
-        let mut values = vec![0.0; self.symbolic.row_idx().len()];
+    /// Layout column of every column of the variable order (scalar
+    /// permutation: variable order → layout).
+    fn layout_of_columns(&self, index: &VariableIndex) -> Vec<usize> {
+        let mut layout = vec![0usize; index.total_dim()];
         for p in 0..index.len() {
-            let (o, d) = (index.offsets[p], index.dims[p]);
-            for cc in 0..d {
-                values[col_ptr[o + cc]] = damping[o + cc];
+            for i in 0..index.dims[p] {
+                layout[index.offsets[p] + i] = self.columns[p] + i;
             }
         }
-        for (&(pr, pc), block) in &normal.blocks {
-            let (co, cd) = (index.offsets[pc], index.dims[pc]);
+        layout
+    }
+
+    /// The CSC values of the lower triangle of `H + diag(damping)`
+    /// (`damping` in variable order).
+    fn fill(&self, normal: &NormalEquations, damping: &DVector<f64>) -> Vec<f64> {
+        let mut values = Vec::new();
+        self.fill_into(normal, damping, &mut values);
+        values
+    }
+
+    /// [`BlockPattern::fill`] into `values` (resized; its memory reused).
+    fn fill_into(&self, normal: &NormalEquations, damping: &DVector<f64>, values: &mut Vec<f64>) {
+        let index = &normal.index;
+        let col_ptr = self.symbolic.col_ptr();
+        values.clear();
+        values.resize(self.symbolic.row_idx().len(), 0.0);
+        for p in 0..index.len() {
+            let (o, d, c0) = (index.offsets[p], index.dims[p], self.columns[p]);
+            for cc in 0..d {
+                values[col_ptr[c0 + cc]] = damping[o + cc];
+            }
+        }
+        for (&(pr, pc), &offset) in &normal.blocks {
+            let (rd, cd) = (index.dims[pr], index.dims[pc]);
+            // Column-major: block(r, c) = block[c * rd + r].
+            let block = normal.block_slice(pr, pc, offset);
             if pr == pc {
+                let c0 = self.columns[pc];
                 for cc in 0..cd {
-                    let start = col_ptr[co + cc];
+                    let start = col_ptr[c0 + cc];
                     for r in cc..cd {
-                        values[start + r - cc] += block[(r, cc)];
+                        values[start + r - cc] += block[cc * rd + r];
+                    }
+                }
+                continue;
+            }
+            let slot = self.slots[&(pr, pc)];
+            if slot.transposed {
+                // In pr's columns, rows of pc: H(pc_i, pr_cc) = block(cc, i).
+                let c0 = self.columns[pr];
+                for cc in 0..rd {
+                    let start = col_ptr[c0 + cc] + (rd - cc) + slot.offset;
+                    for i in 0..cd {
+                        values[start + i] = block[i * rd + cc];
                     }
                 }
             } else {
-                let offset = self.block_row_offset[&(pr, pc)];
+                let c0 = self.columns[pc];
                 for cc in 0..cd {
-                    let start = col_ptr[co + cc] + (cd - cc) + offset;
-                    for r in 0..block.nrows() {
-                        values[start + r] = block[(r, cc)];
-                    }
+                    let start = col_ptr[c0 + cc] + (cd - cc) + slot.offset;
+                    values[start..start + rd].copy_from_slice(&block[cc * rd..(cc + 1) * rd]);
                 }
             }
         }
-        values
     }
 }
 
@@ -374,21 +491,15 @@ struct WhitenedLinearization {
     cost: f64,
 }
 
-/// Checks keys and shapes, then returns the factor's whitened, reweighted
-/// residual and Jacobians, and its cost.
+/// Checks shapes (against the keys' tangent dims, `tangent_dims`; the
+/// caller has checked that every key has a value), then returns the
+/// factor's whitened, reweighted residual and Jacobians, and its cost.
 fn whitened_linearization(
     factor_id: usize,
     factor: &dyn Factor,
     values: &Values,
+    tangent_dims: &[usize],
 ) -> Result<WhitenedLinearization, SolverError> {
-    for key in factor.keys() {
-        if !values.contains(key) {
-            return Err(SolverError::MissingKey {
-                factor: factor_id,
-                key: *key,
-            });
-        }
-    }
     let lin = factor.linearize(values);
     let noise = factor.noise();
     let keys = factor.keys();
@@ -407,8 +518,7 @@ fn whitened_linearization(
             tangent_dim: keys.len(),
         });
     }
-    for (key, jac) in keys.iter().zip(&lin.jacobians) {
-        let tangent_dim = values.get(key).map(|v| v.dim()).unwrap_or(0);
+    for ((key, jac), &tangent_dim) in keys.iter().zip(&lin.jacobians).zip(tangent_dims) {
         if jac.nrows() != lin.residual.len()
             || jac.ncols() != tangent_dim
             || noise.sqrt_information.ncols() != lin.residual.len()
@@ -438,16 +548,63 @@ fn whitened_linearization(
     };
     let sqrt_w = weight.sqrt();
     residual *= sqrt_w;
+    let l = &noise.sqrt_information;
+    // Most noise models are diagonal: scale rows instead of a full product
+    // (the same numbers: the skipped terms are exact zeros).
+    let diagonal =
+        l.is_square() && (0..l.ncols()).all(|c| (0..l.nrows()).all(|r| r == c || l[(r, c)] == 0.0));
     let jacobians = lin
         .jacobians
         .iter()
-        .map(|j| (&noise.sqrt_information * j) * sqrt_w)
+        .map(|j| {
+            if diagonal {
+                let mut out = j.clone();
+                let m = out.nrows();
+                for col in out.as_mut_slice().chunks_exact_mut(m) {
+                    for (r, x) in col.iter_mut().enumerate() {
+                        *x = (l[(r, r)] * *x) * sqrt_w;
+                    }
+                }
+                out
+            } else {
+                whiten_jacobian(l, j, sqrt_w)
+            }
+        })
         .collect();
     Ok(WhitenedLinearization {
         residual,
         jacobians,
         cost,
     })
+}
+
+/// `(L·J)·scale` for the small matrices of one factor. A plain column
+/// loop: the general matrix product's packing dominated for 6×6 blocks.
+fn whiten_jacobian(
+    sqrt_information: &DMatrix<f64>,
+    jacobian: &DMatrix<f64>,
+    scale: f64,
+) -> DMatrix<f64> {
+    let (m, k) = sqrt_information.shape();
+    let n = jacobian.ncols();
+    debug_assert_eq!(jacobian.nrows(), k);
+    let l = sqrt_information.as_slice();
+    let j = jacobian.as_slice();
+    let mut out = DMatrix::zeros(m, n);
+    for (c, out_col) in out.as_mut_slice().chunks_exact_mut(m).enumerate() {
+        for kk in 0..k {
+            let b = j[c * k + kk];
+            for (o, &a) in out_col.iter_mut().zip(&l[kk * m..(kk + 1) * m]) {
+                *o += a * b;
+            }
+        }
+        if scale != 1.0 {
+            for o in out_col.iter_mut() {
+                *o *= scale;
+            }
+        }
+    }
+    out
 }
 
 fn key_list(keys: &[Key]) -> String {
@@ -494,26 +651,85 @@ pub fn linearize_normal_equations<F: Borrow<dyn Factor>>(
     values: &Values,
     index: &VariableIndex,
 ) -> Result<NormalEquations, SolverError> {
-    let mut blocks: HashMap<(usize, usize), DMatrix<f64>> = HashMap::new();
+    let mut positions = FactorPositions::default();
+    linearize(factors, values, index, KeyPositions::Record(&mut positions))
+}
+
+/// Positions in a [`VariableIndex`] of the keys of every factor, flattened:
+/// factor `i`'s are `flat[starts[i]..starts[i + 1]]`. Looked up once per
+/// optimization instead of once per key per iteration.
+#[derive(Debug, Default)]
+struct FactorPositions {
+    flat: Vec<usize>,
+    starts: Vec<usize>,
+}
+
+/// Whether [`linearize`] looks the keys up (checking them) or reuses the
+/// positions of an earlier linearization over the same keys.
+enum KeyPositions<'a> {
+    Record(&'a mut FactorPositions),
+    Cached(&'a FactorPositions),
+}
+
+fn linearize<F: Borrow<dyn Factor>>(
+    factors: &[F],
+    values: &Values,
+    index: &VariableIndex,
+    mut key_positions: KeyPositions<'_>,
+) -> Result<NormalEquations, SolverError> {
+    // About three blocks per factor (each factor couples few keys).
+    let mut blocks =
+        BlockMap::with_capacity_and_hasher(3 * factors.len() + index.len(), Default::default());
+    let mut block_values: Vec<f64> = Vec::new();
     let mut gradient = DVector::zeros(index.total_dim());
     let mut cost = 0.0;
-    let mut positions = Vec::new();
+    let mut tangent_dims = Vec::new();
+    let mut looked_up = Vec::new();
+    if let KeyPositions::Record(record) = &mut key_positions {
+        record.flat.clear();
+        record.starts.clear();
+        record.starts.push(0);
+    }
     for (i, factor) in factors.iter().enumerate() {
         let factor = factor.borrow();
+        tangent_dims.clear();
         let WhitenedLinearization {
             residual,
             jacobians,
             cost: c,
-        } = whitened_linearization(i, factor, values)?;
+        } = match &mut key_positions {
+            KeyPositions::Record(record) => {
+                for key in factor.keys() {
+                    let value = values.get(key).ok_or(SolverError::MissingKey {
+                        factor: i,
+                        key: *key,
+                    })?;
+                    tangent_dims.push(value.dim());
+                }
+                let lin = whitened_linearization(i, factor, values, &tangent_dims)?;
+                looked_up.clear();
+                for key in factor.keys() {
+                    looked_up.push(index.position(key).ok_or(SolverError::UnknownKey(*key))?);
+                }
+                record.flat.extend_from_slice(&looked_up);
+                record.starts.push(record.flat.len());
+                lin
+            }
+            KeyPositions::Cached(cached) => {
+                let positions = &cached.flat[cached.starts[i]..cached.starts[i + 1]];
+                tangent_dims.extend(positions.iter().map(|&p| index.dims[p]));
+                whitened_linearization(i, factor, values, &tangent_dims)?
+            }
+        };
         cost += c;
-        positions.clear();
-        for key in factor.keys() {
-            positions.push(index.position(key).ok_or(SolverError::UnknownKey(*key))?);
-        }
+        let positions = match &key_positions {
+            KeyPositions::Record(record) => &record.flat[record.starts[i]..record.starts[i + 1]],
+            KeyPositions::Cached(cached) => &cached.flat[cached.starts[i]..cached.starts[i + 1]],
+        };
         for (a, jac_a) in jacobians.iter().enumerate() {
             let pa = positions[a];
-            let oa = index.offsets[pa];
-            let mut g = gradient.rows_mut(oa, index.dims[pa]);
+            let (oa, da) = (index.offsets[pa], index.dims[pa]);
+            let mut g = gradient.rows_mut(oa, da);
             g.gemv_tr(1.0, jac_a, &residual, 1.0);
             for (b, jac_b) in jacobians.iter().enumerate() {
                 let pb = positions[b];
@@ -521,33 +737,107 @@ pub fn linearize_normal_equations<F: Borrow<dyn Factor>>(
                 if pa < pb {
                     continue;
                 }
-                let block = blocks
-                    .entry((pa, pb))
-                    .or_insert_with(|| DMatrix::zeros(index.dims[pa], index.dims[pb]));
+                let db = index.dims[pb];
+                let offset = *blocks.entry((pa, pb)).or_insert_with(|| {
+                    let offset = block_values.len();
+                    block_values.resize(offset + da * db, 0.0);
+                    offset
+                });
                 // A key repeated within one factor lands here for both
                 // (a, b) and (b, a), so the diagonal block stays symmetric.
-                block.gemm_tr(1.0, jac_a, jac_b, 1.0);
+                add_jacobian_product(&mut block_values[offset..offset + da * db], jac_a, jac_b);
             }
         }
     }
     Ok(NormalEquations {
         index: index.clone(),
         blocks,
+        block_values,
         gradient,
         cost,
     })
 }
 
-/// A sparse Cholesky factorization that keeps its symbolic analysis (AMD
-/// ordering, elimination tree) across LM iterations: the pattern of `H`
-/// does not change while the factor set does not.
+/// `block += Aᵀ·B` (column-major `block`, `A.ncols() × B.ncols()`): dot
+/// products of contiguous columns, for the small Jacobians of one factor.
+fn add_jacobian_product(block: &mut [f64], a: &DMatrix<f64>, b: &DMatrix<f64>) {
+    let m = a.nrows();
+    let rows = a.ncols();
+    debug_assert_eq!(b.nrows(), m);
+    debug_assert_eq!(block.len(), rows * b.ncols());
+    for (b_col, block_col) in b
+        .as_slice()
+        .chunks_exact(m)
+        .zip(block.chunks_exact_mut(rows))
+    {
+        for (a_col, out) in a.as_slice().chunks_exact(m).zip(block_col.iter_mut()) {
+            *out += a_col.iter().zip(b_col).map(|(x, y)| x * y).sum::<f64>();
+        }
+    }
+}
+
+/// Cost of `factors` at `values` whose keys were all checked to have values
+/// (the LM candidates: the checked values, retracted).
+fn cost_of_checked<F: Borrow<dyn Factor>>(
+    factors: &[F],
+    values: &Values,
+) -> Result<f64, SolverError> {
+    let mut cost = 0.0;
+    for (i, factor) in factors.iter().enumerate() {
+        let factor = factor.borrow();
+        let c = factor.cost(values);
+        if !c.is_finite() {
+            return Err(SolverError::NonFinite {
+                factor: i,
+                keys: key_list(factor.keys()),
+            });
+        }
+        cost += c;
+    }
+    Ok(cost)
+}
+
+/// A sparse Cholesky factorization that keeps its symbolic analysis
+/// (ordering, elimination tree, supernodes) across LM iterations: the
+/// pattern of `H` does not change while the factor set does not.
+///
+/// The fill-reducing ordering is AMD on the *block* graph (one node per
+/// variable), and `H` is assembled directly in that order (each variable's
+/// columns together), so faer factorizes it as is, with no permutation
+/// pass. In a window of ego states and objects it eliminates each object's
+/// chain (which couples only to ego poses) before the ego states, so the
+/// cost grows linearly with the number of objects; the variables' blocks
+/// make a supernodal factorization (dense kernels) pay off over the scalar
+/// simplicial one.
 struct SparseCholesky {
-    cache: Option<(BlockPattern, SymbolicLlt<usize>)>,
+    cache: Option<CholeskyStructure>,
+    /// Values of `H + diag(damping)` on the cached pattern (buffer reused).
+    matrix_values: Vec<f64>,
+    /// Values of the factor `L` of the latest factorization.
+    factor: Vec<f64>,
+    /// Whether `factor` holds a successful factorization of the cached pattern.
+    factored: bool,
+    workspace: MemBuffer,
+}
+
+/// What stays fixed while the block structure does.
+struct CholeskyStructure {
+    /// `H` laid out in elimination order.
+    pattern: BlockPattern,
+    symbolic: SymbolicCholesky<usize>,
+    /// Layout column of each column in variable order.
+    layout: Vec<usize>,
 }
 
 impl SparseCholesky {
     fn new() -> SparseCholesky {
-        SparseCholesky { cache: None }
+        SparseCholesky {
+            cache: None,
+            matrix_values: Vec::new(),
+            factor: Vec::new(),
+            factored: false,
+            workspace: MemBuffer::new(StackReq::EMPTY),
+        }
     }
 
     /// Solves `(H + diag(damping))·x = rhs`; `Ok(None)` if not positive definite.
@@ -561,12 +851,11 @@ impl SparseCholesky {
         if n == 0 {
             return Ok(Some(DVector::zeros(0)));
         }
-        let llt = match self.factorize(normal, damping)? {
-            Some(llt) => llt,
-            None => return Ok(None),
-        };
+        if !self.factorize(normal, damping)? {
+            return Ok(None);
+        }
         let mut x = Mat::<f64>::from_fn(n, 1, |i, _| rhs[i]);
-        llt.solve_in_place(x.as_mut());
+        self.solve_in_place(x.as_mut());
         let x = DVector::from_fn(n, |i, _| x[(i, 0)]);
         if x.iter().any(|v| !v.is_finite()) {
             return Ok(None);
@@ -574,31 +863,146 @@ impl SparseCholesky {
         Ok(Some(x))
     }
 
-    /// Numeric factorization of `H + diag(damping)`; `Ok(None)` if not
-    /// positive definite. Rebuilds the pattern and symbolic analysis only
-    /// when the block structure changed.
+    /// Numeric factorization of `H + diag(damping)`; `Ok(false)` if not
+    /// positive definite. Rebuilds the ordering, pattern and symbolic
+    /// analysis only when the block structure changed.
     fn factorize(
         &mut self,
         normal: &NormalEquations,
         damping: &DVector<f64>,
-    ) -> Result<Option<Llt<usize, f64>>, SolverError> {
-        if !matches!(&self.cache, Some((pattern, _)) if pattern.matches(normal)) {
-            let pattern = normal.pattern();
-            let symbolic = SymbolicLlt::try_new(pattern.symbolic.as_ref(), Side::Lower)
-                .map_err(|e| SolverError::Factorization(format!("{e:?}")))?;
-            self.cache = Some((pattern, symbolic));
+    ) -> Result<bool, SolverError> {
+        self.factored = false;
+        if !matches!(&self.cache, Some(c) if c.pattern.matches(normal)) {
+            let order = block_elimination_order(normal)?;
+            let pattern = BlockPattern::new(normal, &order);
+            // faer's symbolic analysis takes an unpermuted matrix as its
+            // upper triangle whatever `side` says: give it the transpose.
+            let upper = pattern
+                .symbolic
+                .as_ref()
+                .transpose()
+                .to_col_major()
+                .map_err(factorization_error)?;
+            let symbolic = factorize_symbolic_cholesky(
+                upper.as_ref(),
+                Side::Upper,
+                SymmetricOrdering::Identity,
+                CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                    ..Default::default()
+                },
+            )
+            .map_err(factorization_error)?;
+            self.factor.clear();
+            self.factor.resize(symbolic.len_val(), 0.0);
+            let par = faer::get_global_parallelism();
+            let req = symbolic
+                .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+                .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+            self.workspace = MemBuffer::try_new(req).map_err(factorization_error)?;
+            let layout = pattern.layout_of_columns(&normal.index);
+            self.cache = Some(CholeskyStructure {
+                pattern,
+                symbolic,
+                layout,
+            });
         }
-        let Some((pattern, symbolic)) = &self.cache else {
+        let Some(structure) = &self.cache else {
             unreachable!("cache filled above")
         };
-        let values = pattern.fill(normal, damping);
-        let matrix = SparseColMatRef::new(pattern.symbolic.as_ref(), &values);
-        match Llt::try_new_with_symbolic(symbolic.clone(), matrix, Side::Lower) {
-            Ok(llt) => Ok(Some(llt)),
-            Err(faer::sparse::linalg::LltError::Numeric(_)) => Ok(None),
-            Err(e) => Err(SolverError::Factorization(format!("{e:?}"))),
+        structure
+            .pattern
+            .fill_into(normal, damping, &mut self.matrix_values);
+        let matrix = SparseColMatRef::new(structure.pattern.symbolic.as_ref(), &self.matrix_values);
+        let result = structure.symbolic.factorize_numeric_llt::<f64>(
+            &mut self.factor,
+            matrix,
+            Side::Lower,
+            Default::default(),
+            faer::get_global_parallelism(),
+            MemStack::new(&mut self.workspace),
+            Default::default(),
+        );
+        // The only numeric failure is a non-positive pivot: not SPD.
+        self.factored = result.is_ok();
+        Ok(self.factored)
+    }
+
+    /// `rhs ← (H + diag(damping))⁻¹·rhs` (rows in variable order) with the
+    /// latest successful factorization.
+    fn solve_in_place(&mut self, mut rhs: faer::MatMut<'_, f64>) {
+        let structure = match &self.cache {
+            Some(structure) if self.factored => structure,
+            _ => unreachable!("solve_in_place after a successful factorize"),
+        };
+        let (n, k) = (rhs.nrows(), rhs.ncols());
+        let mut x = Mat::<f64>::zeros(n, k);
+        for c in 0..k {
+            for (i, &l) in structure.layout.iter().enumerate() {
+                x[(l, c)] = rhs[(i, c)];
+            }
+        }
+        let par = faer::get_global_parallelism();
+        let llt = LltRef::new(&structure.symbolic, &self.factor);
+        if k == 1 {
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                x.as_mut(),
+                par,
+                MemStack::new(&mut self.workspace),
+            );
+        } else {
+            // Several right-hand sides (marginal covariances) need more room.
+            let req = structure.symbolic.solve_in_place_scratch::<f64>(k, par);
+            let mut workspace = MemBuffer::new(req);
+            llt.solve_in_place_with_conj(Conj::No, x.as_mut(), par, MemStack::new(&mut workspace));
+        }
+        for c in 0..k {
+            for (i, &l) in structure.layout.iter().enumerate() {
+                rhs[(i, c)] = x[(l, c)];
+            }
         }
     }
+}
+
+fn factorization_error(e: impl std::fmt::Debug) -> SolverError {
+    SolverError::Factorization(format!("{e:?}"))
+}
+
+/// Fill-reducing elimination order of the variables of `normal`: AMD on
+/// the block graph (one node per variable, an edge per off-diagonal block).
+/// `order[q]` is the variable eliminated `q`-th.
+fn block_elimination_order(normal: &NormalEquations) -> Result<Vec<usize>, SolverError> {
+    let n_vars = normal.index.len();
+    // Lower triangle with the diagonal, CSC.
+    let mut rows_of: Vec<Vec<usize>> = (0..n_vars).map(|p| vec![p]).collect();
+    for &(pr, pc) in normal.blocks.keys() {
+        if pr != pc {
+            rows_of[pc].push(pr);
+        }
+    }
+    let mut col_ptr = Vec::with_capacity(n_vars + 1);
+    let mut row_idx = Vec::with_capacity(n_vars + normal.blocks.len());
+    col_ptr.push(0usize);
+    for rows in &mut rows_of {
+        rows.sort_unstable();
+        row_idx.extend_from_slice(rows);
+        col_ptr.push(row_idx.len());
+    }
+    let graph = SymbolicSparseColMat::new_checked(n_vars, n_vars, col_ptr, None, row_idx);
+    let mut order = vec![0usize; n_vars];
+    let mut order_inv = vec![0usize; n_vars];
+    let mut memory = MemBuffer::try_new(amd::order_scratch::<usize>(n_vars, graph.compute_nnz()))
+        .map_err(factorization_error)?;
+    amd::order(
+        &mut order,
+        &mut order_inv,
+        graph.as_ref(),
+        amd::Control::default(),
+        MemStack::new(&mut memory),
+    )
+    .map_err(factorization_error)?;
+    Ok(order)
 }
 
 /// Smallest diagonal scaling of the Marquardt damping, so variables without
@@ -621,7 +1025,15 @@ pub fn optimize<F: Borrow<dyn Factor>>(
     let mut cholesky = SparseCholesky::new();
     let mut lambda = config.initial_lambda.max(0.0);
     let mut nu = 2.0;
-    let mut normal = linearize_normal_equations(factors, values, &index)?;
+    // The first linearization checks every key and records its position;
+    // later ones (same keys) reuse them.
+    let mut positions = FactorPositions::default();
+    let mut normal = linearize(
+        factors,
+        values,
+        &index,
+        KeyPositions::Record(&mut positions),
+    )?;
     let initial_cost = normal.cost;
     let mut cost = initial_cost;
     let mut iterations = 1;
@@ -631,7 +1043,7 @@ pub fn optimize<F: Borrow<dyn Factor>>(
     while iterations <= config.max_iterations && inner_steps < 10 * config.max_iterations.max(1) {
         inner_steps += 1;
         if relinearize {
-            normal = linearize_normal_equations(factors, values, &index)?;
+            normal = linearize(factors, values, &index, KeyPositions::Cached(&positions))?;
             iterations += 1;
             relinearize = false;
         }
@@ -659,7 +1071,7 @@ pub fn optimize<F: Borrow<dyn Factor>>(
         }
         let mut candidate = values.clone();
         index.retract(&mut candidate, step.as_slice());
-        let new_cost = total_cost(factors, &candidate);
+        let new_cost = cost_of_checked(factors, &candidate);
         // Predicted decrease of the quadratic model: -(gᵀδ + ½δᵀHδ)
         // = ½δᵀ(λD·δ - g) since (H + λD)δ = -g.
         let predicted = 0.5 * step.dot(&(damping.component_mul(&step) - &normal.gradient));
@@ -745,9 +1157,10 @@ pub fn marginal_covariance<F: Borrow<dyn Factor>>(
     }
     let n = index.total_dim();
     let zero = DVector::zeros(n);
-    let llt = SparseCholesky::new()
-        .factorize(&normal, &zero)?
-        .ok_or(SolverError::NotPositiveDefinite { lambda: 0.0 })?;
+    let mut cholesky = SparseCholesky::new();
+    if !cholesky.factorize(&normal, &zero)? {
+        return Err(SolverError::NotPositiveDefinite { lambda: 0.0 });
+    }
     let mut rhs = Mat::<f64>::zeros(n, m);
     let mut col = 0;
     for &(o, d) in &spans {
@@ -756,7 +1169,7 @@ pub fn marginal_covariance<F: Borrow<dyn Factor>>(
             col += 1;
         }
     }
-    llt.solve_in_place(rhs.as_mut());
+    cholesky.solve_in_place(rhs.as_mut());
     let mut cov = DMatrix::zeros(m, m);
     let mut row = 0;
     for &(o, d) in &spans {
@@ -778,7 +1191,7 @@ mod tests {
     use crate::graph::prior_factor::PriorFactor;
     use crate::graph::values::Variable;
     use crate::lie;
-    use nalgebra::{Vector3, Vector6};
+    use nalgebra::{Isometry3, Vector3, Vector6};
 
     #[test]
     fn sparse_lower_is_the_lower_triangle_of_the_damped_hessian() {
@@ -825,5 +1238,69 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A hub (the ego) coupled to many leaves (objects), the leaves chained
+    /// in pairs: the block ordering eliminates every leaf before the hub,
+    /// and the supernodal solve equals a dense one.
+    #[test]
+    fn block_ordering_eliminates_leaves_before_the_hub() {
+        let mut values = Values::new();
+        let hub = Key::EgoPose(0);
+        values.insert(hub, Variable::Pose(Isometry3::identity()));
+        let noise = NoiseModel::diagonal_sigmas(&[0.1, 0.2, 0.3, 0.01, 0.02, 0.03]);
+        let mut factors: Vec<Box<dyn Factor>> = vec![Box::new(PriorFactor::new(
+            hub,
+            Variable::Pose(Isometry3::identity()),
+            noise.clone(),
+        ))];
+        let step = lie::se3_exp(&Vector6::new(1.0, 0.1, 0.0, 0.0, 0.05, 0.1));
+        for id in 0..8u64 {
+            for frame in 0..2u64 {
+                let key = Key::ObjectPose { id, frame };
+                let xi = Vector6::new(id as f64, frame as f64, 0.3, 0.01, -0.02, 0.1);
+                values.insert(key, Variable::Pose(lie::se3_exp(&xi)));
+                factors.push(Box::new(BetweenFactor::new(hub, key, step, noise.clone())));
+            }
+            factors.push(Box::new(BetweenFactor::new(
+                Key::ObjectPose { id, frame: 0 },
+                Key::ObjectPose { id, frame: 1 },
+                step,
+                noise.clone(),
+            )));
+        }
+        let index = VariableIndex::from_values(&values);
+        let normal = linearize_normal_equations(&factors, &values, &index).unwrap();
+        let order = block_elimination_order(&normal).unwrap();
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..index.len()).collect::<Vec<_>>());
+        assert_eq!(order.last(), index.position(&hub).as_ref());
+
+        // The pattern laid out in that order is the permuted lower triangle.
+        let damping = DVector::from_fn(index.total_dim(), |i, _| 0.25 + 0.01 * i as f64);
+        let pattern = BlockPattern::new(&normal, &order);
+        let layout = pattern.layout_of_columns(&index);
+        let sparse = pattern.matrix(&normal, &damping).to_dense();
+        let full = normal.dense_hessian() + DMatrix::from_diagonal(&damping);
+        let n = index.total_dim();
+        for r in 0..n {
+            for c in 0..n {
+                let (lr, lc) = (layout[r], layout[c]);
+                let expected = if lr >= lc { full[(r, c)] } else { 0.0 };
+                assert!(
+                    (sparse[(lr, lc)] - expected).abs() < 1e-9,
+                    "({r}, {c}) at ({lr}, {lc}): {} vs {expected}",
+                    sparse[(lr, lc)]
+                );
+            }
+        }
+        let rhs = DVector::from_fn(n, |i, _| (i as f64 * 0.37).sin());
+        let x = SparseCholesky::new()
+            .solve(&normal, &damping, &rhs)
+            .unwrap()
+            .expect("SPD");
+        let dense = full.cholesky().expect("SPD").solve(&rhs);
+        assert!((x - dense).amax() < 1e-9);
     }
 }
