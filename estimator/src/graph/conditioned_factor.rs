@@ -92,6 +92,18 @@ impl Factor for ConditionedFactor {
     fn residual(&self, values: &Values) -> DVector<f64> {
         self.inner.residual(&self.merged(values))
     }
+
+    /// The held keys that `values` still has take their values from it:
+    /// conditioning on the latest estimate rather than on the one at
+    /// conditioning time.
+    fn refresh_fixed(&mut self, values: &Values) {
+        let keys: Vec<Key> = self.fixed.keys().copied().collect();
+        for key in keys {
+            if let Some(v) = values.get(&key) {
+                self.fixed.insert(key, *v);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -131,6 +143,28 @@ mod tests {
         moved.insert(a, Variable::Pose(pose(9.0, -1.0)));
         assert_eq!(conditioned.residual(&moved), full.residual);
         assert!(check_factor_jacobians(&conditioned, &values, 1e-6) < 1e-6);
+    }
+
+    #[test]
+    fn refreshing_conditions_on_the_latest_value() {
+        let a = Key::EgoPose(1);
+        let b = Key::ObjectPose { id: 7, frame: 1 };
+        let noise = NoiseModel::diagonal_sigmas(&[0.1; 6]);
+        let inner = BetweenFactor::new(a, b, pose(3.0, 0.3), noise.clone());
+        let mut fixed = Values::new();
+        fixed.insert(a, Variable::Pose(pose(1.0, 0.1)));
+        let mut conditioned = ConditionedFactor::new(Box::new(inner), fixed).unwrap();
+        let mut values = Values::new();
+        values.insert(a, Variable::Pose(pose(2.0, -0.2)));
+        values.insert(b, Variable::Pose(pose(4.5, 0.5)));
+        conditioned.refresh_fixed(&values);
+        let reference = BetweenFactor::new(a, b, pose(3.0, 0.3), noise);
+        assert_eq!(conditioned.residual(&values), reference.residual(&values));
+        // A held key no longer in the values keeps its last value.
+        let mut without = values.clone();
+        without.remove(&a);
+        conditioned.refresh_fixed(&without);
+        assert_eq!(conditioned.residual(&values), reference.residual(&values));
     }
 
     #[test]

@@ -41,6 +41,10 @@ pub trait Factor: Send + Sync + std::fmt::Debug {
         self.linearize(values).residual
     }
 
+    /// Updates values the factor holds fixed (see
+    /// [`super::ConditionedFactor`]) from `values`; others ignore it.
+    fn refresh_fixed(&mut self, _values: &Values) {}
+
     /// `ρ(‖L·r‖)`, or `½‖L·r‖²` without a robust kernel.
     fn cost(&self, values: &Values) -> f64 {
         let whitened = self.noise().whiten(&self.residual(values));

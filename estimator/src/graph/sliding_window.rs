@@ -247,6 +247,16 @@ impl SlidingWindowSmoother {
         Ok(conditioned)
     }
 
+    /// Re-conditions every conditioned factor on the current values of the
+    /// keys it holds (those still in the window). After an optimization
+    /// moved the ego, one-way observations (the ego informs the objects, not
+    /// the reverse) follow it this way.
+    pub fn refresh_conditioned(&mut self) {
+        for f in &mut self.factors {
+            f.refresh_fixed(&self.values);
+        }
+    }
+
     /// Marginalizes every key of frame `frame`; returns the removed keys.
     pub fn marginalize_frame(&mut self, frame: u64) -> Result<Vec<Key>, WindowError> {
         let keys: Vec<Key> = self

@@ -672,11 +672,15 @@ impl Estimator {
         self.window_frames.push_back(k);
         self.smoother
             .optimize(&self.config.solver)
-            .map_err(|source| EstimatorError::Graph {
-                frame_index,
-                t_s,
-                source,
-            })?;
+            .map_err(&window_error)?;
+        if joint_tracks.is_some() && !self.config.objects.dynamic_objects_inform_ego {
+            // The dynamic objects saw the scan-matched ego; now that the ego
+            // is optimized (they do not move it), they follow it.
+            self.smoother.refresh_conditioned();
+            self.smoother
+                .optimize(&self.config.solver)
+                .map_err(&window_error)?;
+        }
         while self.window_frames.len() > self.config.window_size.max(2) {
             let oldest = self.window_frames.pop_front().expect("non-empty window");
             self.objects
