@@ -177,7 +177,10 @@ pub fn detection_to_world(det: &Detection, t_world_lidar: &Isometry3<f64>) -> Wo
         yaw_rad: rotate_yaw(t_world_lidar, det.yaw_rad),
         class: det.class,
         score: det.score,
-        time_offset_s: det.time_offset_s,
+        // Placed with the frame's pose (OXTS at the frame time, when the
+        // camera the labels come from fired): it joins the track at the
+        // frame time, whatever part of the sweep saw it.
+        time_offset_s: 0.0,
     }
 }
 
