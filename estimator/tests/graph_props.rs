@@ -900,6 +900,38 @@ fn conditioning_the_oldest_coupling_keeps_the_object_prior_off_the_ego() {
 }
 
 #[test]
+fn optimizing_parts_alone_reaches_the_joint_optimum() {
+    let (at, _) = two_chains(6, false, 1.0);
+    let mut joint = solve_window(two_chains(6, false, 1.0).0, 10, false);
+    let mut parts = solve_window(at, 10, false);
+    for window in [&mut joint, &mut parts] {
+        for key in window.keys() {
+            window
+                .set_value(key, Variable::Vector3(Vector3::new(3.0, -2.0, 1.0)))
+                .unwrap();
+        }
+    }
+    joint.optimize(&gauss_newton()).unwrap();
+    let is_ego = |keys: &[Key]| keys.iter().any(|k| matches!(k, Key::EgoVelocity(_)));
+    let ego = parts.optimize_parts(&gauss_newton(), is_ego).unwrap();
+    assert_eq!(ego.len(), 1);
+    // Only the ego chain moved so far.
+    let object = Key::ObjectMotion { id: 9, frame: 0 };
+    assert_eq!(
+        vector_of(parts.values().get(&object).unwrap()),
+        DVector::from_column_slice(&[3.0, -2.0, 1.0])
+    );
+    let rest = parts
+        .optimize_parts(&gauss_newton(), |k| !is_ego(k))
+        .unwrap();
+    assert_eq!(rest.len(), 1);
+    for (key, value) in parts.values().iter() {
+        let err = (vector_of(value) - vector_of(joint.values().get(key).unwrap())).amax();
+        assert!(err < 1e-9, "{key}: {err:e}");
+    }
+}
+
+#[test]
 fn folding_factors_keeps_the_optimum() {
     let (at, _) = two_chains(4, true, 1.0);
     let mut window = solve_window(at, 10, false);

@@ -138,6 +138,47 @@ impl SlidingWindowSmoother {
         Ok(report)
     }
 
+    /// Optimizes, each on its own, the connected parts of the window (sets
+    /// of variables linked by factors or priors) whose keys `select` picks.
+    /// Parts share no variable, so this reaches the same optimum as one
+    /// joint solve, and each part stops after its own number of iterations.
+    pub fn optimize_parts(
+        &mut self,
+        config: &SolverConfig,
+        select: impl Fn(&[Key]) -> bool,
+    ) -> Result<Vec<SolverReport>, WindowError> {
+        let factors = self.all_factors();
+        let mut reports = Vec::new();
+        let mut solved: Vec<Values> = Vec::new();
+        for part in connected_parts(&factors) {
+            let part_factors: Vec<&(dyn Factor + 'static)> =
+                part.iter().map(|&i| factors[i]).collect();
+            let keys: BTreeSet<Key> = part_factors
+                .iter()
+                .flat_map(|f| f.keys().iter().copied())
+                .collect();
+            let keys: Vec<Key> = keys.into_iter().collect();
+            if !select(&keys) {
+                continue;
+            }
+            let mut values = Values::new();
+            for key in &keys {
+                values.insert(
+                    *key,
+                    *self.values.get(key).expect("factor keys are in the window"),
+                );
+            }
+            reports.push(optimize(&part_factors, &mut values, config)?);
+            solved.push(values);
+        }
+        for values in solved {
+            for (key, value) in values.iter() {
+                self.values.insert(*key, *value);
+            }
+        }
+        Ok(reports)
+    }
+
     /// Removes `keys` from the window: every factor and marginal prior
     /// touching them is folded into a new marginal prior at the current
     /// values. Factors touching only removed keys vanish with them.

@@ -21,7 +21,7 @@ use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
 use crate::graph::sliding_window::SlidingWindowSmoother;
 use crate::graph::sliding_window::WindowError;
-use crate::graph::{FactorError, Key, NoiseModel, SolverConfig, Variable};
+use crate::graph::{FactorError, Key, NoiseModel, Variable};
 use crate::imu::ImuBias;
 use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
 use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint, LidarScan};
@@ -670,20 +670,23 @@ impl Estimator {
             joint_tracks = Some((tracks, clock.elapsed()));
         }
         self.window_frames.push_back(k);
-        self.smoother
-            .optimize(&self.config.solver)
-            .map_err(&window_error)?;
         if joint_tracks.is_some() && !self.config.objects.dynamic_objects_inform_ego {
-            // The dynamic objects saw the scan-matched ego; now that the ego
-            // is optimized (they do not move it), they follow it: a shift by
-            // the match-to-estimate difference, nearly linear, so two
-            // iterations suffice.
+            // Dynamic objects do not move the ego, so the window splits into
+            // independent parts: the ego's (with static objects) is solved
+            // first, the dynamic objects' observations are then conditioned
+            // on that estimate, and each object is solved on its own.
+            let has_ego = |keys: &[Key]| keys.iter().any(|k| matches!(k, Key::EgoPose(_)));
+            self.smoother
+                .optimize_parts(&self.config.solver, has_ego)
+                .map_err(&window_error)?;
             self.smoother.refresh_conditioned();
-            let follow = SolverConfig {
-                max_iterations: 2,
-                ..self.config.solver
-            };
-            self.smoother.optimize(&follow).map_err(&window_error)?;
+            self.smoother
+                .optimize_parts(&self.config.solver, |keys| !has_ego(keys))
+                .map_err(&window_error)?;
+        } else {
+            self.smoother
+                .optimize(&self.config.solver)
+                .map_err(&window_error)?;
         }
         while self.window_frames.len() > self.config.window_size.max(2) {
             let oldest = self.window_frames.pop_front().expect("non-empty window");
