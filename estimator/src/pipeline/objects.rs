@@ -29,6 +29,7 @@ use crate::graph::{
 };
 use crate::input::{Detection, ObjectClass};
 use crate::lidar::deskew::SweepMotion;
+use crate::tracking::tracker::wrap_angle;
 use crate::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
@@ -419,12 +420,6 @@ impl ObjectGraph {
         }
         out
     }
-}
-
-/// Angle wrapped to (−π, π].
-fn wrap_angle(a: f64) -> f64 {
-    let w = (a + PI).rem_euclid(2.0 * PI) - PI;
-    if w <= -PI { w + 2.0 * PI } else { w }
 }
 
 #[cfg(test)]

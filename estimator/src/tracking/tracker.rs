@@ -88,7 +88,7 @@ pub struct Tracker {
 }
 
 /// Wraps an angle to (−π, π].
-fn wrap_angle(angle_rad: f64) -> f64 {
+pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
     let wrapped = (angle_rad + PI).rem_euclid(2.0 * PI) - PI;
     if wrapped <= -PI {
         wrapped + 2.0 * PI
