@@ -18,16 +18,9 @@ use std::path::Path;
 /// its match.
 const MATCH_RADIUS_M: f64 = 2.0;
 
-/// The true LiDAR pose at `t_s` (nearest 100 Hz sample).
+/// The true LiDAR pose at `t_s` (interpolated between the 100 Hz samples).
 fn ego_at(ego: &[EgoTruth], t_s: f64) -> Isometry3<f64> {
-    let i = ego.partition_point(|e| e.t_s < t_s).min(ego.len() - 1);
-    let j = i.saturating_sub(1);
-    let k = if (ego[j].t_s - t_s).abs() < (ego[i].t_s - t_s).abs() {
-        j
-    } else {
-        i
-    };
-    ego[k].t_world_lidar
+    limot::evaluate::tracks::ego_pose_at(ego, t_s, Path::new("gt/ego.csv")).unwrap()
 }
 
 /// Moving truth boxes of a frame at `t_s`: centre and velocity in the true
