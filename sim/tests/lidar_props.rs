@@ -148,8 +148,22 @@ proptest! {
         ego_yaw_rate in -0.5..0.5f64,
         pitch_roll in (-0.03..0.03f64, -0.03..0.03f64),
     ) {
+        // The ego must not drive through an agent (a box over the LiDAR hides
+        // the whole sweep), so boxes that come near its path are left out.
+        let (ego_sin, ego_cos) = ego_yaw.sin_cos();
+        let clear_of_ego = |b: &BoxSpec| {
+            let half_diagonal_m = 0.5 * b.size.0.hypot(b.size.1);
+            (0..=10).all(|i| {
+                let t = 0.25 + 0.02 * i as f64;
+                let ego_xy = Vector2::new(ego_cos, ego_sin) * ego_speed * t;
+                let box_xy = Vector2::new(b.x, b.y)
+                    + Vector2::new(b.heading.cos(), b.heading.sin()) * b.speed_mps * t;
+                (box_xy - ego_xy).norm() > half_diagonal_m + 4.0
+            })
+        };
         let mut agents: Vec<Agent> = boxes
             .iter()
+            .filter(|b| clear_of_ego(b))
             .enumerate()
             .map(|(i, b)| {
                 let size = Vector3::new(b.size.0, b.size.1, b.size.2);
@@ -173,17 +187,24 @@ proptest! {
                 }
             })
             .collect();
-        // one agent that is surely seen, passing close by at 12 m/s
+        // One agent that is surely seen: it overtakes the ego 6 m to its left,
+        // 12 m/s faster (parallel to the ego's initial heading, so the two
+        // never meet whatever the ego's speed).
         let near_id = agents.len() as u32 + 1;
+        let near_start_xy = Vector2::new(-3.0 * ego_cos - 6.0 * ego_sin, -3.0 * ego_sin + 6.0 * ego_cos);
         agents.push(Agent {
             id: near_id,
             class: ObjectClass::Car,
             size_lwh_m: Vector3::new(4.5, 1.8, 1.5),
             parked: false,
             trajectory: moving(
-                Vector3::new(-3.0, 6.0, ground.height(0.0, 6.0) + 0.75),
-                0.0,
-                12.0,
+                Vector3::new(
+                    near_start_xy.x,
+                    near_start_xy.y,
+                    ground.height(near_start_xy.x, near_start_xy.y) + 0.75,
+                ),
+                ego_yaw,
+                ego_speed + 12.0,
                 0.0,
                 (0.0, 0.0),
             ),
