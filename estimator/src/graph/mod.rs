@@ -31,5 +31,7 @@ pub use noise::{NoiseModel, RobustKernel};
 pub use object_factors::{ObjectMotionFactor, ObjectObservationFactor, SmoothMotionFactor};
 pub use prior_factor::PriorFactor;
 pub use sliding_window::{SlidingWindowSmoother, WindowError};
-pub use solver::{FactorGraph, SolverConfig, SolverError, SolverReport, VariableIndex};
+pub use solver::{
+    FactorGraph, SolverConfig, SolverError, SolverReport, SolverWorkspace, VariableIndex,
+};
 pub use values::{Values, Variable};

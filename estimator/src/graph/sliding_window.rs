@@ -13,7 +13,8 @@ use super::marginalization::{
     MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
 };
 use super::solver::{
-    SolverConfig, SolverError, SolverReport, marginal_covariance, optimize, total_cost,
+    SolverConfig, SolverError, SolverReport, SolverWorkspace, marginal_covariance, optimize_with,
+    total_cost,
 };
 use super::values::{Values, Variable};
 use nalgebra::DMatrix;
@@ -41,6 +42,21 @@ pub struct SlidingWindowSmoother {
     factors: Vec<Box<dyn Factor>>,
     priors: Vec<MarginalPriorFactor>,
     marginalization: MarginalizationConfig,
+    /// The window's parts keep their shapes from frame to frame: their
+    /// symbolic factorizations are kept here.
+    workspace: SolverWorkspace,
+}
+
+/// The window's factors followed by its marginal priors.
+fn window_factors<'a>(
+    factors: &'a [Box<dyn Factor>],
+    priors: &'a [MarginalPriorFactor],
+) -> Vec<&'a (dyn Factor + 'static)> {
+    factors
+        .iter()
+        .map(|f| f.as_ref())
+        .chain(priors.iter().map(|p| p as &(dyn Factor + 'static)))
+        .collect()
 }
 
 /// Groups factors that share keys (transitively); returns factor indices
@@ -123,17 +139,15 @@ impl SlidingWindowSmoother {
 
     /// All factors of the window, the marginal priors included.
     fn all_factors(&self) -> Vec<&(dyn Factor + 'static)> {
-        let mut all: Vec<&(dyn Factor + 'static)> =
-            self.factors.iter().map(|f| f.as_ref()).collect();
-        all.extend(self.priors.iter().map(|p| p as &(dyn Factor + 'static)));
-        all
+        window_factors(&self.factors, &self.priors)
     }
 
     /// Optimizes every variable of the window.
     pub fn optimize(&mut self, config: &SolverConfig) -> Result<SolverReport, WindowError> {
-        let factors = self.all_factors();
+        // Borrowed field by field: the workspace is borrowed mutably.
+        let factors = window_factors(&self.factors, &self.priors);
         let mut values = self.values.clone();
-        let report = optimize(&factors, &mut values, config)?;
+        let report = optimize_with(&factors, &mut values, config, &mut self.workspace)?;
         self.values = values;
         Ok(report)
     }
@@ -147,7 +161,7 @@ impl SlidingWindowSmoother {
         config: &SolverConfig,
         select: impl Fn(&[Key]) -> bool,
     ) -> Result<Vec<SolverReport>, WindowError> {
-        let factors = self.all_factors();
+        let factors = window_factors(&self.factors, &self.priors);
         let mut reports = Vec::new();
         let mut solved: Vec<Values> = Vec::new();
         for part in connected_parts(&factors) {
@@ -168,7 +182,12 @@ impl SlidingWindowSmoother {
                     *self.values.get(key).expect("factor keys are in the window"),
                 );
             }
-            reports.push(optimize(&part_factors, &mut values, config)?);
+            reports.push(optimize_with(
+                &part_factors,
+                &mut values,
+                config,
+                &mut self.workspace,
+            )?);
             solved.push(values);
         }
         for values in solved {

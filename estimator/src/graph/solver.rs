@@ -11,7 +11,7 @@
 use super::factor::Factor;
 use super::key::Key;
 use super::values::Values;
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
     factorize_symbolic_cholesky,
@@ -55,6 +55,7 @@ pub enum SolverError {
 /// Levenberg–Marquardt settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverConfig {
+    /// Linearizations at most, each followed by its step (0: none).
     pub max_iterations: usize,
     /// Initial damping `λ` (relative to `diag(H)`); 0 gives Gauss–Newton
     /// steps until a step fails to decrease the cost.
@@ -337,6 +338,8 @@ pub struct BlockPattern {
     slots: BlockMap<BlockSlot>,
     /// Number of blocks (diagonal ones included) of the `H` it was built for.
     block_count: usize,
+    /// Tangent dimension of each variable position.
+    dims: Vec<usize>,
 }
 
 impl BlockPattern {
@@ -399,6 +402,7 @@ impl BlockPattern {
             columns,
             slots,
             block_count: normal.blocks.len(),
+            dims: index.dims.clone(),
         }
     }
 
@@ -409,7 +413,7 @@ impl BlockPattern {
 
     /// Whether `normal` has the block structure this pattern was built for.
     fn matches(&self, normal: &NormalEquations) -> bool {
-        self.symbolic.ncols() == normal.index.total_dim()
+        self.dims == normal.index.dims
             && self.block_count == normal.blocks.len()
             && normal
                 .blocks
@@ -553,24 +557,20 @@ fn whitened_linearization(
     // (the same numbers: the skipped terms are exact zeros).
     let diagonal =
         l.is_square() && (0..l.ncols()).all(|c| (0..l.nrows()).all(|r| r == c || l[(r, c)] == 0.0));
-    let jacobians = lin
-        .jacobians
-        .iter()
-        .map(|j| {
-            if diagonal {
-                let mut out = j.clone();
-                let m = out.nrows();
-                for col in out.as_mut_slice().chunks_exact_mut(m) {
-                    for (r, x) in col.iter_mut().enumerate() {
-                        *x = (l[(r, r)] * *x) * sqrt_w;
-                    }
+    let mut jacobians = lin.jacobians;
+    for j in &mut jacobians {
+        if diagonal {
+            // In place: the factor's Jacobian is ours to scale.
+            let m = j.nrows();
+            for col in j.as_mut_slice().chunks_exact_mut(m) {
+                for (r, x) in col.iter_mut().enumerate() {
+                    *x = (l[(r, r)] * *x) * sqrt_w;
                 }
-                out
-            } else {
-                whiten_jacobian(l, j, sqrt_w)
             }
-        })
-        .collect();
+        } else {
+            *j = whiten_jacobian(l, j, sqrt_w);
+        }
+    }
     Ok(WhitenedLinearization {
         residual,
         jacobians,
@@ -685,6 +685,7 @@ fn linearize<F: Borrow<dyn Factor>>(
     let mut cost = 0.0;
     let mut tangent_dims = Vec::new();
     let mut looked_up = Vec::new();
+    let mut jac_a_t = Vec::new();
     if let KeyPositions::Record(record) = &mut key_positions {
         record.flat.clear();
         record.starts.clear();
@@ -731,6 +732,7 @@ fn linearize<F: Borrow<dyn Factor>>(
             let (oa, da) = (index.offsets[pa], index.dims[pa]);
             let mut g = gradient.rows_mut(oa, da);
             g.gemv_tr(1.0, jac_a, &residual, 1.0);
+            transpose_into(jac_a, &mut jac_a_t);
             for (b, jac_b) in jacobians.iter().enumerate() {
                 let pb = positions[b];
                 // Keep the lower triangle only (row position ≥ col position).
@@ -745,7 +747,7 @@ fn linearize<F: Borrow<dyn Factor>>(
                 });
                 // A key repeated within one factor lands here for both
                 // (a, b) and (b, a), so the diagonal block stays symmetric.
-                add_jacobian_product(&mut block_values[offset..offset + da * db], jac_a, jac_b);
+                add_jacobian_product(&mut block_values[offset..offset + da * db], &jac_a_t, jac_b);
             }
         }
     }
@@ -758,21 +760,58 @@ fn linearize<F: Borrow<dyn Factor>>(
     })
 }
 
-/// `block += Aᵀ·B` (column-major `block`, `A.ncols() × B.ncols()`): dot
-/// products of contiguous columns, for the small Jacobians of one factor.
-fn add_jacobian_product(block: &mut [f64], a: &DMatrix<f64>, b: &DMatrix<f64>) {
-    let m = a.nrows();
-    let rows = a.ncols();
-    debug_assert_eq!(b.nrows(), m);
-    debug_assert_eq!(block.len(), rows * b.ncols());
-    for (b_col, block_col) in b
-        .as_slice()
-        .chunks_exact(m)
-        .zip(block.chunks_exact_mut(rows))
-    {
-        for (a_col, out) in a.as_slice().chunks_exact(m).zip(block_col.iter_mut()) {
-            *out += a_col.iter().zip(b_col).map(|(x, y)| x * y).sum::<f64>();
+/// `a_t` := `Aᵀ` (column-major `A.ncols() × A.nrows()`): row `k` of `A`
+/// becomes contiguous, for [`add_jacobian_product`].
+fn transpose_into(a: &DMatrix<f64>, a_t: &mut Vec<f64>) {
+    let (m, n) = a.shape();
+    a_t.clear();
+    a_t.resize(m * n, 0.0);
+    for (i, a_col) in a.as_slice().chunks_exact(m).enumerate() {
+        for (k, &x) in a_col.iter().enumerate() {
+            a_t[k * n + i] = x;
         }
+    }
+}
+
+/// `block += Aᵀ·B` (column-major `block`, `A.ncols() × B.ncols()`) from
+/// `a_t` = `Aᵀ` ([`transpose_into`]): each block column gathers rows of `A`
+/// scaled by one entry of `B`, independent multiply-adds the compiler
+/// vectorizes (a dot product per entry is one serial chain of additions),
+/// fully unrolled for the common 3- and 6-dimensional tangents.
+fn add_jacobian_product(block: &mut [f64], a_t: &[f64], b: &DMatrix<f64>) {
+    let m = b.nrows();
+    let rows = a_t.len() / m.max(1);
+    debug_assert_eq!(block.len(), rows * b.ncols());
+    match rows {
+        3 => add_jacobian_product_fixed::<3>(block, a_t, b),
+        6 => add_jacobian_product_fixed::<6>(block, a_t, b),
+        _ => {
+            for (b_col, block_col) in b
+                .as_slice()
+                .chunks_exact(m)
+                .zip(block.chunks_exact_mut(rows))
+            {
+                for (&bk, a_row) in b_col.iter().zip(a_t.chunks_exact(rows)) {
+                    for (out, &x) in block_col.iter_mut().zip(a_row) {
+                        *out += x * bk;
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn add_jacobian_product_fixed<const R: usize>(block: &mut [f64], a_t: &[f64], b: &DMatrix<f64>) {
+    let m = b.nrows();
+    for (b_col, block_col) in b.as_slice().chunks_exact(m).zip(block.chunks_exact_mut(R)) {
+        let mut acc = [0.0; R];
+        acc.copy_from_slice(block_col);
+        for (&bk, a_row) in b_col.iter().zip(a_t.chunks_exact(R)) {
+            for r in 0..R {
+                acc[r] += a_row[r] * bk;
+            }
+        }
+        block_col.copy_from_slice(&acc);
     }
 }
 
@@ -797,9 +836,13 @@ fn cost_of_checked<F: Borrow<dyn Factor>>(
     Ok(cost)
 }
 
-/// A sparse Cholesky factorization that keeps its symbolic analysis
-/// (ordering, elimination tree, supernodes) across LM iterations: the
-/// pattern of `H` does not change while the factor set does not.
+/// Sparse Cholesky factorizations that keep their symbolic analyses
+/// (ordering, elimination tree, supernodes) for as long as the block
+/// pattern of `H` recurs: across LM iterations (the factor set does not
+/// change), and, when one workspace serves many solves, across the windows
+/// of one sliding-window smoother (each object's part of the window has the
+/// same shape every frame) — so a [`SolverWorkspace`] keeps the last few
+/// patterns.
 ///
 /// The fill-reducing ordering is AMD on the *block* graph (one node per
 /// variable), and `H` is assembled directly in that order (each variable's
@@ -810,14 +853,12 @@ fn cost_of_checked<F: Borrow<dyn Factor>>(
 /// make a supernodal factorization (dense kernels) pay off over the scalar
 /// simplicial one.
 struct SparseCholesky {
-    cache: Option<CholeskyStructure>,
-    /// Values of `H + diag(damping)` on the cached pattern (buffer reused).
+    /// Most recently used first, at most [`SparseCholesky::KEPT_PATTERNS`].
+    structures: Vec<CholeskyStructure>,
+    /// Values of `H + diag(damping)` on the front pattern (buffer reused).
     matrix_values: Vec<f64>,
-    /// Values of the factor `L` of the latest factorization.
-    factor: Vec<f64>,
-    /// Whether `factor` holds a successful factorization of the cached pattern.
+    /// Whether the front structure holds a successful factorization.
     factored: bool,
-    workspace: MemBuffer,
 }
 
 /// What stays fixed while the block structure does.
@@ -827,16 +868,46 @@ struct CholeskyStructure {
     symbolic: SymbolicCholesky<usize>,
     /// Layout column of each column in variable order.
     layout: Vec<usize>,
+    /// Values of the factor `L` of the latest factorization.
+    factor: Vec<f64>,
+    workspace: MemBuffer,
+}
+
+/// Buffers and symbolic factorizations that [`optimize_with`] reuses
+/// across calls: pass the same workspace to repeated solves of problems of
+/// recurring shapes (a sliding window's parts, frame after frame).
+pub struct SolverWorkspace(SparseCholesky);
+
+impl SolverWorkspace {
+    pub fn new() -> SolverWorkspace {
+        SolverWorkspace(SparseCholesky::new())
+    }
+}
+
+impl Default for SolverWorkspace {
+    fn default() -> Self {
+        SolverWorkspace::new()
+    }
+}
+
+impl std::fmt::Debug for SolverWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SolverWorkspace")
+            .field("patterns", &self.0.structures.len())
+            .finish()
+    }
 }
 
 impl SparseCholesky {
+    /// Patterns kept: a window's ego part and its objects' parts at each
+    /// chain length fit, and looking one up is a few hash probes.
+    const KEPT_PATTERNS: usize = 8;
+
     fn new() -> SparseCholesky {
         SparseCholesky {
-            cache: None,
+            structures: Vec::new(),
             matrix_values: Vec::new(),
-            factor: Vec::new(),
             factored: false,
-            workspace: MemBuffer::new(StackReq::EMPTY),
         }
     }
 
@@ -864,63 +935,42 @@ impl SparseCholesky {
     }
 
     /// Numeric factorization of `H + diag(damping)`; `Ok(false)` if not
-    /// positive definite. Rebuilds the ordering, pattern and symbolic
-    /// analysis only when the block structure changed.
+    /// positive definite. Builds the ordering, pattern and symbolic
+    /// analysis only for a block structure not seen among the kept ones.
     fn factorize(
         &mut self,
         normal: &NormalEquations,
         damping: &DVector<f64>,
     ) -> Result<bool, SolverError> {
         self.factored = false;
-        if !matches!(&self.cache, Some(c) if c.pattern.matches(normal)) {
-            let order = block_elimination_order(normal)?;
-            let pattern = BlockPattern::new(normal, &order);
-            // faer's symbolic analysis takes an unpermuted matrix as its
-            // upper triangle whatever `side` says: give it the transpose.
-            let upper = pattern
-                .symbolic
-                .as_ref()
-                .transpose()
-                .to_col_major()
-                .map_err(factorization_error)?;
-            let symbolic = factorize_symbolic_cholesky(
-                upper.as_ref(),
-                Side::Upper,
-                SymmetricOrdering::Identity,
-                CholeskySymbolicParams {
-                    supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                    ..Default::default()
-                },
-            )
-            .map_err(factorization_error)?;
-            self.factor.clear();
-            self.factor.resize(symbolic.len_val(), 0.0);
-            let par = faer::get_global_parallelism();
-            let req = symbolic
-                .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-                .or(symbolic.solve_in_place_scratch::<f64>(1, par));
-            self.workspace = MemBuffer::try_new(req).map_err(factorization_error)?;
-            let layout = pattern.layout_of_columns(&normal.index);
-            self.cache = Some(CholeskyStructure {
-                pattern,
-                symbolic,
-                layout,
-            });
+        match self
+            .structures
+            .iter()
+            .position(|c| c.pattern.matches(normal))
+        {
+            Some(0) => {}
+            Some(i) => {
+                let structure = self.structures.remove(i);
+                self.structures.insert(0, structure);
+            }
+            None => {
+                let structure = CholeskyStructure::new(normal)?;
+                self.structures.insert(0, structure);
+                self.structures.truncate(Self::KEPT_PATTERNS);
+            }
         }
-        let Some(structure) = &self.cache else {
-            unreachable!("cache filled above")
-        };
+        let structure = &mut self.structures[0];
         structure
             .pattern
             .fill_into(normal, damping, &mut self.matrix_values);
         let matrix = SparseColMatRef::new(structure.pattern.symbolic.as_ref(), &self.matrix_values);
         let result = structure.symbolic.factorize_numeric_llt::<f64>(
-            &mut self.factor,
+            &mut structure.factor,
             matrix,
             Side::Lower,
             Default::default(),
             faer::get_global_parallelism(),
-            MemStack::new(&mut self.workspace),
+            MemStack::new(&mut structure.workspace),
             Default::default(),
         );
         // The only numeric failure is a non-positive pivot: not SPD.
@@ -931,7 +981,7 @@ impl SparseCholesky {
     /// `rhs ← (H + diag(damping))⁻¹·rhs` (rows in variable order) with the
     /// latest successful factorization.
     fn solve_in_place(&mut self, mut rhs: faer::MatMut<'_, f64>) {
-        let structure = match &self.cache {
+        let structure = match self.structures.first_mut() {
             Some(structure) if self.factored => structure,
             _ => unreachable!("solve_in_place after a successful factorize"),
         };
@@ -943,13 +993,13 @@ impl SparseCholesky {
             }
         }
         let par = faer::get_global_parallelism();
-        let llt = LltRef::new(&structure.symbolic, &self.factor);
+        let llt = LltRef::new(&structure.symbolic, &structure.factor);
         if k == 1 {
             llt.solve_in_place_with_conj(
                 Conj::No,
                 x.as_mut(),
                 par,
-                MemStack::new(&mut self.workspace),
+                MemStack::new(&mut structure.workspace),
             );
         } else {
             // Several right-hand sides (marginal covariances) need more room.
@@ -962,6 +1012,47 @@ impl SparseCholesky {
                 rhs[(i, c)] = x[(l, c)];
             }
         }
+    }
+}
+
+impl CholeskyStructure {
+    /// Ordering, pattern and symbolic analysis for the block structure of
+    /// `normal`.
+    fn new(normal: &NormalEquations) -> Result<CholeskyStructure, SolverError> {
+        let order = block_elimination_order(normal)?;
+        let pattern = BlockPattern::new(normal, &order);
+        // faer's symbolic analysis takes an unpermuted matrix as its
+        // upper triangle whatever `side` says: give it the transpose.
+        let upper = pattern
+            .symbolic
+            .as_ref()
+            .transpose()
+            .to_col_major()
+            .map_err(factorization_error)?;
+        let symbolic = factorize_symbolic_cholesky(
+            upper.as_ref(),
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                ..Default::default()
+            },
+        )
+        .map_err(factorization_error)?;
+        let factor = vec![0.0; symbolic.len_val()];
+        let par = faer::get_global_parallelism();
+        let req = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        let workspace = MemBuffer::try_new(req).map_err(factorization_error)?;
+        let layout = pattern.layout_of_columns(&normal.index);
+        Ok(CholeskyStructure {
+            pattern,
+            symbolic,
+            layout,
+            factor,
+            workspace,
+        })
     }
 }
 
@@ -1020,9 +1111,20 @@ pub fn optimize<F: Borrow<dyn Factor>>(
     values: &mut Values,
     config: &SolverConfig,
 ) -> Result<SolverReport, SolverError> {
+    optimize_with(factors, values, config, &mut SolverWorkspace::new())
+}
+
+/// [`optimize`] with a workspace kept by the caller: symbolic analyses of
+/// block patterns it has seen before are reused.
+pub fn optimize_with<F: Borrow<dyn Factor>>(
+    factors: &[F],
+    values: &mut Values,
+    config: &SolverConfig,
+    workspace: &mut SolverWorkspace,
+) -> Result<SolverReport, SolverError> {
     let start = Instant::now();
     let index = VariableIndex::from_values(values);
-    let mut cholesky = SparseCholesky::new();
+    let cholesky = &mut workspace.0;
     let mut lambda = config.initial_lambda.max(0.0);
     let mut nu = 2.0;
     // The first linearization checks every key and records its position;
@@ -1040,9 +1142,14 @@ pub fn optimize<F: Borrow<dyn Factor>>(
     let mut converged = false;
     let mut relinearize = false;
     let mut inner_steps = 0usize;
-    while iterations <= config.max_iterations && inner_steps < 10 * config.max_iterations.max(1) {
+    while config.max_iterations > 0 && inner_steps < 10 * config.max_iterations {
         inner_steps += 1;
         if relinearize {
+            // `max_iterations` bounds the linearizations, each followed by
+            // its step.
+            if iterations >= config.max_iterations {
+                break;
+            }
             normal = linearize(factors, values, &index, KeyPositions::Cached(&positions))?;
             iterations += 1;
             relinearize = false;
