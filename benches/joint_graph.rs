@@ -433,7 +433,7 @@ fn run(n_objects: usize, seed: u64) -> (Vec<FrameTiming>, FinalErrors) {
             let ego = smoother.optimize_parts(&solver, has_ego).expect("optimize");
             smoother.refresh_conditioned();
             let parts = smoother
-                .optimize_parts(&solver, |keys| !has_ego(keys))
+                .optimize_parts(&graph_config.solver, |keys| !has_ego(keys))
                 .expect("optimize");
             // Iterations: the ego part's plus the slowest object part's.
             let mut r = ego[0].clone();

@@ -681,7 +681,7 @@ impl Estimator {
                 .map_err(&window_error)?;
             self.smoother.refresh_conditioned();
             self.smoother
-                .optimize_parts(&self.config.solver, |keys| !has_ego(keys))
+                .optimize_parts(&self.config.objects.solver, |keys| !has_ego(keys))
                 .map_err(&window_error)?;
         } else {
             self.smoother

@@ -25,7 +25,8 @@
 
 use crate::graph::{
     ConditionedFactor, Factor, Key, NoiseModel, ObjectMotionFactor, ObjectObservationFactor,
-    RobustKernel, SlidingWindowSmoother, SmoothMotionFactor, Values, Variable, WindowError,
+    RobustKernel, SlidingWindowSmoother, SmoothMotionFactor, SolverConfig, Values, Variable,
+    WindowError,
 };
 use crate::input::{Detection, ObjectClass};
 use crate::lidar::deskew::SweepMotion;
@@ -79,6 +80,14 @@ pub struct ObjectGraphConfig {
     /// Pose changes a chain needs before its velocity is reported (fewer
     /// rest on two or three detections: 0.15 m of noise makes 2-3 m/s).
     pub min_motions_for_velocity: usize,
+    /// Levenberg–Marquardt for each dynamic object's own part of the window
+    /// (solved after the ego when `dynamic_objects_inform_ego` is off): two
+    /// linearizations per frame. A new node starts from the chain's
+    /// constant-velocity prediction, so the first step moves it by about the
+    /// detection noise (~5 cm), the second by under a millimetre and a third
+    /// would by micrometres (measured in `benches/joint_graph.rs`); the
+    /// window is warm-started next frame, so nothing is lost over time.
+    pub solver: SolverConfig,
 }
 
 impl Default for ObjectGraphConfig {
@@ -94,6 +103,13 @@ impl Default for ObjectGraphConfig {
             smooth_sigma_rad: [0.003, 0.003, 0.005],
             min_motions_for_velocity: 3,
             dynamic_objects_inform_ego: false,
+            solver: SolverConfig {
+                max_iterations: 2,
+                function_tolerance: 1e-6,
+                gradient_tolerance: 1e-9,
+                step_tolerance: 1e-5,
+                ..SolverConfig::default()
+            },
         }
     }
 }
@@ -251,9 +267,36 @@ impl ObjectGraph {
                     id: track.id,
                     frame,
                 };
-                smoother.add_variable(key, Variable::Pose(initial))?;
+                let chain_end = previous_frame.filter(|p| nodes.pose_times_s.contains_key(p));
+                // The motion into the chain's end, if the chain is that long.
+                let before = chain_end.and_then(|prev| {
+                    nodes
+                        .pose_times_s
+                        .range(..prev)
+                        .next_back()
+                        .map(|(f, _)| Key::ObjectMotion {
+                            id: track.id,
+                            frame: *f,
+                        })
+                        .filter(|k| smoother.values().contains(k))
+                });
+                // Initial values: a chain with a motion continues it (the
+                // constant-velocity prediction, consistent with every factor
+                // but the new observation); otherwise the detection.
+                let (t_new, prev_motion) = match (chain_end, before) {
+                    (Some(prev), Some(before)) => {
+                        let t_prev = *smoother.values().pose(&Key::ObjectPose {
+                            id: track.id,
+                            frame: prev,
+                        });
+                        let m = *smoother.values().pose(&before);
+                        (t_prev * m, Some(m))
+                    }
+                    _ => (initial, None),
+                };
+                smoother.add_variable(key, Variable::Pose(t_new))?;
                 nodes.pose_times_s.insert(frame, t_s);
-                if let Some(prev) = previous_frame.filter(|p| nodes.pose_times_s.contains_key(p)) {
+                if let Some(prev) = chain_end {
                     let prev_key = Key::ObjectPose {
                         id: track.id,
                         frame: prev,
@@ -263,25 +306,14 @@ impl ObjectGraph {
                         frame: prev,
                     };
                     let t_prev = *smoother.values().pose(&prev_key);
-                    smoother
-                        .add_variable(motion_key, Variable::Pose(t_prev.inverse() * initial))?;
+                    let m = prev_motion.unwrap_or_else(|| t_prev.inverse() * t_new);
+                    smoother.add_variable(motion_key, Variable::Pose(m))?;
                     smoother.add_factor(Box::new(ObjectMotionFactor::new(
                         prev_key,
                         key,
                         motion_key,
                         motion_noise.clone(),
                     )))?;
-                    // The motion into `prev`, if the chain is that long.
-                    let before = nodes
-                        .pose_times_s
-                        .range(..prev)
-                        .next_back()
-                        .map(|(f, _)| *f)
-                        .map(|f| Key::ObjectMotion {
-                            id: track.id,
-                            frame: f,
-                        })
-                        .filter(|k| smoother.values().contains(k));
                     if let Some(before) = before {
                         smoother.add_factor(Box::new(SmoothMotionFactor::new(
                             before,
@@ -425,7 +457,7 @@ impl ObjectGraph {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::graph::{PriorFactor, SolverConfig};
+    use crate::graph::PriorFactor;
 
     const WINDOW: usize = 3;
 
