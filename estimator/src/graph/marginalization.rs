@@ -133,11 +133,38 @@ impl Factor for MarginalPriorFactor {
     }
 }
 
+/// `(L, L⁻¹)` with `sym(h) = L·Lᵀ` when every eigenvalue of `sym(h)`
+/// provably exceeds `relative_threshold · max(λ_max, scale)`: then no mode
+/// is below the eigenvalue threshold, and the inverse and a square root
+/// follow from the Cholesky factor at a fraction of an eigendecomposition's
+/// cost. The proof: `λ_min = 1/‖(LLᵀ)⁻¹‖₂ ≥ 1/‖L⁻¹‖²_F` and `λ_max ≤ trace`.
+/// `None` (not positive definite, or not provably so conditioned) sends the
+/// caller to the eigendecomposition.
+fn well_conditioned_cholesky(
+    h: &DMatrix<f64>,
+    relative_threshold: f64,
+    scale: f64,
+) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
+    let n = h.nrows();
+    let sym = (h + h.transpose()) * 0.5;
+    let trace = sym.trace();
+    let l = sym.cholesky()?.unpack();
+    let l_inv = l.solve_lower_triangular(&DMatrix::identity(n, n))?;
+    let lambda_min_bound = 1.0 / l_inv.norm_squared();
+    let certain = lambda_min_bound.is_finite()
+        && lambda_min_bound > relative_threshold * trace.max(scale)
+        && l_inv.iter().all(|v| v.is_finite());
+    certain.then_some((l, l_inv))
+}
+
 /// Symmetric pseudo-inverse with a relative eigenvalue threshold.
 fn pseudo_inverse(h: &DMatrix<f64>, relative_threshold: f64) -> DMatrix<f64> {
     let n = h.nrows();
     if n == 0 {
         return DMatrix::zeros(0, 0);
+    }
+    if let Some((_, l_inv)) = well_conditioned_cholesky(h, relative_threshold, 0.0) {
+        return l_inv.transpose() * l_inv;
     }
     let sym = (h + h.transpose()) * 0.5;
     let eig = SymmetricEigen::new(sym);
@@ -151,6 +178,44 @@ fn pseudo_inverse(h: &DMatrix<f64>, relative_threshold: f64) -> DMatrix<f64> {
         }
     });
     &eig.eigenvectors * DMatrix::from_diagonal(&inv) * eig.eigenvectors.transpose()
+}
+
+/// `(J_p, r_p)` with `J_pᵀJ_p = H*` and `J_pᵀr_p = g*` over the modes of
+/// `H*` above the eigenvalue threshold (relative to `H*`'s largest and,
+/// since when the removed variables absorb everything `H*` is pure
+/// cancellation round-off and its own largest eigenvalue is no scale at
+/// all, to `H_kk`'s largest diagonal). Full rank with certainty: `J_p = Lᵀ`,
+/// `r_p = L⁻¹g*` (the eigen form `S^½Vᵀ` up to a rotation of the rows, the
+/// same prior); otherwise `J_p = S^½Vᵀ`, `r_p = S^-½Vᵀg*` on the kept modes.
+fn prior_square_root(
+    h_star: &DMatrix<f64>,
+    g_star: &DVector<f64>,
+    h_kk: &DMatrix<f64>,
+    config: &MarginalizationConfig,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let n = h_star.nrows();
+    let kk_scale = h_kk.diagonal().amax();
+    if let Some((l, l_inv)) =
+        well_conditioned_cholesky(h_star, config.relative_eigenvalue_threshold, kk_scale)
+    {
+        return (l.transpose(), l_inv * g_star);
+    }
+    let eig = SymmetricEigen::new((h_star + h_star.transpose()) * 0.5);
+    let scale = eig.eigenvalues.amax().max(kk_scale);
+    let threshold = config.relative_eigenvalue_threshold * scale;
+    let kept_modes: Vec<usize> = (0..n)
+        .filter(|&i| eig.eigenvalues[i] > threshold && eig.eigenvalues[i] > 0.0)
+        .collect();
+    let rank = kept_modes.len();
+    let mut jacobian = DMatrix::zeros(rank, n);
+    let mut residual = DVector::zeros(rank);
+    for (row, &mode) in kept_modes.iter().enumerate() {
+        let s = eig.eigenvalues[mode];
+        let v = eig.eigenvectors.column(mode);
+        jacobian.row_mut(row).copy_from(&(v.transpose() * s.sqrt()));
+        residual[row] = v.dot(g_star) / s.sqrt();
+    }
+    (jacobian, residual)
 }
 
 /// Eliminates `removed` from the normal equations of `factors` (every
@@ -199,27 +264,11 @@ pub fn marginalize<F: Borrow<dyn Factor>>(
     if h_star.iter().chain(g_star.iter()).any(|v| !v.is_finite()) {
         return Err(MarginalizationError::NonFinite);
     }
-    let eig = SymmetricEigen::new((&h_star + h_star.transpose()) * 0.5);
-    // Relative to H_kk too: when the removed variables absorb everything,
-    // H* is pure cancellation round-off and its own largest eigenvalue is
-    // no scale at all.
-    let scale = eig.eigenvalues.amax().max(h_kk.diagonal().amax());
-    let threshold = config.relative_eigenvalue_threshold * scale;
-    let kept_modes: Vec<usize> = (0..n)
-        .filter(|&i| eig.eigenvalues[i] > threshold && eig.eigenvalues[i] > 0.0)
-        .collect();
-    if kept_modes.is_empty() {
+    let (jacobian, residual) = prior_square_root(&h_star, &g_star, &h_kk, config);
+    if jacobian.nrows() == 0 {
         return Ok(None);
     }
-    let rank = kept_modes.len();
-    let mut jacobian = DMatrix::zeros(rank, n);
-    let mut residual = DVector::zeros(rank);
-    for (row, &mode) in kept_modes.iter().enumerate() {
-        let s = eig.eigenvalues[mode];
-        let v = eig.eigenvectors.column(mode);
-        jacobian.row_mut(row).copy_from(&(v.transpose() * s.sqrt()));
-        residual[row] = v.dot(&g_star) / s.sqrt();
-    }
+    let rank = jacobian.nrows();
     let keys: Vec<Key> = kept.into_iter().collect();
     let mut offsets = Vec::with_capacity(keys.len());
     let mut linearization_points = Vec::with_capacity(keys.len());
@@ -420,5 +469,74 @@ mod rank_tests {
         let lin = prior.linearize(&values);
         assert!((prior.information() - &h_star).amax() < 1e-9);
         assert!((lin.jacobians[0].transpose() * &lin.residual - &g_star).amax() < 1e-9);
+    }
+
+    /// A symmetric matrix `V·diag(eigenvalues)·Vᵀ` with a fixed, well-mixed
+    /// orthogonal `V` (QR of a deterministic matrix).
+    fn with_eigenvalues(eigenvalues: &[f64]) -> DMatrix<f64> {
+        let n = eigenvalues.len();
+        let a = DMatrix::from_fn(n, n, |r, c| ((r * 7 + c * 3 + 1) as f64).sin());
+        let q = a.qr().q();
+        &q * DMatrix::from_diagonal(&DVector::from_column_slice(eigenvalues)) * q.transpose()
+    }
+
+    /// The eigen-based square root, for comparison with the fast path.
+    fn eigen_square_root(h: &DMatrix<f64>, g: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+        let eig = SymmetricEigen::new(h.clone());
+        let max = eig.eigenvalues.amax();
+        let modes: Vec<usize> = (0..h.nrows())
+            .filter(|&i| eig.eigenvalues[i] > 1e-10 * max)
+            .collect();
+        let j = DMatrix::from_fn(modes.len(), h.nrows(), |r, c| {
+            eig.eigenvectors[(c, modes[r])] * eig.eigenvalues[modes[r]].sqrt()
+        });
+        let res = DVector::from_fn(modes.len(), |r, _| {
+            eig.eigenvectors.column(modes[r]).dot(g) / eig.eigenvalues[modes[r]].sqrt()
+        });
+        (j, res)
+    }
+
+    #[test]
+    fn cholesky_square_root_is_the_eigen_prior_up_to_a_rotation() {
+        let config = MarginalizationConfig::default();
+        let g = DVector::from_fn(6, |i, _| 0.3 * i as f64 - 0.7);
+        for spread in [1.0, 1e3, 1e6] {
+            let h = with_eigenvalues(&[spread, 2.0, 3.0, 5.0, 7.0, 11.0]);
+            let kk = h.clone();
+            assert!(well_conditioned_cholesky(&h, 1e-10, 0.0).is_some());
+            let (j, r) = prior_square_root(&h, &g, &kk, &config);
+            let (je, re) = eigen_square_root(&h, &g);
+            assert_eq!(j.nrows(), 6);
+            let scale = h.amax();
+            assert!((j.transpose() * &j - &h).amax() < 1e-12 * scale);
+            assert!((j.transpose() * &r - &g).amax() < 1e-10);
+            // Same information, gradient and constant cost as the eigen form.
+            assert!((j.transpose() * &j - je.transpose() * &je).amax() < 1e-9 * scale);
+            assert!((r.norm_squared() - re.norm_squared()).abs() < 1e-9 * re.norm_squared());
+            let inverse = pseudo_inverse(&h, 1e-10);
+            assert!((&inverse * &h - DMatrix::identity(6, 6)).amax() < 1e-8);
+        }
+    }
+
+    #[test]
+    fn rank_deficient_matrices_take_the_eigen_path() {
+        let config = MarginalizationConfig::default();
+        let g = DVector::from_fn(6, |i, _| 0.3 * i as f64 - 0.7);
+        // Two modes at round-off level: below the threshold, dropped.
+        let h = with_eigenvalues(&[1e-14, -1e-15, 3.0, 5.0, 7.0, 11.0]);
+        assert!(well_conditioned_cholesky(&h, 1e-10, 0.0).is_none());
+        let (j, r) = prior_square_root(&h, &g, &h, &config);
+        assert_eq!(j.nrows(), 4);
+        assert_eq!(r.len(), 4);
+        assert!((j.transpose() * &j - &h).amax() < 1e-9);
+        // The pseudo-inverse inverts the kept modes and zeroes the others.
+        let pinv = pseudo_inverse(&h, 1e-10);
+        assert!((&h * &pinv * &h - &h).amax() < 1e-9);
+        assert!(pinv.amax() < 1.0);
+        // Positive definite but past the threshold: not certain, eigen path.
+        let ill = with_eigenvalues(&[1e-12, 1.0, 3.0, 5.0, 7.0, 11.0]);
+        assert!(well_conditioned_cholesky(&ill, 1e-10, 0.0).is_none());
+        let (j, _) = prior_square_root(&ill, &g, &ill, &config);
+        assert_eq!(j.nrows(), 5);
     }
 }

@@ -13,8 +13,8 @@ use super::marginalization::{
     MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
 };
 use super::solver::{
-    SolverConfig, SolverError, SolverReport, SolverWorkspace, marginal_covariance, optimize_with,
-    total_cost,
+    FastHashMap, SolverConfig, SolverError, SolverReport, SolverWorkspace, marginal_covariance,
+    optimize_with, total_cost,
 };
 use super::values::{Values, Variable};
 use nalgebra::DMatrix;
@@ -70,7 +70,8 @@ fn connected_parts(factors: &[&(dyn Factor + 'static)]) -> Vec<Vec<usize>> {
         }
         i
     }
-    let mut owner: std::collections::HashMap<Key, usize> = std::collections::HashMap::new();
+    let mut owner: FastHashMap<Key, usize> =
+        FastHashMap::with_capacity_and_hasher(factors.len(), Default::default());
     for (i, f) in factors.iter().enumerate() {
         for key in f.keys() {
             match owner.get(key) {
@@ -85,8 +86,7 @@ fn connected_parts(factors: &[&(dyn Factor + 'static)]) -> Vec<Vec<usize>> {
         }
     }
     let mut parts: Vec<Vec<usize>> = Vec::new();
-    let mut index_of_root: std::collections::HashMap<usize, usize> =
-        std::collections::HashMap::new();
+    let mut index_of_root: FastHashMap<usize, usize> = FastHashMap::default();
     for i in 0..factors.len() {
         let r = root(&mut parent, i);
         let part = *index_of_root.entry(r).or_insert_with(|| {

@@ -212,7 +212,7 @@ impl FactorGraph {
 /// normal equations look blocks up once per factor and key pair, and SipHash
 /// showed up in profiles.
 #[derive(Debug, Clone, Copy, Default)]
-struct BlockKeyHasher(u64);
+pub(crate) struct BlockKeyHasher(u64);
 
 impl Hasher for BlockKeyHasher {
     fn write(&mut self, bytes: &[u8]) {
@@ -236,6 +236,10 @@ impl Hasher for BlockKeyHasher {
 
 /// Map keyed by `(row position, col position)` of a block.
 type BlockMap<V> = HashMap<(usize, usize), V, BuildHasherDefault<BlockKeyHasher>>;
+
+/// A hash map with [`BlockKeyHasher`]'s mixing, for the graph's small
+/// integer-like keys (variable keys, positions) on hot paths.
+pub(crate) type FastHashMap<K, V> = HashMap<K, V, BuildHasherDefault<BlockKeyHasher>>;
 
 /// The normal equations `H·δ = -g` of a set of factors, kept as dense blocks
 /// per pair of variables (lower triangle: row position ≥ column position).
