@@ -165,11 +165,8 @@ fn limot_objects_beat_the_tracker_and_the_detections_on_the_congested_highway() 
     assert!(limot.median_speed_err_mps() < dynafilt.median_speed_err_mps());
     // Ego: dynamic objects' observations are conditioned on the ego (see
     // ObjectGraphConfig::dynamic_objects_inform_ego), static ones inform it;
-    // limot stays at dynafilt's level or below (measured 0.272 m vs 0.277 m;
-    // lio 1.40 m, tests/variants.rs).
-    assert!(
-        ate_limot <= 1.05 * ate_dynafilt,
-        "{ate_limot} vs {ate_dynafilt}"
-    );
+    // limot <= dynafilt (<= lio, tests/variants.rs): measured 0.270 m vs
+    // 0.276 m (lio 1.72 m).
+    assert!(ate_limot <= ate_dynafilt, "{ate_limot} vs {ate_dynafilt}");
     let _ = std::fs::remove_dir_all(&dir);
 }
