@@ -107,9 +107,9 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
                 s.all.false_positives,
                 s.all.false_negatives
             );
-            // Measured (30 s): MOTA 0.55, MOTP 0.75 at 3D IoU 0.25 (confirmed, matched
+            // Measured (30 s): MOTA 0.55, MOTP 0.79 at 3D IoU 0.25 (confirmed, matched
             // tracks only; the misses are mostly objects the detector misses).
-            assert!(mota > 0.4 && motp > 0.7, "MOTA {mota} MOTP {motp}");
+            assert!(mota > 0.45 && motp > 0.75, "MOTA {mota} MOTP {motp}");
         }
         let precision = (c.removed_moving + c.removed_parked) as f64 / c.removed.max(1) as f64;
         let moving_precision = c.removed_moving as f64 / c.removed.max(1) as f64;
@@ -121,13 +121,14 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
         );
         results.push((variant, moving_precision, recall, parked_removed));
     }
-    // Measured (seed 2, 30 s, 0.6 m box inflation): dynafilt precision 0.90,
-    // recall 0.91, 4.1 % of the static-object features removed; allfilt
+    // Measured (seed 2, 30 s, 0.6 m box inflation; tracks compared with
+    // each detection at its own time): dynafilt precision 0.91, recall
+    // 0.93, 4.1 % of the static-object features removed; allfilt
     // recall 0.94 (the ceiling the detector's misses leave), 94 % of the
     // static-object features removed. The issue aims at recall >= 0.9 and
     // precision >= 0.8.
     let (_, precision, recall, parked) = results[0];
-    assert!(recall >= 0.88, "dynafilt recall {recall}");
+    assert!(recall >= 0.9, "dynafilt recall {recall}");
     assert!(precision >= 0.85, "dynafilt precision {precision}");
     assert!(
         parked < 0.06,

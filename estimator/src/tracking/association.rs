@@ -38,13 +38,32 @@ pub fn matching_matrix(
     alpha_m: f64,
     d_thres_m: f64,
 ) -> DMatrix<f64> {
-    DMatrix::from_fn(tracks.len(), detections.len(), |i, j| {
-        let (track_center, track_class) = tracks[i];
-        let (det_center, det_class) = detections[j];
-        if track_class != det_class {
+    let track_classes: Vec<ObjectClass> = tracks.iter().map(|t| t.1).collect();
+    let detection_classes: Vec<ObjectClass> = detections.iter().map(|d| d.1).collect();
+    matching_matrix_by(
+        &track_classes,
+        &detection_classes,
+        |i, j| (tracks[i].0 - detections[j].0).norm(),
+        alpha_m,
+        d_thres_m,
+    )
+}
+
+/// [`matching_matrix`] with the distance of each (track, detection) pair
+/// given by `distance_m` (called for same-class pairs only), e.g. to the
+/// track predicted at the detection's own time.
+pub fn matching_matrix_by(
+    track_classes: &[ObjectClass],
+    detection_classes: &[ObjectClass],
+    distance_m: impl Fn(usize, usize) -> f64,
+    alpha_m: f64,
+    d_thres_m: f64,
+) -> DMatrix<f64> {
+    DMatrix::from_fn(track_classes.len(), detection_classes.len(), |i, j| {
+        if track_classes[i] != detection_classes[j] {
             return 0.0;
         }
-        matching_score((track_center - det_center).norm(), alpha_m, d_thres_m)
+        matching_score(distance_m(i, j), alpha_m, d_thres_m)
     })
 }
 

@@ -3,7 +3,7 @@
 //! delete unmatched ones, and start tentative tracks from unmatched
 //! detections.
 
-use super::association::{associate_by_class, matching_matrix};
+use super::association::{associate_by_class, matching_matrix_by};
 use super::track::{Lifecycle, Motion, TimedBox, Track};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
@@ -175,22 +175,22 @@ impl Tracker {
         let mut observed_by: std::collections::HashMap<u64, usize> =
             std::collections::HashMap::new();
 
-        // Score matrix between predicted track centres and detections.
-        let predicted: Vec<(Vector3<f64>, ObjectClass)> = self
-            .tracks
-            .iter()
-            .map(|t| (t.predict(t_s).center_world, t.class()))
-            .collect();
-        let observed: Vec<(Vector3<f64>, ObjectClass)> =
-            usable.iter().map(|d| (d.center_world, d.class)).collect();
-        let psi = matching_matrix(
-            &predicted,
-            &observed,
+        // Score matrix between the tracks and the detections, each track
+        // predicted at the time the rolling LiDAR saw the detection (within
+        // a sweep a car at 30 m/s moves 3 m, more than the 2 m gate).
+        let track_classes: Vec<ObjectClass> = self.tracks.iter().map(|t| t.class()).collect();
+        let det_classes: Vec<ObjectClass> = usable.iter().map(|d| d.class).collect();
+        let psi = matching_matrix_by(
+            &track_classes,
+            &det_classes,
+            |i, j| {
+                let det = usable[j];
+                let predicted = self.tracks[i].predict(t_s + det.time_offset_s);
+                (predicted.center_world - det.center_world).norm()
+            },
             self.config.alpha_m,
             self.config.d_thres_m,
         );
-        let track_classes: Vec<ObjectClass> = predicted.iter().map(|p| p.1).collect();
-        let det_classes: Vec<ObjectClass> = observed.iter().map(|o| o.1).collect();
         let pairs = associate_by_class(&psi, &track_classes, &det_classes);
 
         let mut track_matched = vec![false; self.tracks.len()];
