@@ -366,6 +366,12 @@ fn run_estimator(
         .map(|(name, d)| format!("{name} {:.2}", d.as_secs_f64() * 1e3))
         .collect();
     println!("mean ms per frame: {}", timings.join(", "));
+    if output.invalid_detections > 0 {
+        eprintln!(
+            "warning: {} detections skipped (non-finite or non-positive fields, score outside [0, 1], or seen outside their sweep)",
+            output.invalid_detections
+        );
+    }
     if dataset.join("gt").join("ego.csv").is_file() {
         let opts = EgoEvalOptions::default();
         let e = evaluate_ego(dataset, &out.join("poses_tum.txt"), &opts)?;

@@ -170,6 +170,9 @@ pub struct RunOutput {
     pub estimates: Vec<FrameEstimate>,
     /// Frames consumed before the estimator initialised.
     pub frames_before_init: usize,
+    /// Detections the estimator skipped: non-finite or non-positive fields,
+    /// scores outside [0, 1], times outside their sweep.
+    pub invalid_detections: u64,
     pub wall_time: Duration,
 }
 
@@ -280,6 +283,7 @@ pub fn run(
         mode,
         estimates,
         frames_before_init,
+        invalid_detections: estimator.invalid_detections(),
         wall_time: started.elapsed(),
     })
 }

@@ -202,6 +202,27 @@ impl Detection {
         }
         Ok(())
     }
+
+    /// [`Detection::validate`], and the box must have been seen during its
+    /// sweep (`0 ≤ time_offset_s ≤ sweep_duration_s`, to a microsecond).
+    pub fn validate_in_sweep(
+        &self,
+        t_s: f64,
+        index: usize,
+        sweep_duration_s: f64,
+    ) -> Result<(), InputError> {
+        self.validate(t_s, index)?;
+        let slack_s = 1e-6;
+        if !(-slack_s..=sweep_duration_s + slack_s).contains(&self.time_offset_s) {
+            return Err(InputError::BadDetection {
+                t_s,
+                index,
+                field: "time_offset_s",
+                why: "outside the sweep",
+            });
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,11 @@
 //! Bad input to the streaming estimator: clear errors or documented
 //! recoveries, never a panic.
 
-use limot_estimator::input::{Extrinsics, Frame, ImuSample, LidarPoint, LidarScan};
-use limot_estimator::pipeline::{Estimator, EstimatorConfig, EstimatorError};
+use limot_estimator::input::{
+    Detection, Extrinsics, Frame, ImuSample, LidarPoint, LidarScan, ObjectClass,
+};
+use limot_estimator::pipeline::{Estimator, EstimatorConfig, EstimatorError, Variant};
+use limot_estimator::tracking::{Lifecycle, Motion};
 use nalgebra::Vector3;
 
 /// A still sensor in a 20 m × 14 m × 6 m room: 64 rings × 720 columns.
@@ -157,4 +160,88 @@ fn an_imu_gap_is_an_error_naming_the_frame() {
     assert!(matches!(err, EstimatorError::Imu { .. }), "{err}");
     let text = err.to_string();
     assert!(text.contains(&format!("frame {k}")), "{text}");
+}
+
+/// A parked car's box in the room (LiDAR frame) and five boxes no detector
+/// can produce.
+fn detections_with_garbage() -> Vec<Detection> {
+    let car = Detection {
+        center_lidar: Vector3::new(6.0, 3.0, -0.95),
+        size_lwh: Vector3::new(4.5, 1.8, 1.5),
+        yaw_rad: 0.3,
+        class: ObjectClass::Car,
+        score: 0.9,
+        time_offset_s: 0.02,
+    };
+    let mut garbage = vec![car; 5];
+    garbage[0].center_lidar.x = f64::NAN;
+    garbage[1].size_lwh.y = -1.8;
+    garbage[2].score = 2.0;
+    garbage[3].yaw_rad = f64::INFINITY;
+    garbage[4].time_offset_s = 0.5;
+    let mut all = vec![car];
+    all.extend(garbage);
+    all
+}
+
+#[test]
+fn garbage_detections_are_skipped_and_counted_in_every_variant() {
+    for variant in [Variant::Allfilt, Variant::Dynafilt, Variant::Limot] {
+        let config = EstimatorConfig {
+            variant,
+            ..EstimatorConfig::default()
+        };
+        let mut est = Estimator::new(config, Extrinsics::default()).unwrap();
+        let mut next_sample = 0;
+        let mut last = None;
+        let frames = 15;
+        for k in 0..frames {
+            while next_sample <= 10 * (k + 1) {
+                est.push_imu(still_imu(next_sample as f64 * 0.01)).unwrap();
+                next_sample += 1;
+            }
+            let f = Frame {
+                scan: room_scan(k as f64 * 0.1),
+                detections: detections_with_garbage(),
+            };
+            if let Some(e) = est.push_frame(&f).unwrap() {
+                last = Some(e);
+            }
+        }
+        assert_eq!(est.invalid_detections(), 5 * frames as u64, "{variant:?}");
+        let last = last.expect("estimates after initialisation");
+        // The one valid box became a confirmed, static track where it is.
+        assert_eq!(last.tracks.len(), 1, "{variant:?}: {:?}", last.tracks);
+        let track = &last.tracks[0];
+        assert_eq!(track.lifecycle, Lifecycle::Confirmed, "{variant:?}");
+        assert_eq!(track.motion, Motion::Static, "{variant:?}");
+        assert!(
+            (track.center_world - Vector3::new(6.0, 3.0, -0.95)).norm() < 0.05,
+            "{variant:?}: {:?}",
+            track.center_world
+        );
+        assert!(track.velocity_world_mps.norm() < 0.05, "{variant:?}");
+        assert!(last.t_world_lidar.translation.vector.norm() < 0.01);
+    }
+}
+
+#[test]
+fn limot_without_an_imu_is_refused_with_a_reason() {
+    let config = EstimatorConfig {
+        variant: Variant::Limot,
+        ..EstimatorConfig::lidar_only()
+    };
+    let Err(err) = Estimator::new(config, Extrinsics::default()) else {
+        panic!("limot without an IMU was accepted");
+    };
+    assert!(matches!(err, EstimatorError::LimotNeedsImu), "{err}");
+    assert!(err.to_string().contains("needs the IMU"), "{err}");
+    // The filtering variants run without one.
+    for variant in [Variant::Lio, Variant::Allfilt, Variant::Dynafilt] {
+        let config = EstimatorConfig {
+            variant,
+            ..EstimatorConfig::lidar_only()
+        };
+        assert!(Estimator::new(config, Extrinsics::default()).is_ok());
+    }
 }

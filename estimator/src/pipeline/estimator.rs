@@ -58,6 +58,10 @@ pub enum EstimatorError {
     },
     #[error("object filter configuration: {0}")]
     FilterConfig(#[source] FilterError),
+    #[error(
+        "variant limot needs the IMU: its joint graph is the IMU sliding window (LiDAR-only runs take lio, allfilt or dynafilt)"
+    )]
+    LimotNeedsImu,
     #[error("tracker: {0}")]
     Tracker(#[source] TrackerError),
     #[error("frame {frame_index} at t={t_s}: local map: {source}")]
@@ -176,6 +180,9 @@ impl Estimator {
             .filter
             .validate()
             .map_err(EstimatorError::FilterConfig)?;
+        if config.variant == Variant::Limot && config.mode == Mode::LidarOnly {
+            return Err(EstimatorError::LimotNeedsImu);
+        }
         let tracker = Tracker::new(config.tracker.clone()).map_err(EstimatorError::Tracker)?;
         let map = LocalMap::new(config.local_map);
         let objects = ObjectGraph::new(config.objects.clone());
@@ -272,7 +279,10 @@ impl Estimator {
         // Detections no detector can produce are skipped (and counted).
         self.frame_detections.clear();
         for (index, detection) in frame.detections.iter().enumerate() {
-            if detection.validate(scan.t_s, index).is_ok() {
+            if detection
+                .validate_in_sweep(scan.t_s, index, scan.sweep_duration_s)
+                .is_ok()
+            {
                 self.frame_detections.push(*detection);
             } else {
                 self.invalid_detections += 1;
