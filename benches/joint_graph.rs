@@ -341,6 +341,7 @@ fn run(n_objects: usize, seed: u64) -> (Vec<FrameTiming>, FinalErrors) {
                 },
                 predicted: false,
                 detection_index: Some(i),
+                detection_score: None,
             });
         }
 

@@ -26,6 +26,8 @@ use std::time::{Duration, Instant};
 pub enum RunError {
     #[error(transparent)]
     Dataset(#[from] RecordError),
+    #[error("track id {id} does not fit the KITTI results' 32-bit track id")]
+    TrackIdOverflow { id: u64 },
     #[error(transparent)]
     Kitti(#[from] KittiError),
     #[error("{path}: {source}")]
@@ -448,7 +450,8 @@ pub fn write_kitti_tracks(
             }
             let track = TrackBox {
                 frame: e.frame_index as u32,
-                track_id: t.id as u32,
+                track_id: u32::try_from(t.id)
+                    .map_err(|_| RunError::TrackIdOverflow { id: t.id })?,
                 class: t.class,
                 lidar_box: world_box_to_lidar(
                     &t.center_world,
@@ -456,7 +459,8 @@ pub fn write_kitti_tracks(
                     t.yaw_rad,
                     &e.t_world_lidar,
                 ),
-                score: 1.0,
+                // Confirmed and matched: the box of this frame's detection.
+                score: t.detection_score.unwrap_or(1.0),
             };
             // Boxes outside the camera image have no KITTI line.
             if let Some(label) = track_to_label(&track, calib, ImageSize::KITTI_DEFAULT) {

@@ -27,10 +27,11 @@ use std::path::{Path, PathBuf};
 pub const OBJECTS_PER_SEQUENCE: usize = 5;
 /// Moving objects per sequence drawn as trajectory and speed plots.
 pub const OBJECT_PLOTS_PER_SEQUENCE: usize = 3;
-/// The variant whose tracks are drawn, in order of preference.
+/// The variant whose tracks are drawn, in order of preference (limot's
+/// are the jointly optimized ones).
 const TRACK_PLOT_PREFERENCE: [Variant; 4] = [
-    Variant::Dynafilt,
     Variant::Limot,
+    Variant::Dynafilt,
     Variant::Allfilt,
     Variant::Lio,
 ];

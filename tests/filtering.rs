@@ -91,6 +91,15 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             let results =
                 limot::run::write_kitti_tracks(&dir.join("kitti_results"), &output, &calib)
                     .unwrap();
+            // Each result line carries its frame's detection score.
+            let lines = limot::kitti::labels::read_labels(&results).unwrap();
+            assert!(lines.len() > 1000, "{}", lines.len());
+            let scores: Vec<f64> = lines.iter().map(|l| l.score.unwrap()).collect();
+            assert!(scores.iter().all(|s| (0.0..=1.0).contains(s)));
+            assert!(
+                scores.iter().any(|&s| s < 0.99),
+                "scores all 1: not the detections'"
+            );
             let e = limot::evaluate::tracks::evaluate_tracks(
                 &dir,
                 &results,

@@ -607,7 +607,12 @@ impl TimingRow {
     }
 }
 
-/// Module | mean [ms] | p95 [ms] | FPS, one decimal each.
+/// A stage faster than this did no work in the variant (the object filter
+/// of `lio`): its FPS is no figure worth printing.
+const NO_WORK_MS: f64 = 1e-3;
+
+/// Module | mean [ms] | p95 [ms] | FPS, one decimal each; FPS is missing
+/// for stages that did no work.
 pub fn timing_table(title: &str, rows: &[TimingRow]) -> Result<Table, ReportError> {
     let header = ["Module", "mean [ms]", "p95 [ms]", "FPS"]
         .map(String::from)
@@ -621,7 +626,11 @@ pub fn timing_table(title: &str, rows: &[TimingRow]) -> Result<Table, ReportErro
             Cell::Text(row.module.clone()),
             Cell::Num(row.mean_ms),
             Cell::Num(row.p95_ms),
-            Cell::Num(row.fps),
+            if row.mean_ms < NO_WORK_MS {
+                Cell::Missing
+            } else {
+                Cell::Num(row.fps)
+            },
         ])?;
     }
     Ok(table)
@@ -903,6 +912,17 @@ mod tests {
             .unwrap();
         assert!(
             md.contains("| odometry |      25.0 |     38.5 | 40.0 |"),
+            "{md}"
+        );
+        // A stage that did no work has no FPS.
+        acc.record("filter", std::time::Duration::from_nanos(40));
+        let idle = TimingRow::from_accumulator(&acc, "filter").unwrap();
+        let md = timing_table("Timing", &[idle])
+            .unwrap()
+            .to_markdown()
+            .unwrap();
+        assert!(
+            md.contains("| filter |       0.0 |      0.0 | –   |"),
             "{md}"
         );
     }

@@ -516,6 +516,7 @@ mod tests {
                 },
                 predicted: false,
                 detection_index: Some(0),
+                detection_score: None,
             };
             let detection = Detection {
                 center_lidar: t_world_lidar

@@ -61,6 +61,8 @@ pub struct TrackOutput {
     /// Index (into the slice given to [`Tracker::update`]) of the detection
     /// this track matched or was started from this frame.
     pub detection_index: Option<usize>,
+    /// That detection's score (the confidence of this frame's box).
+    pub detection_score: Option<f64>,
 }
 
 /// Errors of [`Tracker`].
@@ -250,6 +252,7 @@ impl Tracker {
                     motion: t.motion(),
                     predicted: t.consecutive_misses() > 0,
                     detection_index: observed_by.get(&t.id()).copied(),
+                    detection_score: observed_by.get(&t.id()).map(|&i| detections[i].score),
                 }
             })
             .collect())
