@@ -14,6 +14,7 @@
 //! ([`crate::report::table`]); it holds no metric of its own.
 
 pub mod ego;
+pub mod filtering;
 pub mod json;
 pub mod tracks;
 

@@ -20,11 +20,13 @@
 use crate::eval::TimingAccumulator;
 use crate::eval::iou::IouKind;
 use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
+use crate::evaluate::filtering::{FilterEvaluation, evaluate_filtering};
 use crate::evaluate::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::report::Variant;
 use crate::run::{RunOptions, RunOutput, Source, run, write_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use indicatif::{ProgressBar, ProgressStyle};
+use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::record::Dataset;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -237,6 +239,10 @@ pub struct VariantMetrics {
     pub objects: Vec<ObjectMetricsRecord>,
     /// Pipeline stages in order, then "total".
     pub timings: Vec<StageSamples>,
+    /// The dynamic-feature filter against the per-point labels (variants
+    /// that filter; absent from results written before it was measured).
+    #[serde(default)]
+    pub filtering: Option<FilterEvaluation>,
 }
 
 impl VariantMetrics {
@@ -512,8 +518,14 @@ fn run_variant(
         progress,
         ..RunOptions::default()
     };
-    let output = run(source, &dataset.dir, &options, None)?;
+    // Feature indices are recorded for the filter's precision and recall.
+    let config = EstimatorConfig {
+        record_feature_indices: variant != Variant::Lio,
+        ..EstimatorConfig::default()
+    };
+    let output = run(source, &dataset.dir, &options, Some(config))?;
     write_output(run_dir, &output)?;
+    let filtering = evaluate_filtering(dataset, &output)?;
     let (calib, _) = dataset_calib(dataset, 0)?;
     let results = write_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
     let ego = evaluate_ego(
@@ -547,6 +559,7 @@ fn run_variant(
         clear_mot: mot_metrics(&tracks),
         objects: object_metrics(&tracks),
         timings: stage_samples(&output),
+        filtering,
     })
 }
 

@@ -172,6 +172,45 @@ pub fn motp_table(results: &SuiteResults) -> Result<Table> {
     Ok(table)
 }
 
+/// Dynamic-feature filtering per sequence × filtering variant: precision
+/// and recall of the removed features against the points of moving objects
+/// (per-point labels), and the share of static objects' features removed.
+pub fn filtering_table(results: &SuiteResults) -> Result<Table> {
+    let header = [
+        "Seq",
+        "Variant",
+        "precision [%]",
+        "recall [%]",
+        "static-object features removed [%]",
+    ]
+    .map(String::from)
+    .to_vec();
+    let mut table = Table::new(
+        "Dynamic-feature filtering vs per-point labels (LiDAR features)",
+        header,
+    );
+    for column in 2..5 {
+        table.set_decimals(column, 1);
+    }
+    for s in &results.sequences {
+        for r in &s.variants {
+            let Some(f) = r.metrics.as_ref().and_then(|m| m.filtering) else {
+                continue;
+            };
+            let score = f.score();
+            let percent = |x: Option<f64>| x.map(|v| 100.0 * v).into();
+            table.push_row(vec![
+                Cell::from(s.name.as_str()),
+                Cell::from(r.variant.label()),
+                percent(score.precision),
+                percent(score.recall),
+                percent(f.static_object_removed_fraction()),
+            ])?;
+        }
+    }
+    Ok(table)
+}
+
 /// The moving objects of a sequence in view longest (most ground-truth
 /// frames in any variant's scoring), ties to the smaller id.
 fn longest_moving_objects(s: &SequenceResult) -> Vec<u64> {
@@ -711,6 +750,18 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
             tables: vec![objects_table(results)?],
             plots: Vec::new(),
         },
+        Section {
+            heading: "Dynamic-feature filtering".into(),
+            text: format!(
+                "Of the edge and planar features each variant extracted, those it dropped \
+                 as object points, against the per-point instance labels: a feature is \
+                 positive when it lies on an object moving faster than {} m/s in that \
+                 frame (the paper's v_thres); parked and stopped objects are static.",
+                crate::evaluate::filtering::FILTER_MOVING_SPEED_MPS
+            ),
+            tables: vec![filtering_table(results)?],
+            plots: Vec::new(),
+        },
     ];
     let mut timing = Vec::new();
     for &v in &results.variants {
@@ -756,6 +807,7 @@ pub fn write_suite_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::evaluate::filtering::FilterEvaluation;
     use crate::suite::{
         EgoMetrics, MotMetrics, ObjectMetricsRecord, RESULTS_FORMAT_VERSION, StageSamples,
         VariantResult,
@@ -825,6 +877,7 @@ mod tests {
                     ms: total_ms.to_vec(),
                 },
             ],
+            filtering: None,
         }
     }
 
@@ -932,6 +985,33 @@ mod tests {
             panic!()
         };
         assert!((dyn_05 - 75.0).abs() < 1e-9, "{dyn_05}");
+    }
+
+    #[test]
+    fn filtering_table_scores_the_variants_that_filter() {
+        let mut r = results();
+        let m = r.sequences[0].variants[1].metrics.as_mut().unwrap();
+        // 100 features: 20 on moving objects (15 removed), 30 on static
+        // objects (3 removed), 2 removed on the static scene.
+        m.filtering = Some(FilterEvaluation {
+            features: 100,
+            removed: 20,
+            moving_features: 20,
+            removed_moving: 15,
+            static_object_features: 30,
+            removed_static_object: 3,
+        });
+        let t = filtering_table(&r).unwrap();
+        assert_eq!(t.rows.len(), 1, "only dynafilt on urban_s1 has figures");
+        let num = |h| match cell(&t, 0, h) {
+            Cell::Num(x) => x,
+            c => panic!("{c:?}"),
+        };
+        assert!((num("precision [%]") - 75.0).abs() < 1e-9);
+        assert!((num("recall [%]") - 75.0).abs() < 1e-9);
+        assert!((num("static-object features removed [%]") - 10.0).abs() < 1e-9);
+        let md = t.to_markdown().unwrap();
+        assert!(md.contains("urban_s1"), "{md}");
     }
 
     #[test]

@@ -3,63 +3,14 @@
 //! moving objects (faster than 1 m/s) and keeps static ones (parked or
 //! stopped); `allfilt` removes both.
 
+use limot::evaluate::filtering::evaluate_filtering;
 use limot::report::Variant;
-use limot::run::{RunOptions, RunOutput, Source, run};
+use limot::run::{RunOptions, Source, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::record::Dataset;
 use limot_sim::simulation::Simulation;
-use std::collections::BTreeSet;
 use std::path::Path;
-
-#[derive(Debug, Default)]
-struct Counts {
-    removed: usize,
-    removed_moving: usize,
-    removed_parked: usize,
-    features_moving: usize,
-    features_parked: usize,
-}
-
-fn score(dataset: &Dataset, output: &RunOutput) -> Counts {
-    let boxes = dataset.box_truth().unwrap();
-    let mut c = Counts::default();
-    for e in &output.estimates {
-        let frame = e.frame_index as usize;
-        let labels = dataset.frame(frame).unwrap().labels;
-        // Moving = faster than the paper's v_thres now; stopped cars (at a red
-        // light) count as static objects, like parked ones.
-        let parked: BTreeSet<u32> = boxes[frame]
-            .iter()
-            .filter(|b| b.parked || b.velocity_world_mps.norm() <= 1.0)
-            .map(|b| b.id)
-            .collect();
-        let kind = |i: u32| {
-            let id = labels[i as usize];
-            match id {
-                0 => 0,
-                id if parked.contains(&id) => 2,
-                _ => 1,
-            }
-        };
-        for &i in &e.feature_indices {
-            match kind(i) {
-                1 => c.features_moving += 1,
-                2 => c.features_parked += 1,
-                _ => {}
-            }
-        }
-        for &i in &e.removed_feature_indices {
-            c.removed += 1;
-            match kind(i) {
-                1 => c.removed_moving += 1,
-                2 => c.removed_parked += 1,
-                _ => {}
-            }
-        }
-    }
-    c
-}
 
 #[test]
 fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
@@ -84,7 +35,9 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             ..RunOptions::default()
         };
         let output = run(&source, Path::new(&dir), &options, Some(config.clone())).unwrap();
-        let c = score(&dataset, &output);
+        let c = evaluate_filtering(&dataset, &output)
+            .unwrap()
+            .expect("features recorded");
         if variant == Variant::Dynafilt {
             // The tracks, as KITTI tracking results, scored against the truth.
             let (calib, _) = limot::evaluate::tracks::dataset_calib(&dataset, 0).unwrap();
@@ -120,12 +73,14 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             // tracks only; the misses are mostly objects the detector misses).
             assert!(mota > 0.45 && motp > 0.75, "MOTA {mota} MOTP {motp}");
         }
-        let precision = (c.removed_moving + c.removed_parked) as f64 / c.removed.max(1) as f64;
-        let moving_precision = c.removed_moving as f64 / c.removed.max(1) as f64;
-        let recall = c.removed_moving as f64 / c.features_moving.max(1) as f64;
-        let parked_removed = c.removed_parked as f64 / c.features_parked.max(1) as f64;
+        let score = c.score();
+        let object_precision =
+            (c.removed_moving + c.removed_static_object) as f64 / c.removed.max(1) as f64;
+        let moving_precision = score.precision.unwrap();
+        let recall = score.recall.unwrap();
+        let parked_removed = c.static_object_removed_fraction().unwrap();
         eprintln!(
-            "{}: {c:?}; moving precision {moving_precision:.3} (object precision {precision:.3}), recall {recall:.3}, parked features removed {parked_removed:.3}",
+            "{}: {c:?}; moving precision {moving_precision:.3} (object precision {object_precision:.3}), recall {recall:.3}, parked features removed {parked_removed:.3}",
             variant.name()
         );
         results.push((variant, moving_precision, recall, parked_removed));

@@ -87,6 +87,17 @@ fn every_run_tracks_the_ego_to_half_a_metre_and_is_scored() {
         assert_eq!(total.ms.len(), m.frames_estimated);
         assert!(total.ms.iter().all(|ms| ms.is_finite() && *ms > 0.0));
         assert!(m.fps > 0.0);
+        // The filter is scored against the per-point labels where it runs.
+        match (v, m.filtering) {
+            (Variant::Lio, f) => assert!(f.is_none(), "{f:?}"),
+            (_, Some(f)) => {
+                assert!(f.features > 10_000 && f.moving_features > 0, "{f:?}");
+                let score = f.score();
+                assert!(score.recall.is_some_and(|r| r > 0.5), "{v}: {score:?}");
+                assert!(score.precision.is_some_and(|p| p > 0.5), "{v}: {score:?}");
+            }
+            (_, None) => panic!("{v}: no filter figures"),
+        }
     }
 }
 
@@ -121,6 +132,8 @@ fn report_has_variant_columns_and_existing_plots() {
         "LIO-Dynafilt TP [%]",
         "MOTP [%] (IoU 0.25)",
         "**LIO-Dynafilt: time per scan by module**",
+        "**Dynamic-feature filtering vs per-point labels (LiDAR features)**",
+        "static-object features removed [%]",
     ] {
         assert!(
             readme.contains(column),
