@@ -76,6 +76,19 @@ enum Command {
         /// Process at most N frames.
         #[arg(long)]
         max_frames: Option<usize>,
+        /// DATASET is a KITTI tracking directory (training/ or a limot
+        /// dataset's kitti/ copy: velodyne/SSSS/, oxts/SSSS.txt, calib/SSSS.txt):
+        /// run sequence N with its 10 Hz OXTS IMU.
+        #[arg(long)]
+        sequence: Option<u32>,
+        /// With --sequence: AB3DMOT-format detections (a file, or a directory
+        /// of SSSS.txt; default DATASET/detections/SSSS.txt when it exists).
+        #[arg(long)]
+        detections: Option<PathBuf>,
+        /// With --detections: `sigmoid` for logit scores (PointRCNN in AB3DMOT
+        /// files) or `clamp01` for probabilities (limot's KITTI copies).
+        #[arg(long, default_value = "clamp01")]
+        score_map: String,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
@@ -248,7 +261,22 @@ fn main() -> ExitCode {
             lidar_only,
             first_frame,
             max_frames,
-        } => run_estimator(&dataset, out, &variant, lidar_only, first_frame, max_frames),
+            sequence,
+            detections,
+            score_map,
+        } => run_estimator(
+            &dataset,
+            out,
+            &variant,
+            lidar_only,
+            first_frame,
+            max_frames,
+            KittiTracking {
+                sequence,
+                detections,
+                score_map,
+            },
+        ),
         Command::Eval { what } => run_eval(what),
         Command::TrackKitti {
             training,
@@ -325,6 +353,23 @@ fn run_simulate(
     Ok(())
 }
 
+/// `limot run --sequence N [--detections P] [--score-map M]`: a KITTI
+/// tracking sequence.
+struct KittiTracking {
+    sequence: Option<u32>,
+    detections: Option<PathBuf>,
+    score_map: String,
+}
+
+fn parse_score_map(name: &str) -> Result<limot::kitti::detections::ScoreMap, String> {
+    use limot::kitti::detections::ScoreMap;
+    match name {
+        "sigmoid" => Ok(ScoreMap::Sigmoid),
+        "clamp01" => Ok(ScoreMap::Clamp01),
+        other => Err(format!("unknown --score-map `{other}` (sigmoid, clamp01)")),
+    }
+}
+
 fn run_estimator(
     dataset: &std::path::Path,
     out: Option<PathBuf>,
@@ -332,6 +377,7 @@ fn run_estimator(
     lidar_only: bool,
     first_frame: usize,
     max_frames: Option<usize>,
+    kitti_tracking: KittiTracking,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::report::Variant;
     use limot::run::{RunOptions, Source, run, write_output};
@@ -340,7 +386,18 @@ fn run_estimator(
         .find(|v| v.name() == variant)
         .ok_or_else(|| format!("unknown variant `{variant}` (lio, allfilt, dynafilt, limot)"))?;
     let out = out.unwrap_or_else(|| dataset.join(variant.name()));
-    let source = Source::open(dataset)?;
+    let source = match (kitti_tracking.sequence, &kitti_tracking.detections) {
+        (Some(sequence), detections) => Source::open_kitti_tracking(
+            dataset,
+            sequence,
+            detections.as_deref(),
+            parse_score_map(&kitti_tracking.score_map)?,
+        )?,
+        (None, Some(_)) => {
+            return Err("--detections needs --sequence (a KITTI tracking directory)".into());
+        }
+        (None, None) => Source::open(dataset)?,
+    };
     let options = RunOptions {
         variant,
         lidar_only,

@@ -8,11 +8,14 @@
 //! `estimates.csv` (velocity, biases, match diagnostics) and `timings.csv`.
 
 use crate::kitti::KittiError;
+use crate::kitti::calib::Calib;
+use crate::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
 use crate::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use crate::kitti::raw::{RawCalib, RawDrive};
+use crate::kitti::velodyne::sweep_time_offset_s;
 use crate::report::Variant;
 use crate::simulate::frame_progress_bar;
-use limot_estimator::input::{Extrinsics, Frame, ImuSample};
+use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
 use limot_estimator::pipeline::{
     Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant as EstimatorVariant,
 };
@@ -56,9 +59,11 @@ pub enum RunError {
 pub enum Source {
     Dataset(Box<Dataset>),
     Kitti {
-        drive: RawDrive,
+        drive: Box<RawDrive>,
         imu: Vec<ImuSample>,
         extrinsics: Option<Extrinsics>,
+        /// Detections per frame (LiDAR frame), empty when none were given.
+        detections: Vec<Vec<Detection>>,
     },
 }
 
@@ -80,9 +85,10 @@ impl Source {
                 });
             let imu = drive.imu_samples();
             return Ok(Source::Kitti {
-                drive,
+                drive: Box::new(drive),
                 imu,
                 extrinsics,
+                detections: Vec::new(),
             });
         }
         let has_scans = fs::read_dir(path)
@@ -99,13 +105,66 @@ impl Source {
         if has_scans {
             let drive = RawDrive::open_bare_scans(path)?;
             return Ok(Source::Kitti {
-                drive,
+                drive: Box::new(drive),
                 imu: Vec::new(),
                 extrinsics: None,
+                detections: Vec::new(),
             });
         }
         Err(RunError::UnknownSource {
             path: path.to_path_buf(),
+        })
+    }
+
+    /// Sequence `sequence` of a KITTI tracking directory (see
+    /// [`RawDrive::open_tracking_sequence`]): scans, the OXTS IMU (10 Hz),
+    /// `calib/SSSS.txt` for the IMU-LiDAR extrinsics and the detections'
+    /// frame, and AB3DMOT-format detections (camera frame) from
+    /// `detections`, or from `DIR/detections/SSSS.txt` when that exists.
+    /// Each detection is placed at the time the laser swept its centre.
+    pub fn open_kitti_tracking(
+        dir: &Path,
+        sequence: u32,
+        detections: Option<&Path>,
+        score_map: ScoreMap,
+    ) -> Result<Source, RunError> {
+        let drive = RawDrive::open_tracking_sequence(dir, sequence)?;
+        let calib = Calib::read(&dir.join("calib").join(format!("{sequence:04}.txt")))?;
+        let default_detections = dir.join("detections").join(format!("{sequence:04}.txt"));
+        let detections_path = match detections {
+            Some(p) if p.is_dir() => Some(p.join(format!("{sequence:04}.txt"))),
+            Some(p) => Some(p.to_path_buf()),
+            None => default_detections.is_file().then_some(default_detections),
+        };
+        let detections = match detections_path {
+            Some(path) => {
+                let camera = read_ab3dmot_csv(&path)?;
+                let mut frames = detections_by_frame(&camera, &calib, score_map, drive.num_scans());
+                if frames.len() > drive.num_scans() {
+                    return Err(RunError::Kitti(KittiError::Invalid {
+                        path,
+                        why: format!(
+                            "detections for frame {} but the sequence has {} scans",
+                            frames.len() - 1,
+                            drive.num_scans()
+                        ),
+                    }));
+                }
+                for d in frames.iter_mut().flatten() {
+                    d.time_offset_s = sweep_time_offset_s(&d.center_lidar);
+                }
+                frames
+            }
+            None => Vec::new(),
+        };
+        let imu = drive.imu_samples();
+        Ok(Source::Kitti {
+            drive: Box::new(drive),
+            imu,
+            extrinsics: Some(Extrinsics {
+                t_lidar_imu: calib.t_velo_imu,
+            }),
+            detections,
         })
     }
 
@@ -132,9 +191,11 @@ impl Source {
     pub fn frame(&self, index: usize) -> Result<Frame, RunError> {
         Ok(match self {
             Source::Dataset(d) => d.input_frame(index)?,
-            Source::Kitti { drive, .. } => Frame {
+            Source::Kitti {
+                drive, detections, ..
+            } => Frame {
                 scan: drive.scan(index)?,
-                detections: Vec::new(),
+                detections: detections.get(index).cloned().unwrap_or_default(),
             },
         })
     }
@@ -233,6 +294,12 @@ pub fn run(
     let mode = config.mode;
     let extrinsics = imu.map_or(Extrinsics::default(), |(_, e)| e);
     let samples: &[ImuSample] = imu.map_or(&[], |(s, _)| s);
+    // A slower IMU (KITTI tracking's 10 Hz OXTS) has proportionally longer
+    // steps between samples, which are no gaps.
+    let times: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    if let Some(period_s) = crate::kitti::raw::nominal_period_s(&times) {
+        config.max_imu_gap_s = config.max_imu_gap_s.max(1.5 * period_s);
+    }
     let mut estimator =
         Estimator::new(config, extrinsics).map_err(|source| RunError::Estimator {
             path: source_path.to_path_buf(),

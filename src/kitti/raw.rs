@@ -545,7 +545,7 @@ fn count_mismatch(timestamps: &Path, times: usize, data_dir: &Path, files: usize
 }
 
 /// Median of the positive steps between consecutive times.
-fn nominal_period_s(times_s: &[f64]) -> Option<f64> {
+pub fn nominal_period_s(times_s: &[f64]) -> Option<f64> {
     let mut steps: Vec<f64> = times_s
         .windows(2)
         .map(|w| w[1] - w[0])
@@ -636,6 +636,81 @@ impl RawDrive {
     }
 
     /// OXTS timestamps (s since the Unix epoch).
+    /// Sequence `sequence` of a KITTI *tracking* directory (`training/`,
+    /// or the KITTI-style copy `limot simulate` writes):
+    /// `velodyne/SSSS/NNNNNN.bin`, `oxts/SSSS.txt` (one record per frame).
+    /// With `times.txt` (our copies) scans start at its times and each OXTS
+    /// record is at its scan's start; without (KITTI), frame `i` starts at
+    /// `0.1·i` s and its OXTS record is at the camera trigger, half a sweep
+    /// later, as KITTI synchronises them.
+    pub fn open_tracking_sequence(dir: &Path, sequence: u32) -> Result<RawDrive> {
+        let name = format!("{sequence:04}");
+        let (files, format) = scan_files(&dir.join("velodyne").join(&name))?;
+        let oxts_path = dir.join("oxts").join(format!("{name}.txt"));
+        let records = super::oxts::read_oxts(&oxts_path)?;
+        let times_path = dir.join("times.txt");
+        let (starts_s, oxts_delay_s, start_source) = if times_path.is_file() {
+            (
+                crate::evaluate::read_times(&times_path)?,
+                0.0,
+                SweepStart::Measured,
+            )
+        } else {
+            let starts = (0..files.len())
+                .map(|i| i as f64 * SWEEP_DURATION_S)
+                .collect();
+            (starts, 0.5 * SWEEP_DURATION_S, SweepStart::Synthetic10Hz)
+        };
+        if starts_s.len() != files.len() {
+            return Err(count_mismatch(
+                &times_path,
+                starts_s.len(),
+                &dir.join("velodyne").join(&name),
+                files.len(),
+            ));
+        }
+        if records.len() != files.len() {
+            return Err(count_mismatch(
+                &oxts_path,
+                records.len(),
+                &dir.join("velodyne").join(&name),
+                files.len(),
+            ));
+        }
+        let velodyne = files
+            .into_iter()
+            .zip(&starts_s)
+            .map(|(path, &t_start_s)| VelodyneFrame {
+                path,
+                format,
+                t_start_s,
+                t_trigger_s: None,
+                t_end_s: None,
+                start_source,
+            })
+            .collect();
+        let oxts: Vec<TimedOxts> = records
+            .into_iter()
+            .zip(&starts_s)
+            .map(|(record, &t)| TimedOxts {
+                t_s: t + oxts_delay_s,
+                record,
+            })
+            .collect();
+        let times: Vec<f64> = oxts.iter().map(|o| o.t_s).collect();
+        let oxts_period_s = nominal_period_s(&times);
+        let gaps = oxts_period_s
+            .map(|p| find_gaps(&times, p))
+            .unwrap_or_default();
+        Ok(RawDrive {
+            drive_dir: dir.to_path_buf(),
+            oxts,
+            velodyne,
+            oxts_period_s,
+            gaps,
+        })
+    }
+
     pub fn oxts_times_s(&self) -> Vec<f64> {
         self.oxts.iter().map(|o| o.t_s).collect()
     }

@@ -14,7 +14,7 @@
 
 use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
-use super::initialization::{NotStatic, moving_init, static_init};
+use super::initialization::{MIN_STATIC_SAMPLES, NotStatic, moving_init, static_init};
 use super::objects::ObjectGraph;
 use crate::filter::{BoxAtTime, FilterError, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
@@ -361,8 +361,13 @@ impl Estimator {
             let moved = (recent[2].1.translation.vector - recent[0].1.translation.vector).norm();
             moved < self.config.init_max_lidar_motion_m
         };
-        let from = self.imu.partition_point(|s| s.t_s < t0);
         let to = self.imu.partition_point(|s| s.t_s <= scan.t_s);
+        // The last `init_window_s`, or as many samples back as a static
+        // test needs from a slow IMU (KITTI tracking's 10 Hz OXTS: 1 s).
+        let from = self
+            .imu
+            .partition_point(|s| s.t_s < t0)
+            .min(to.saturating_sub(MIN_STATIC_SAMPLES));
         let imu_still = static_init(
             &self.imu[from..to],
             &self.t_lidar_imu,

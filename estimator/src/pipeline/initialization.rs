@@ -28,6 +28,9 @@ pub enum NotStatic {
     },
 }
 
+/// Samples a static initialization needs at least.
+pub const MIN_STATIC_SAMPLES: usize = 10;
+
 /// Tries a static initialization from `samples` (the IMU history of the
 /// last `init_window_s`). `t_lidar_imu` fixes the yaw convention.
 pub fn static_init(
@@ -38,7 +41,7 @@ pub fn static_init(
     max_gyro_radps: f64,
 ) -> Result<StaticInit, NotStatic> {
     let n = samples.len();
-    if n < 10 {
+    if n < MIN_STATIC_SAMPLES {
         return Err(NotStatic::TooFewSamples { count: n });
     }
     let count = n as f64;
