@@ -594,18 +594,23 @@ impl RawDrive {
         } else {
             Vec::new()
         };
+        Ok(RawDrive::from_streams(drive_dir, oxts, velodyne))
+    }
+
+    /// A drive of these streams; the OXTS period and gaps follow from its times.
+    fn from_streams(dir: &Path, oxts: Vec<TimedOxts>, velodyne: Vec<VelodyneFrame>) -> RawDrive {
         let times: Vec<f64> = oxts.iter().map(|o| o.t_s).collect();
         let oxts_period_s = nominal_period_s(&times);
         let gaps = oxts_period_s
             .map(|p| find_gaps(&times, p))
             .unwrap_or_default();
-        Ok(RawDrive {
-            drive_dir: drive_dir.to_path_buf(),
+        RawDrive {
+            drive_dir: dir.to_path_buf(),
             oxts,
             velodyne,
             oxts_period_s,
             gaps,
-        })
+        }
     }
 
     /// Opens a directory of bare numbered `.bin`/`.txt` scans with no
@@ -697,18 +702,7 @@ impl RawDrive {
                 record,
             })
             .collect();
-        let times: Vec<f64> = oxts.iter().map(|o| o.t_s).collect();
-        let oxts_period_s = nominal_period_s(&times);
-        let gaps = oxts_period_s
-            .map(|p| find_gaps(&times, p))
-            .unwrap_or_default();
-        Ok(RawDrive {
-            drive_dir: dir.to_path_buf(),
-            oxts,
-            velodyne,
-            oxts_period_s,
-            gaps,
-        })
+        Ok(RawDrive::from_streams(dir, oxts, velodyne))
     }
 
     pub fn oxts_times_s(&self) -> Vec<f64> {
