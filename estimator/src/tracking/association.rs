@@ -17,7 +17,7 @@
 //! O(E log V). Detections left without flow start new tracks.
 
 use crate::input::ObjectClass;
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::DMatrix;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
 
@@ -30,29 +30,11 @@ pub fn matching_score(distance_m: f64, alpha_m: f64, d_thres_m: f64) -> f64 {
     }
 }
 
-/// Scores between predicted track centres and detection centres (both world
-/// frame); pairs of different classes score 0.
+/// Scores between tracks and detections: `distance_m(i, j)` is the world
+/// distance between track `i` (predicted at the time detection `j` was seen)
+/// and detection `j`, asked for same-class pairs only; pairs of different
+/// classes score 0.
 pub fn matching_matrix(
-    tracks: &[(Vector3<f64>, ObjectClass)],
-    detections: &[(Vector3<f64>, ObjectClass)],
-    alpha_m: f64,
-    d_thres_m: f64,
-) -> DMatrix<f64> {
-    let track_classes: Vec<ObjectClass> = tracks.iter().map(|t| t.1).collect();
-    let detection_classes: Vec<ObjectClass> = detections.iter().map(|d| d.1).collect();
-    matching_matrix_by(
-        &track_classes,
-        &detection_classes,
-        |i, j| (tracks[i].0 - detections[j].0).norm(),
-        alpha_m,
-        d_thres_m,
-    )
-}
-
-/// [`matching_matrix`] with the distance of each (track, detection) pair
-/// given by `distance_m` (called for same-class pairs only), e.g. to the
-/// track predicted at the detection's own time.
-pub fn matching_matrix_by(
     track_classes: &[ObjectClass],
     detection_classes: &[ObjectClass],
     distance_m: impl Fn(usize, usize) -> f64,
@@ -338,6 +320,7 @@ impl Ord for HeapEntry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
 
     #[test]
     fn score_follows_eq_1() {
@@ -377,7 +360,13 @@ mod tests {
             (Vector3::new(0.5, 0.0, 0.0), ObjectClass::Cyclist),
             (Vector3::new(3.0, 0.0, 0.0), ObjectClass::Car),
         ];
-        let psi = matching_matrix(&tracks, &dets, 100.0, 2.0);
+        let psi = matching_matrix(
+            &tracks.map(|t| t.1),
+            &dets.map(|d| d.1),
+            |i, j| (tracks[i].0 - dets[j].0).norm(),
+            100.0,
+            2.0,
+        );
         assert!((psi[(0, 0)] - 0.99).abs() < 1e-15);
         assert_eq!(psi[(0, 1)], 0.0);
         assert_eq!(psi[(0, 2)], 0.0);

@@ -3,7 +3,7 @@
 //! delete unmatched ones, and start tentative tracks from unmatched
 //! detections.
 
-use super::association::{associate_by_class, matching_matrix_by};
+use super::association::{associate_by_class, matching_matrix};
 use super::track::{Lifecycle, Motion, TimedBox, Track};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
@@ -182,7 +182,7 @@ impl Tracker {
         // a sweep a car at 30 m/s moves 3 m, more than the 2 m gate).
         let track_classes: Vec<ObjectClass> = self.tracks.iter().map(|t| t.class()).collect();
         let det_classes: Vec<ObjectClass> = usable.iter().map(|d| d.class).collect();
-        let psi = matching_matrix_by(
+        let psi = matching_matrix(
             &track_classes,
             &det_classes,
             |i, j| {
