@@ -19,7 +19,7 @@ pub mod json;
 pub mod tracks;
 
 use crate::eval::EvalError;
-use crate::kitti::{KittiError, LineCtx, content_lines, read_text};
+use crate::kitti::KittiError;
 use crate::report::ReportError;
 use limot_sim::record::RecordError;
 use std::path::{Path, PathBuf};
@@ -81,32 +81,7 @@ pub enum EvaluateError {
 
 pub type Result<T> = std::result::Result<T, EvaluateError>;
 
-/// Parses a times file (KITTI `times.txt`: one time in seconds per line, the
-/// first column is used). Times must be finite and non-decreasing.
-pub fn parse_times(text: &str, path: &Path) -> std::result::Result<Vec<f64>, KittiError> {
-    let mut times: Vec<f64> = Vec::new();
-    for (line_no, line) in content_lines(text) {
-        let ctx = LineCtx::new(path, line_no);
-        let token = line.split_whitespace().next().unwrap_or_default();
-        let t_s = ctx.f64(token, 1, "t")?;
-        if let Some(&prev) = times.last()
-            && t_s < prev
-        {
-            return Err(ctx.field_error(
-                1,
-                "t",
-                format!("{t_s} is before the previous time {prev}"),
-            ));
-        }
-        times.push(t_s);
-    }
-    Ok(times)
-}
-
-/// Reads a times file (see [`parse_times`]).
-pub fn read_times(path: &Path) -> std::result::Result<Vec<f64>, KittiError> {
-    parse_times(&read_text(path)?, path)
-}
+pub use crate::kitti::poses::{parse_times, read_times};
 
 /// Whether `dir` is a limot dataset (it holds `meta.toml`).
 pub fn is_limot_dataset(dir: &Path) -> bool {
@@ -134,23 +109,4 @@ pub fn dataset_frame_times(dataset: &limot_sim::record::Dataset) -> Result<Vec<f
     }
     let dt = dataset.meta.sweep_duration_s;
     Ok((0..dataset.frame_count()).map(|i| i as f64 * dt).collect())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn times_parse_and_errors_name_the_line() {
-        let path = Path::new("times.txt");
-        let t = parse_times("0.000000e+00\n1.000000e-01\n\n2.0e-01 extra\n", path).unwrap();
-        assert_eq!(t, vec![0.0, 0.1, 0.2]);
-        let err = parse_times("0\n0.1\nabc\n", path).unwrap_err().to_string();
-        assert!(err.contains("times.txt:3"), "{err}");
-        let err = parse_times("0\n0.2\n0.1\n", path).unwrap_err().to_string();
-        assert!(
-            err.contains("times.txt:3") && err.contains("before"),
-            "{err}"
-        );
-    }
 }

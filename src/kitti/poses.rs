@@ -14,6 +14,33 @@ pub struct StampedPose {
     pub pose: Isometry3<f64>,
 }
 
+/// Parses a times file (KITTI `times.txt`: one time in seconds per line, the
+/// first column is used). Times must be finite and non-decreasing.
+pub fn parse_times(text: &str, path: &Path) -> Result<Vec<f64>> {
+    let mut times: Vec<f64> = Vec::new();
+    for (line_no, line) in content_lines(text) {
+        let ctx = LineCtx::new(path, line_no);
+        let token = line.split_whitespace().next().unwrap_or_default();
+        let t_s = ctx.f64(token, 1, "t")?;
+        if let Some(&prev) = times.last()
+            && t_s < prev
+        {
+            return Err(ctx.field_error(
+                1,
+                "t",
+                format!("{t_s} is before the previous time {prev}"),
+            ));
+        }
+        times.push(t_s);
+    }
+    Ok(times)
+}
+
+/// Reads a times file (see [`parse_times`]).
+pub fn read_times(path: &Path) -> Result<Vec<f64>> {
+    parse_times(&read_text(path)?, path)
+}
+
 /// Formats poses as a TUM trajectory (shortest round-trip numbers).
 pub fn write_tum(poses: &[StampedPose]) -> String {
     let mut out = String::new();
@@ -108,6 +135,20 @@ pub fn read_kitti_poses(path: &Path) -> Result<Vec<Isometry3<f64>>> {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+
+    #[test]
+    fn times_parse_and_errors_name_the_line() {
+        let path = Path::new("times.txt");
+        let t = parse_times("0.000000e+00\n1.000000e-01\n\n2.0e-01 extra\n", path).unwrap();
+        assert_eq!(t, vec![0.0, 0.1, 0.2]);
+        let err = parse_times("0\n0.1\nabc\n", path).unwrap_err().to_string();
+        assert!(err.contains("times.txt:3"), "{err}");
+        let err = parse_times("0\n0.2\n0.1\n", path).unwrap_err().to_string();
+        assert!(
+            err.contains("times.txt:3") && err.contains("before"),
+            "{err}"
+        );
+    }
 
     fn poses() -> Vec<Isometry3<f64>> {
         (0..5)

@@ -656,7 +656,7 @@ impl RawDrive {
         let times_path = dir.join("times.txt");
         let (starts_s, oxts_delay_s, start_source) = if times_path.is_file() {
             (
-                crate::evaluate::read_times(&times_path)?,
+                super::poses::read_times(&times_path)?,
                 0.0,
                 SweepStart::Measured,
             )
