@@ -339,6 +339,7 @@ fn run(n_objects: usize, seed: u64) -> (Vec<FrameTiming>, FinalErrors) {
                 } else {
                     Motion::Dynamic
                 },
+                speed_mps: object.velocity_world_mps.xy().norm(),
                 predicted: false,
                 detection_index: Some(i),
                 detection_score: None,

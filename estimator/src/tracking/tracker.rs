@@ -56,6 +56,10 @@ pub struct TrackOutput {
     pub velocity_world_mps: Vector3<f64>,
     pub lifecycle: Lifecycle,
     pub motion: Motion,
+    /// Horizontal speed of the straight-line fit over the motion window, the
+    /// statistic `motion` is decided on (steadier than the derivative of
+    /// the cubic at the window's end).
+    pub speed_mps: f64,
     /// No detection matched this frame: the box is the trajectory prediction.
     pub predicted: bool,
     /// Index (into the slice given to [`Tracker::update`]) of the detection
@@ -250,6 +254,7 @@ impl Tracker {
                     velocity_world_mps: p.velocity_world_mps,
                     lifecycle: t.lifecycle(),
                     motion: t.motion(),
+                    speed_mps: t.speed_mps(),
                     predicted: t.consecutive_misses() > 0,
                     detection_index: observed_by.get(&t.id()).copied(),
                     detection_score: observed_by.get(&t.id()).map(|&i| detections[i].score),
