@@ -15,7 +15,7 @@
 use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 use super::initialization::{MIN_STATIC_SAMPLES, NotStatic, moving_init, static_init};
-use super::objects::ObjectGraph;
+use super::objects::{ObjectGraph, yaw_of};
 use crate::filter::{BoxAtTime, FilterError, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use crate::graph::prior_factor::PriorFactor;
@@ -1009,8 +1009,7 @@ impl Estimator {
                 // velocity moves it to the frame time.
                 let v = e.velocity_world_mps.unwrap_or(track.velocity_world_mps);
                 track.center_world = e.t_world_object.translation.vector - v * (e.t_s - t_s);
-                let heading = e.t_world_object.rotation * Vector3::x();
-                track.yaw_rad = heading.y.atan2(heading.x);
+                track.yaw_rad = yaw_of(&e.t_world_object);
                 track.velocity_world_mps = v;
             }
         }

@@ -206,7 +206,7 @@ impl FrameObservation {
 }
 
 /// Heading of a pose: the angle of its x axis in the xy-plane.
-fn yaw_of(pose: &Isometry3<f64>) -> f64 {
+pub(crate) fn yaw_of(pose: &Isometry3<f64>) -> f64 {
     let x = pose.rotation * Vector3::x();
     x.y.atan2(x.x)
 }
@@ -226,6 +226,14 @@ struct ObjectNodes {
     static_active: bool,
     /// Latest frame whose observation went to the static node.
     static_last_frame: u64,
+}
+
+impl ObjectNodes {
+    /// The object's chain has a node at `frame` (the window's previous
+    /// frame, when there is one): a new node there extends it.
+    fn chain_ends_at(&self, frame: Option<u64>) -> bool {
+        frame.is_some_and(|f| self.pose_times_s.contains_key(&f))
+    }
 }
 
 /// A frame of the window: its scan start and the frame before it.
@@ -390,10 +398,9 @@ impl ObjectGraph {
         };
         smoother.add_variable(key, Variable::Pose(t_new))?;
         nodes.pose_times_s.insert(frame, window_frame.t_s);
-        if let Some(prev) = chain_end {
+        if let (Some(prev), Some(t_prev)) = (chain_end, t_prev) {
             let prev_key = Key::ObjectPose { id, frame: prev };
             let motion_key = Key::ObjectMotion { id, frame: prev };
-            let t_prev = *smoother.values().pose(&prev_key);
             let m = prev_motion.unwrap_or_else(|| t_prev.inverse() * t_new);
             smoother.add_variable(motion_key, Variable::Pose(m))?;
             smoother.add_factor(Box::new(ObjectMotionFactor::new(
@@ -455,9 +462,10 @@ impl ObjectGraph {
             let Some(detection) = track.detection_index.and_then(|j| detections.get(j)) else {
                 // Missed this frame: a confirmed track's chain is bridged,
                 // so the detections on both sides of the gap stay one chain.
-                let chain_continues = self.objects.get(&track.id).is_some_and(|nodes| {
-                    previous_frame.is_some_and(|p| nodes.pose_times_s.contains_key(&p))
-                });
+                let chain_continues = self
+                    .objects
+                    .get(&track.id)
+                    .is_some_and(|nodes| nodes.chain_ends_at(previous_frame));
                 if track.lifecycle == Lifecycle::Confirmed && chain_continues {
                     self.extend_chain(
                         smoother,
@@ -536,11 +544,11 @@ impl ObjectGraph {
             } else {
                 track.yaw_rad
             };
-            if !previous_frame.is_some_and(|p| nodes.pose_times_s.contains_key(&p)) {
+            if !nodes.chain_ends_at(previous_frame) {
                 // A new chain starts with the window's earlier detections of
-                // the object: the consecutive frames up to this one that
-                // have no node (tentative frames, a chain broken by a missed
-                // frame is not bridged). Detections that went to the static
+                // the object: those of the consecutive frames up to this one
+                // that have no node (tentative frames; the walk stops at a
+                // frame without a detection). Detections that went to the static
                 // node stay there: a car that was parked did not move at
                 // constant velocity (and measured on 12 generated drives,
                 // adding them changes the object error by < 1 mm). They are
