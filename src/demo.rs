@@ -430,7 +430,11 @@ fn run_variant(
         .collect();
     let dataset = limot_sim::record::Dataset::open(dataset_dir)?;
     let (calib, _) = crate::evaluate::tracks::dataset_calib(&dataset, 0)?;
-    let results = crate::run::write_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
+    let results = crate::run::write_kitti_tracks(
+        &run_dir.join("kitti_results"),
+        0,
+        &crate::run::kitti_track_labels(&output, &calib, 0.0)?,
+    )?;
     let tracks_eval = crate::evaluate::tracks::evaluate_tracks(
         dataset_dir,
         &results,

@@ -5,6 +5,8 @@
 //! - [`ego`]: an estimated ego trajectory (TUM or KITTI pose file) against a
 //!   limot dataset, a KITTI-style directory (OXTS + calib) or a pose file →
 //!   ATE_T / ATE_R after alignment and RPE.
+//! - [`kitti_sequence`]: a run on a KITTI tracking sequence against its OXTS
+//!   poses and label_02 (ego ATE/RPE, Car CLEAR-MOT in 2D and 3D, object ATE).
 //! - [`tracks`]: KITTI-format tracking results (label_02 lines + score) against
 //!   the ground-truth boxes of a limot dataset → CLEAR-MOT at 3D and BEV IoU,
 //!   TP % and per-object ATE.
@@ -16,6 +18,7 @@
 pub mod ego;
 pub mod filtering;
 pub mod json;
+pub mod kitti_sequence;
 pub mod tracks;
 
 use crate::eval::EvalError;
@@ -35,6 +38,8 @@ pub enum EvaluateError {
     Eval(#[from] EvalError),
     #[error(transparent)]
     Report(#[from] ReportError),
+    #[error(transparent)]
+    Run(#[from] Box<crate::run::RunError>),
     #[error("{}: {source}", path.display())]
     Io {
         path: PathBuf,

@@ -5,6 +5,8 @@ pub mod eval;
 pub mod evaluate;
 pub mod kitti;
 pub mod kitti_export;
+pub mod kitti_report;
+pub mod kitti_suite;
 pub mod report;
 pub mod run;
 pub mod simulate;

@@ -225,6 +225,35 @@ enum EvalCommand {
         #[arg(long, default_value = "reports/suite")]
         out: PathBuf,
     },
+    /// Real KITTI tracking data: every variant on each sequence with scans, the
+    /// tracker alone on each with detections, scored against OXTS and label_02;
+    /// writes OUT/results.json and OUT/report/README.md (the paper's Tables I-III).
+    Kitti {
+        /// KITTI tracking `training` dir (calib/, oxts/, label_02/, velodyne/SSSS/).
+        #[arg(long)]
+        training: PathBuf,
+        /// AB3DMOT-format detection dir (SSSS.txt), e.g. detections/pointrcnn_Car_val.
+        #[arg(long)]
+        detections: Option<PathBuf>,
+        /// How the detections' raw scores become [0, 1]: sigmoid (PointRCNN logits) or clamp01.
+        #[arg(long, default_value = "sigmoid")]
+        score_map: String,
+        /// Sequences, comma-separated (default: every sequence with OXTS).
+        #[arg(long)]
+        sequences: Option<String>,
+        /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
+        #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
+        variants: String,
+        /// A peer tracker's KITTI result files, NAME=DIR (DIR/SSSS.txt), scored beside ours.
+        #[arg(long)]
+        tracking_peer: Option<String>,
+        /// A peer odometry's LiDAR poses, NAME=DIR (DIR/SSSS.txt, TUM), scored beside ours.
+        #[arg(long)]
+        ego_peer: Option<String>,
+        /// Output directory.
+        #[arg(long, default_value = "reports/kitti")]
+        out: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -437,9 +466,41 @@ fn run_estimator(
             e.ate.ate_t_rmse_m, e.ate.ate_r_rmse_rad, e.ate.n
         );
     }
+    if let Some(sequence) = kitti_tracking.sequence {
+        use limot::evaluate::kitti_sequence::{KittiScoreOptions, score_run};
+        let (scores, results) = score_run(
+            dataset,
+            sequence,
+            &output,
+            &out.join("kitti_results"),
+            &KittiScoreOptions::default(),
+        )?;
+        println!("ego vs OXTS: {}", scores.ego.summary_line());
+        match &scores.tracks {
+            Some(tracks) => {
+                for line in tracks.summary_lines(KittiScoreOptions::default().longest_objects) {
+                    println!("tracks vs label_02: {line}");
+                }
+            }
+            None if !variant.tracks_objects() => {}
+            None => println!(
+                "tracks: no {} here, so no MOT score",
+                limot::kitti::sequence_file(&dataset.join("label_02"), sequence).display()
+            ),
+        }
+        let scores_path = out.join("scores.json");
+        std::fs::write(&scores_path, serde_json::to_string_pretty(&scores)? + "\n")
+            .map_err(|e| format!("{}: {e}", scores_path.display()))?;
+        println!("KITTI tracking results: {}", results.display());
+        println!("scores: {}", scores_path.display());
+    }
     if let Source::Dataset(dataset) = &source {
         let (calib, _) = limot::evaluate::tracks::dataset_calib(dataset, 0)?;
-        let results = limot::run::write_kitti_tracks(&out.join("kitti_results"), &output, &calib)?;
+        let results = limot::run::write_kitti_tracks(
+            &out.join("kitti_results"),
+            0,
+            &limot::run::kitti_track_labels(&output, &calib, 0.0)?,
+        )?;
         let e = evaluate_tracks(
             dataset_dir_of(dataset),
             &results,
@@ -616,6 +677,25 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
             variants,
             out,
         } => run_eval_suite(&families, &seeds, duration, &variants, out)?,
+        EvalCommand::Kitti {
+            training,
+            detections,
+            score_map,
+            sequences,
+            variants,
+            tracking_peer,
+            ego_peer,
+            out,
+        } => run_eval_kitti(
+            training,
+            detections,
+            &score_map,
+            sequences,
+            &variants,
+            tracking_peer,
+            ego_peer,
+            out,
+        )?,
     }
     Ok(())
 }
@@ -658,9 +738,98 @@ fn run_report(
     results: &std::path::Path,
     out: Option<PathBuf>,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    let file = if results.is_dir() {
+        results.join(limot::suite::RESULTS_FILE)
+    } else {
+        results.to_path_buf()
+    };
+    let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    if limot::kitti_suite::is_kitti_results(&text) {
+        let kitti = limot::kitti_suite::KittiSuiteResults::parse(&text, &file)?;
+        let dir = file
+            .parent()
+            .map_or_else(|| PathBuf::from("."), PathBuf::from);
+        let out = out.unwrap_or_else(|| dir.join("report"));
+        return print_kitti_report(&kitti, &file, &out);
+    }
     let (results, suite_dir) = limot::suite::SuiteResults::load(results)?;
     let out = out.unwrap_or_else(|| suite_dir.join("report"));
     print_suite_report(&results, &suite_dir, &out)
+}
+
+fn print_kitti_report(
+    results: &limot::kitti_suite::KittiSuiteResults,
+    results_file: &std::path::Path,
+    report_dir: &std::path::Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let readme = limot::kitti_report::write_kitti_report(report_dir, results)?;
+    println!();
+    print!(
+        "{}",
+        limot::kitti_report::ego_table(results)?.to_markdown()?
+    );
+    println!();
+    print!(
+        "{}",
+        limot::kitti_report::tracking_table(results)?.to_markdown()?
+    );
+    println!("results: {}", results_file.display());
+    println!("report: {}", readme.display());
+    Ok(())
+}
+
+/// `NAME=DIR` of a peer option.
+fn parse_peer(option: &str, text: &str) -> Result<(String, PathBuf), String> {
+    match text.split_once('=') {
+        Some((name, dir)) if !name.trim().is_empty() && !dir.is_empty() => {
+            Ok((name.trim().to_string(), PathBuf::from(dir)))
+        }
+        _ => Err(format!("--{option} `{text}`: expected NAME=DIR")),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_eval_kitti(
+    training: PathBuf,
+    detections: Option<PathBuf>,
+    score_map: &str,
+    sequences: Option<String>,
+    variants: &str,
+    tracking_peer: Option<String>,
+    ego_peer: Option<String>,
+    out: PathBuf,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::kitti_suite::{KittiSuiteSpec, run_kitti_suite};
+    use limot::report::Variant;
+    use limot::suite::parse_list;
+    let spec = KittiSuiteSpec {
+        training,
+        detections,
+        score_map: parse_score_map(score_map)?,
+        variants: parse_list("variants", variants, |s| {
+            Variant::parse(s).map_err(|e| e.to_string())
+        })?,
+        sequences: sequences
+            .map(|s| {
+                parse_list("sequences", &s, |x| {
+                    x.parse::<u32>().map_err(|e| e.to_string())
+                })
+            })
+            .transpose()?,
+        tracking_peer: tracking_peer
+            .map(|p| parse_peer("tracking-peer", &p))
+            .transpose()?,
+        ego_peer: ego_peer.map(|p| parse_peer("ego-peer", &p)).transpose()?,
+        out_dir: out,
+    };
+    println!(
+        "limot eval kitti: {} into {}",
+        spec.training.display(),
+        spec.out_dir.display()
+    );
+    let results = run_kitti_suite(&spec, true)?;
+    let file = spec.out_dir.join(limot::suite::RESULTS_FILE);
+    print_kitti_report(&results, &file, &spec.out_dir.join("report"))
 }
 
 fn print_suite_report(

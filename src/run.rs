@@ -229,6 +229,7 @@ impl Default for RunOptions {
 /// Everything a run produced.
 #[derive(Debug, Clone)]
 pub struct RunOutput {
+    pub variant: Variant,
     pub mode: Mode,
     pub estimates: Vec<FrameEstimate>,
     /// Frames consumed before the estimator initialised.
@@ -349,6 +350,7 @@ pub fn run(
         });
     }
     Ok(RunOutput {
+        variant: options.variant,
         mode,
         estimates,
         frames_before_init,
@@ -496,21 +498,41 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
     Ok(())
 }
 
-/// Writes the confirmed tracks that matched a detection in each frame (as
-/// AB3DMOT reports) as a KITTI tracking result file `DIR/0000.txt`, boxes
-/// moved back into each frame's LiDAR frame with the estimated pose and
-/// projected through `calib` (the dataset's KITTI copy uses
-/// [`crate::kitti_export::synthetic_calib`]). Returns the file.
-pub fn write_kitti_tracks(
-    dir: &Path,
+/// The confirmed tracks that matched a detection in each frame (as AB3DMOT
+/// reports) as KITTI tracking result lines: boxes moved back into each
+/// frame's LiDAR frame with the estimated pose and projected through `calib`
+/// (the dataset's KITTI copy uses [`crate::kitti_export::synthetic_calib`]).
+/// Boxes outside the camera image have no KITTI line.
+///
+/// A frame's labels are taken `frame_delay_s` after its sweep start (real
+/// KITTI: at the camera trigger, half a sweep later; limot datasets: at the
+/// sweep start, 0): the boxes are moved there along their velocity and
+/// placed with the ego pose of that instant, interpolated between the
+/// sweeps' poses (extrapolated with the velocity after the last one).
+///
+/// # Errors
+/// A track id beyond the result format's 32 bits.
+pub fn kitti_track_labels(
     output: &RunOutput,
     calib: &crate::kitti::calib::Calib,
-) -> Result<PathBuf, RunError> {
-    use crate::kitti::results::{ImageSize, TrackBox, track_to_label, write_results_file};
+    frame_delay_s: f64,
+) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
+    use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
     use crate::track_kitti::world_box_to_lidar;
     use limot_estimator::tracking::Lifecycle;
+    let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
+        .estimates
+        .iter()
+        .map(|e| (e.t_s, e.t_world_lidar))
+        .collect();
     let mut labels = Vec::new();
     for e in &output.estimates {
+        let t_frame_s = e.t_s + frame_delay_s;
+        let t_world_lidar = crate::eval::pose_at(&poses, t_frame_s, |p| *p).unwrap_or_else(|| {
+            let mut pose = e.t_world_lidar;
+            pose.translation.vector += e.velocity_world_mps * frame_delay_s;
+            pose
+        });
         for t in &e.tracks {
             if t.lifecycle != Lifecycle::Confirmed || t.predicted {
                 continue;
@@ -521,23 +543,34 @@ pub fn write_kitti_tracks(
                     .map_err(|_| RunError::TrackIdOverflow { id: t.id })?,
                 class: t.class,
                 lidar_box: world_box_to_lidar(
-                    &t.center_world,
+                    &(t.center_world + t.velocity_world_mps * frame_delay_s),
                     &t.size_lwh,
                     t.yaw_rad,
-                    &e.t_world_lidar,
+                    &t_world_lidar,
                 ),
                 // Confirmed and matched: the box of this frame's detection.
                 score: t.detection_score.unwrap_or(1.0),
             };
-            // Boxes outside the camera image have no KITTI line.
             if let Some(label) = track_to_label(&track, calib, ImageSize::KITTI_DEFAULT) {
                 labels.push(label);
             }
         }
     }
+    Ok(labels)
+}
+
+/// Writes `labels` as the KITTI tracking result file `DIR/SSSS.txt` of
+/// `sequence`. Returns the file.
+pub fn write_kitti_tracks(
+    dir: &Path,
+    sequence: u32,
+    labels: &[crate::kitti::labels::TrackingLabel],
+) -> Result<PathBuf, RunError> {
     fs::create_dir_all(dir).map_err(|source| RunError::Io {
         path: dir.to_path_buf(),
         source,
     })?;
-    Ok(write_results_file(dir, 0, &labels)?)
+    Ok(crate::kitti::results::write_results_file(
+        dir, sequence, labels,
+    )?)
 }

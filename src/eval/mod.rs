@@ -12,6 +12,7 @@ pub mod assignment;
 pub mod ate;
 pub mod clear_mot;
 pub mod filtering;
+pub mod interpolate;
 pub mod iou;
 pub mod kitti_mot;
 pub mod objects;
@@ -26,6 +27,7 @@ pub use clear_mot::{
     clear_mot_per_class, combine_sequences,
 };
 pub use filtering::{FilterScore, filter_precision_recall};
+pub use interpolate::pose_at;
 pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
 pub use objects::{ObjectScore, object_scores};
 pub use rpe::{RpeDelta, RpeResult, rpe};

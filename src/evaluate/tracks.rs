@@ -30,6 +30,7 @@ use crate::eval::clear_mot::{
     ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
     clear_mot_per_class,
 };
+use crate::eval::interpolate::pose_at;
 use crate::eval::iou::{Box3, IouKind};
 use crate::eval::objects::{ObjectScore, object_scores};
 use crate::kitti::calib::Calib;
@@ -173,35 +174,14 @@ pub fn read_results(path: &Path, frame_count: usize, calib: &Calib) -> Result<Re
 /// `t_world_lidar` at `t_s` from the ground-truth samples (sorted by time):
 /// linear in translation, slerp in rotation; exact at a sample.
 pub fn ego_pose_at(truth: &[EgoTruth], t_s: f64, path: &Path) -> Result<Isometry3<f64>> {
-    let k = truth.partition_point(|e| e.t_s < t_s);
-    if let Some(e) = truth.get(k)
-        && e.t_s == t_s
-    {
-        return Ok(e.t_world_lidar);
-    }
-    if k == 0 || k == truth.len() {
-        return Err(EvaluateError::Input {
-            path: path.to_path_buf(),
-            why: format!(
-                "no ground-truth ego pose around t = {t_s} s (samples cover [{}, {}] s)",
-                truth.first().map_or(f64::NAN, |e| e.t_s),
-                truth.last().map_or(f64::NAN, |e| e.t_s)
-            ),
-        });
-    }
-    let (a, b) = (&truth[k - 1], &truth[k]);
-    let s = (t_s - a.t_s) / (b.t_s - a.t_s);
-    let pa = a.t_world_lidar.translation.vector;
-    let pb = b.t_world_lidar.translation.vector;
-    let rotation = a
-        .t_world_lidar
-        .rotation
-        .try_slerp(&b.t_world_lidar.rotation, s, 1e-12)
-        .unwrap_or(a.t_world_lidar.rotation);
-    Ok(Isometry3::from_parts(
-        Translation3::from(pa + (pb - pa) * s),
-        rotation,
-    ))
+    pose_at(truth, t_s, |e| (e.t_s, e.t_world_lidar)).ok_or_else(|| EvaluateError::Input {
+        path: path.to_path_buf(),
+        why: format!(
+            "no ground-truth ego pose around t = {t_s} s (samples cover [{}, {}] s)",
+            truth.first().map_or(f64::NAN, |e| e.t_s),
+            truth.last().map_or(f64::NAN, |e| e.t_s)
+        ),
+    })
 }
 
 /// A LiDAR-frame box (yaw about LiDAR z) as a world box.

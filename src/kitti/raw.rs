@@ -424,6 +424,42 @@ pub enum SweepStart {
     Synthetic10Hz,
 }
 
+/// When the frames of a KITTI tracking directory were taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackingFrameTimes {
+    /// Sweep start of each frame (the scan's [`LidarScan::t_s`]).
+    pub sweep_starts_s: Vec<f64>,
+    /// How long after its sweep start a frame's OXTS record, camera image
+    /// and labels were taken.
+    pub frame_delay_s: f64,
+    pub start_source: SweepStart,
+}
+
+/// Frame times of a KITTI tracking directory with `frames` frames: from its
+/// `times.txt` (sweep starts, as limot's KITTI-style copies write them; the
+/// frame is the sweep start), else KITTI's 10 Hz with the frame at the camera
+/// trigger, which fires when the laser faces forward: half a sweep after the
+/// sweep start.
+///
+/// # Errors
+/// An unreadable or malformed `times.txt` (named).
+pub fn tracking_frame_times(dir: &Path, frames: usize) -> Result<TrackingFrameTimes> {
+    let times_path = dir.join("times.txt");
+    Ok(if times_path.is_file() {
+        TrackingFrameTimes {
+            sweep_starts_s: super::poses::read_times(&times_path)?,
+            frame_delay_s: 0.0,
+            start_source: SweepStart::Measured,
+        }
+    } else {
+        TrackingFrameTimes {
+            sweep_starts_s: (0..frames).map(|i| i as f64 * SWEEP_DURATION_S).collect(),
+            frame_delay_s: 0.5 * SWEEP_DURATION_S,
+            start_source: SweepStart::Synthetic10Hz,
+        }
+    })
+}
+
 /// One Velodyne sweep of a drive (the points are loaded on demand).
 #[derive(Debug, Clone, PartialEq)]
 pub struct VelodyneFrame {
@@ -654,18 +690,11 @@ impl RawDrive {
         let oxts_path = dir.join("oxts").join(format!("{name}.txt"));
         let records = super::oxts::read_oxts(&oxts_path)?;
         let times_path = dir.join("times.txt");
-        let (starts_s, oxts_delay_s, start_source) = if times_path.is_file() {
-            (
-                super::poses::read_times(&times_path)?,
-                0.0,
-                SweepStart::Measured,
-            )
-        } else {
-            let starts = (0..files.len())
-                .map(|i| i as f64 * SWEEP_DURATION_S)
-                .collect();
-            (starts, 0.5 * SWEEP_DURATION_S, SweepStart::Synthetic10Hz)
-        };
+        let TrackingFrameTimes {
+            sweep_starts_s: starts_s,
+            frame_delay_s: oxts_delay_s,
+            start_source,
+        } = tracking_frame_times(dir, files.len())?;
         if starts_s.len() != files.len() {
             return Err(count_mismatch(
                 &times_path,

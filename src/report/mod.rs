@@ -105,6 +105,11 @@ impl Variant {
         }
     }
 
+    /// Whether the variant runs the tracker (every variant but `lio`).
+    pub fn tracks_objects(self) -> bool {
+        self != Variant::Lio
+    }
+
     /// Accepts the machine name or the display name, in any case.
     pub fn parse(s: &str) -> Result<Variant, ReportError> {
         let t = s.trim();

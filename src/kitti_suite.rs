@@ -1,0 +1,485 @@
+//! `limot eval kitti`: every variant on every KITTI tracking sequence whose
+//! scans are present, the tracker alone on every sequence with detections,
+//! and optional peers' outputs (AB3DMOT's result files, another odometry's
+//! poses), all scored by the same evaluators
+//! ([`crate::evaluate::kitti_sequence`]) and saved as `OUT/results.json`;
+//! [`crate::kitti_report`] renders it in the shapes of the paper's Tables
+//! I-III with the paper's published rows beside ours.
+//!
+//! Layout of OUT:
+//!
+//! ```text
+//! runs/SSSS/<variant>/   poses_tum.txt, tracks.csv, ..., kitti_results/SSSS.txt
+//! tracker/SSSS.txt       the tracker alone (KITTI results)
+//! results.json           KittiSuiteResults
+//! report/README.md       the tables
+//! ```
+//!
+//! A run or sequence that fails is recorded with its error and the others go
+//! on; only a bad specification or an unwritable OUT stops the command.
+
+use crate::evaluate::kitti_sequence::{
+    KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
+    score_tracks,
+};
+use crate::kitti::calib::Calib;
+use crate::kitti::detections::ScoreMap;
+use crate::kitti::labels::read_labels;
+use crate::kitti::oxts::read_oxts;
+use crate::kitti::poses::parse_tum;
+use crate::kitti::{read_text, sequence_file};
+use crate::report::Variant;
+use crate::run::{RunOptions, Source, run, write_output};
+use crate::suite::{SuiteError, error_chain, variant_name};
+use crate::track_kitti::{TrackKittiOptions, kitti_val_tuned_config, track_sequence_with};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// Version of this `results.json` layout.
+pub const KITTI_RESULTS_FORMAT_VERSION: u32 = 1;
+
+/// The `kind` field that tells these results from a simulated suite's.
+pub const KITTI_RESULTS_KIND: &str = "kitti";
+
+/// What to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KittiSuiteSpec {
+    /// A KITTI tracking `training` directory (calib/, oxts/, label_02/, velodyne/).
+    pub training: PathBuf,
+    /// AB3DMOT-format detections (`SSSS.txt`), for the object variants and
+    /// the tracker alone; without them only `lio` runs.
+    pub detections: Option<PathBuf>,
+    pub score_map: ScoreMap,
+    pub variants: Vec<Variant>,
+    /// Sequences to consider; `None`: every sequence with an OXTS file.
+    pub sequences: Option<Vec<u32>>,
+    /// Peer tracking results (KITTI format, `SSSS.txt`) scored beside ours.
+    pub tracking_peer: Option<(String, PathBuf)>,
+    /// Peer ego trajectories (TUM, `SSSS.txt`, LiDAR poses) scored beside ours.
+    pub ego_peer: Option<(String, PathBuf)>,
+    pub out_dir: PathBuf,
+}
+
+/// One variant on one sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KittiVariantResult {
+    #[serde(with = "variant_name")]
+    pub variant: Variant,
+    /// Output directory, relative to OUT.
+    pub run_dir: PathBuf,
+    pub frames_estimated: usize,
+    pub frames_before_init: usize,
+    /// Mean wall time per estimated frame, ms.
+    pub mean_frame_ms: f64,
+    pub scores: Option<KittiRunScores>,
+    pub error: Option<String>,
+}
+
+/// Tracking scores of a tracker (ours alone, or a peer's result files) on one sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrackerResult {
+    pub scores: Option<TrackScores>,
+    pub error: Option<String>,
+}
+
+/// A peer's ego trajectory on one sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EgoPeerResult {
+    pub scores: Option<crate::evaluate::kitti_sequence::EgoScores>,
+    pub error: Option<String>,
+}
+
+/// One KITTI tracking sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KittiSequenceResult {
+    pub sequence: u32,
+    /// OXTS records (= frames).
+    pub frames: usize,
+    pub has_scans: bool,
+    pub runs: Vec<KittiVariantResult>,
+    /// The tracker alone with the KITTI settings, OXTS ego poses.
+    pub tracker: Option<TrackerResult>,
+    pub tracking_peer: Option<TrackerResult>,
+    pub ego_peer: Option<EgoPeerResult>,
+}
+
+impl KittiSequenceResult {
+    pub fn run(&self, v: Variant) -> Option<&KittiVariantResult> {
+        self.runs.iter().find(|r| r.variant == v)
+    }
+}
+
+/// What `results.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KittiSuiteResults {
+    /// Always [`KITTI_RESULTS_KIND`].
+    pub kind: String,
+    pub format_version: u32,
+    pub training: PathBuf,
+    pub detections: Option<PathBuf>,
+    #[serde(with = "variant_name::list")]
+    pub variants: Vec<Variant>,
+    pub tracking_peer: Option<String>,
+    pub ego_peer: Option<String>,
+    pub sequences: Vec<KittiSequenceResult>,
+}
+
+impl KittiSuiteResults {
+    /// Writes `dir/results.json`.
+    ///
+    /// # Errors
+    /// An unwritable file.
+    pub fn save(&self, dir: &Path) -> Result<PathBuf, SuiteError> {
+        let path = dir.join(crate::suite::RESULTS_FILE);
+        let text = serde_json::to_string_pretty(self).map_err(|source| SuiteError::Json {
+            path: path.clone(),
+            source,
+        })?;
+        fs::write(&path, text + "\n").map_err(|source| SuiteError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        Ok(path)
+    }
+
+    /// Reads KITTI suite results from JSON text of `path`.
+    ///
+    /// # Errors
+    /// Malformed JSON or another format version (named with the file).
+    pub fn parse(text: &str, path: &Path) -> Result<KittiSuiteResults, SuiteError> {
+        let results: KittiSuiteResults =
+            serde_json::from_str(text).map_err(|source| SuiteError::Json {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        if results.format_version != KITTI_RESULTS_FORMAT_VERSION {
+            return Err(SuiteError::Version {
+                path: path.to_path_buf(),
+                found: results.format_version,
+                expected: KITTI_RESULTS_FORMAT_VERSION,
+            });
+        }
+        Ok(results)
+    }
+}
+
+/// Whether `text` (a results.json) holds KITTI suite results.
+pub fn is_kitti_results(text: &str) -> bool {
+    #[derive(Deserialize)]
+    struct Kind {
+        kind: Option<String>,
+    }
+    serde_json::from_str::<Kind>(text)
+        .ok()
+        .and_then(|k| k.kind)
+        .is_some_and(|k| k == KITTI_RESULTS_KIND)
+}
+
+/// `training/velodyne/SSSS/` with at least one `.bin` scan.
+pub fn has_scans(training: &Path, sequence: u32) -> bool {
+    fs::read_dir(training.join("velodyne").join(format!("{sequence:04}")))
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok())
+                .any(|e| e.path().extension().is_some_and(|x| x == "bin"))
+        })
+        .unwrap_or(false)
+}
+
+/// Sequences with an OXTS file (`oxts/SSSS.txt`), ascending.
+///
+/// # Errors
+/// An unreadable `oxts/` directory.
+pub fn oxts_sequences(training: &Path) -> Result<Vec<u32>, SuiteError> {
+    let dir = training.join("oxts");
+    let entries = fs::read_dir(&dir).map_err(|source| SuiteError::Io {
+        path: dir.clone(),
+        source,
+    })?;
+    let mut sequences: Vec<u32> = entries
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().into_string().ok()?;
+            let stem = name.strip_suffix(".txt")?;
+            (stem.len() == 4).then(|| stem.parse().ok())?
+        })
+        .collect();
+    sequences.sort_unstable();
+    Ok(sequences)
+}
+
+fn bar(total: usize, visible: bool) -> ProgressBar {
+    if !visible {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template("{msg:>24} [{bar:40}] {pos}/{len} runs  eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(250));
+    bar
+}
+
+/// Runs one variant on one sequence and scores it.
+fn run_variant(
+    spec: &KittiSuiteSpec,
+    sequence: u32,
+    variant: Variant,
+    opts: &KittiScoreOptions,
+) -> KittiVariantResult {
+    let run_dir = PathBuf::from("runs")
+        .join(format!("{sequence:04}"))
+        .join(variant.name());
+    let mut result = KittiVariantResult {
+        variant,
+        run_dir: run_dir.clone(),
+        frames_estimated: 0,
+        frames_before_init: 0,
+        mean_frame_ms: 0.0,
+        scores: None,
+        error: None,
+    };
+    let out = spec.out_dir.join(&run_dir);
+    let attempt = || -> Result<_, Box<dyn std::error::Error>> {
+        let detections = spec
+            .detections
+            .as_deref()
+            .filter(|_| variant.tracks_objects());
+        let source =
+            Source::open_kitti_tracking(&spec.training, sequence, detections, spec.score_map)?;
+        let options = RunOptions {
+            variant,
+            ..RunOptions::default()
+        };
+        let output = run(&source, &spec.training, &options, None)?;
+        write_output(&out, &output)?;
+        let (scores, _) = score_run(
+            &spec.training,
+            sequence,
+            &output,
+            &out.join("kitti_results"),
+            opts,
+        )?;
+        Ok((output, scores))
+    };
+    match attempt() {
+        Ok((output, scores)) => {
+            result.frames_estimated = output.estimates.len();
+            result.frames_before_init = output.frames_before_init;
+            result.mean_frame_ms = output
+                .mean_timings()
+                .last()
+                .map_or(0.0, |(_, d)| d.as_secs_f64() * 1e3);
+            result.scores = Some(scores);
+        }
+        Err(e) => result.error = Some(error_chain(e.as_ref())),
+    }
+    result
+}
+
+/// The tracker alone (KITTI settings) on one sequence, or a peer's result file.
+fn score_tracker(
+    training: &Path,
+    sequence: u32,
+    frames: usize,
+    results: impl FnOnce()
+        -> Result<Vec<crate::kitti::labels::TrackingLabel>, Box<dyn std::error::Error>>,
+) -> TrackerResult {
+    let attempt = || -> Result<Option<TrackScores>, Box<dyn std::error::Error>> {
+        let Some(gt) = read_sequence_labels(training, sequence)? else {
+            return Ok(None);
+        };
+        let calib = Calib::read(&sequence_file(&training.join("calib"), sequence))?;
+        let labels = results()?;
+        Ok(Some(score_tracks(&gt, &labels, frames as u32, &calib)?))
+    };
+    match attempt() {
+        Ok(scores) => TrackerResult {
+            scores,
+            error: None,
+        },
+        Err(e) => TrackerResult {
+            scores: None,
+            error: Some(error_chain(e.as_ref())),
+        },
+    }
+}
+
+/// A peer's TUM trajectory `dir/SSSS.txt` scored like our runs.
+fn score_ego_peer(
+    training: &Path,
+    sequence: u32,
+    dir: &Path,
+    opts: &KittiScoreOptions,
+) -> Option<EgoPeerResult> {
+    let path = sequence_file(dir, sequence);
+    if !path.is_file() {
+        return None;
+    }
+    let attempt = || -> Result<_, Box<dyn std::error::Error>> {
+        let poses = parse_tum(&read_text(&path)?, &path)?;
+        let poses: Vec<_> = poses.iter().map(|p| (p.t_s, p.pose)).collect();
+        Ok(score_ego(training, sequence, &poses, opts)?)
+    };
+    Some(match attempt() {
+        Ok(scores) => EgoPeerResult {
+            scores: Some(scores),
+            error: None,
+        },
+        Err(e) => EgoPeerResult {
+            scores: None,
+            error: Some(error_chain(e.as_ref())),
+        },
+    })
+}
+
+/// Runs everything `spec` asks for, saves `results.json` and returns the results.
+///
+/// # Errors
+/// An empty variant list, an unreadable `training/oxts/`, an unwritable OUT.
+pub fn run_kitti_suite(
+    spec: &KittiSuiteSpec,
+    progress: bool,
+) -> Result<KittiSuiteResults, SuiteError> {
+    if spec.variants.is_empty() {
+        return Err(SuiteError::Spec("no variants given".into()));
+    }
+    let sequences = match &spec.sequences {
+        Some(s) => s.clone(),
+        None => oxts_sequences(&spec.training)?,
+    };
+    fs::create_dir_all(&spec.out_dir).map_err(|source| SuiteError::Io {
+        path: spec.out_dir.clone(),
+        source,
+    })?;
+    let opts = KittiScoreOptions::default();
+    let detections_of = |sequence: u32| {
+        spec.detections
+            .as_ref()
+            .map(|d| sequence_file(d, sequence))
+            .filter(|p| p.is_file())
+    };
+    let scanned: Vec<u32> = sequences
+        .iter()
+        .copied()
+        .filter(|&s| has_scans(&spec.training, s))
+        .collect();
+    let with_detections = sequences
+        .iter()
+        .filter(|&&s| detections_of(s).is_some())
+        .count();
+    let bar = bar(
+        scanned.len() * spec.variants.len() + with_detections,
+        progress,
+    );
+    let mut results = Vec::with_capacity(sequences.len());
+    for &sequence in &sequences {
+        let oxts_path = sequence_file(&spec.training.join("oxts"), sequence);
+        let frames = match read_oxts(&oxts_path) {
+            Ok(records) => records.len(),
+            Err(e) => {
+                return Err(SuiteError::Data(error_chain(&e)));
+            }
+        };
+        let mut result = KittiSequenceResult {
+            sequence,
+            frames,
+            has_scans: scanned.contains(&sequence),
+            runs: Vec::new(),
+            tracker: None,
+            tracking_peer: None,
+            ego_peer: None,
+        };
+        if result.has_scans {
+            for &variant in &spec.variants {
+                bar.set_message(format!("{sequence:04} {}", variant.name()));
+                result
+                    .runs
+                    .push(run_variant(spec, sequence, variant, &opts));
+                bar.inc(1);
+            }
+        }
+        if let Some(det_dir) = spec
+            .detections
+            .as_deref()
+            .filter(|_| detections_of(sequence).is_some())
+        {
+            bar.set_message(format!("{sequence:04} tracker"));
+            let options = TrackKittiOptions {
+                tracker: kitti_val_tuned_config(),
+                score_map: spec.score_map,
+                ..TrackKittiOptions::default()
+            };
+            let out_dir = spec.out_dir.join("tracker");
+            result.tracker = Some(score_tracker(&spec.training, sequence, frames, || {
+                let tracks = track_sequence_with(&spec.training, det_dir, sequence, &options)?;
+                fs::create_dir_all(&out_dir)?;
+                crate::kitti::results::write_results_file(&out_dir, sequence, &tracks.labels)?;
+                Ok(tracks.labels)
+            }));
+            bar.inc(1);
+        }
+        if let Some((_, dir)) = &spec.tracking_peer {
+            let path = sequence_file(dir, sequence);
+            if path.is_file() {
+                result.tracking_peer =
+                    Some(score_tracker(&spec.training, sequence, frames, || {
+                        Ok(read_labels(&path)?)
+                    }));
+            }
+        }
+        if let Some((_, dir)) = &spec.ego_peer {
+            result.ego_peer = score_ego_peer(&spec.training, sequence, dir, &opts);
+        }
+        results.push(result);
+    }
+    bar.finish_and_clear();
+    let results = KittiSuiteResults {
+        kind: KITTI_RESULTS_KIND.into(),
+        format_version: KITTI_RESULTS_FORMAT_VERSION,
+        training: spec.training.clone(),
+        detections: spec.detections.clone(),
+        variants: spec.variants.clone(),
+        tracking_peer: spec.tracking_peer.as_ref().map(|(name, _)| name.clone()),
+        ego_peer: spec.ego_peer.as_ref().map(|(name, _)| name.clone()),
+        sequences: results,
+    };
+    results.save(&spec.out_dir)?;
+    Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn results_kind_is_recognised_and_a_suite_file_is_not() {
+        assert!(is_kitti_results(
+            r#"{"kind": "kitti", "format_version": 1}"#
+        ));
+        assert!(!is_kitti_results(
+            r#"{"format_version": 1, "families": []}"#
+        ));
+        assert!(!is_kitti_results("not json"));
+    }
+
+    #[test]
+    fn oxts_sequences_are_the_four_digit_txt_files_in_order() {
+        let dir = std::env::temp_dir().join(format!("limot-kitti-suite-{}", std::process::id()));
+        let oxts = dir.join("oxts");
+        fs::create_dir_all(&oxts).unwrap();
+        for name in ["0003.txt", "0000.txt", "notes.txt", "12.txt", "0020.txt"] {
+            fs::write(oxts.join(name), "").unwrap();
+        }
+        assert_eq!(oxts_sequences(&dir).unwrap(), vec![0, 3, 20]);
+        assert!(!has_scans(&dir, 0));
+        let scans = dir.join("velodyne").join("0003");
+        fs::create_dir_all(&scans).unwrap();
+        fs::write(scans.join("000000.bin"), [0u8; 16]).unwrap();
+        assert!(has_scans(&dir, 3));
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}
