@@ -18,8 +18,14 @@ mod common;
 /// Frames of sequence 0000.
 const FRAMES: usize = 154;
 
-/// Unpacks the real scans into a KITTI `training` directory under the target dir.
+/// Unpacks the real scans into a KITTI `training` directory under the target
+/// dir, once per test process (the tests run in parallel).
 fn training_dir(data: &Path) -> PathBuf {
+    static UNPACKED: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    UNPACKED.get_or_init(|| unpack(data)).clone()
+}
+
+fn unpack(data: &Path) -> PathBuf {
     let dest = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_training");
     let script = data.join("unpack-kitti.sh");
     let status = Command::new("bash")
@@ -141,4 +147,118 @@ fn check_tracks(variant: Variant, t: &TrackScores) {
         assert!(o.tp_percent > 90.0, "{variant:?}: {o:?}");
         assert!(o.ate_t_m.unwrap() < 0.16, "{variant:?}: {o:?}");
     }
+}
+
+/// A copy of sequence 0000 with its first `scans` scans, for damaging.
+fn partial_copy(training: &Path, name: &str, scans: usize) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    for sub in ["calib", "oxts", "label_02"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+        std::fs::copy(
+            training.join(sub).join("0000.txt"),
+            dir.join(sub).join("0000.txt"),
+        )
+        .unwrap();
+    }
+    let velodyne = dir.join("velodyne/0000");
+    std::fs::create_dir_all(&velodyne).unwrap();
+    for i in 0..scans {
+        let name = format!("{i:06}.bin");
+        std::fs::copy(
+            training.join("velodyne/0000").join(&name),
+            velodyne.join(&name),
+        )
+        .unwrap();
+    }
+    dir
+}
+
+fn open_error(dir: &Path) -> String {
+    match limot::run::Source::open_kitti_tracking(dir, 0, None, ScoreMap::Sigmoid) {
+        Ok(_) => panic!("{} opened", dir.display()),
+        Err(e) => limot::suite::error_chain(&e),
+    }
+}
+
+#[test]
+fn damaged_sequences_name_the_file_and_missing_labels_give_no_mot_score() {
+    let Some(data) = common::data_root("real KITTI scans (sequence 0000)") else {
+        return;
+    };
+    let training = training_dir(&data);
+    // Fewer scans than OXTS records.
+    let short = partial_copy(&training, "kitti_short", 5);
+    let e = open_error(&short);
+    assert!(
+        e.contains("oxts/0000.txt") && e.contains("154") && e.contains("5"),
+        "{e}"
+    );
+    // No velodyne directory.
+    std::fs::remove_dir_all(short.join("velodyne/0000")).unwrap();
+    let e = open_error(&short);
+    assert!(e.contains("velodyne/0000"), "{e}");
+
+    let dir = partial_copy(&training, "kitti_damaged", FRAMES);
+    // A garbled OXTS line and calibration line name file and line.
+    let oxts = dir.join("oxts/0000.txt");
+    let good_oxts = std::fs::read_to_string(&oxts).unwrap();
+    let mut lines: Vec<&str> = good_oxts.lines().collect();
+    lines[4] = "garbage line";
+    std::fs::write(&oxts, lines.join("\n")).unwrap();
+    let e = open_error(&dir);
+    assert!(e.contains("oxts/0000.txt:5"), "{e}");
+    std::fs::write(&oxts, &good_oxts).unwrap();
+    let calib = dir.join("calib/0000.txt");
+    let good_calib = std::fs::read_to_string(&calib).unwrap();
+    let garbled: String = good_calib
+        .lines()
+        .map(|l| {
+            if l.starts_with("Tr_imu_velo") {
+                "Tr_imu_velo 1 2 3"
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&calib, garbled).unwrap();
+    let e = open_error(&dir);
+    assert!(
+        e.contains("calib/0000.txt:") && e.contains("Tr_imu_velo"),
+        "{e}"
+    );
+    std::fs::write(&calib, &good_calib).unwrap();
+    // A truncated scan names the file when it is read.
+    let scan = dir.join("velodyne/0000/000003.bin");
+    let bytes = std::fs::read(&scan).unwrap();
+    std::fs::write(&scan, &bytes[..1000]).unwrap();
+    let source = limot::run::Source::open_kitti_tracking(&dir, 0, None, ScoreMap::Sigmoid).unwrap();
+    let e = limot::suite::error_chain(&source.frame(3).unwrap_err());
+    assert!(e.contains("000003.bin") && e.contains("byte offset"), "{e}");
+    std::fs::write(&scan, &bytes).unwrap();
+
+    // No labels: the ego is scored, the tracks are not.
+    std::fs::remove_file(dir.join("label_02/0000.txt")).unwrap();
+    let detections = data.join("kitti_tracking/detections/pointrcnn_Car_val");
+    let source =
+        limot::run::Source::open_kitti_tracking(&dir, 0, Some(&detections), ScoreMap::Sigmoid)
+            .unwrap();
+    let options = limot::run::RunOptions {
+        variant: Variant::Dynafilt,
+        max_frames: Some(30),
+        ..limot::run::RunOptions::default()
+    };
+    let output = limot::run::run(&source, &dir, &options, None).unwrap();
+    let (scores, results) = limot::evaluate::kitti_sequence::score_run(
+        &dir,
+        0,
+        &output,
+        &dir.join("kitti_results"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert!(scores.tracks.is_none());
+    assert_eq!(scores.ego.poses, 20);
+    assert!(results.is_file());
 }
