@@ -418,7 +418,7 @@ pub fn score_tracks(
     };
     let mut objects = object_scores(&frames, &object_cfg)?;
     // Most labelled frames first; ties to the smaller id (the sort is stable).
-    objects.sort_by(|a, b| b.gt_frames.cmp(&a.gt_frames));
+    objects.sort_by_key(|o| std::cmp::Reverse(o.gt_frames));
     let objects = objects
         .iter()
         .map(|o| ObjectSummary {
