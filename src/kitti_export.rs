@@ -10,6 +10,7 @@
 //! detections/0000.txt        the simulated detections, AB3DMOT CSV (camera frame, score as stored)
 //! poses/0000.txt             ground-truth t_world_lidar at each sweep start, KITTI pose format
 //! times.txt                  sweep start times, s
+//! velodyne_elevation_correction_deg.txt   `0`: our LiDAR needs none of KITTI's scan correction
 //! ```
 //! The world frame is taken as local ENU; latitude/longitude come from the
 //! devkit's Mercator projection around a point in Karlsruhe, chosen so the
@@ -22,6 +23,7 @@ use crate::kitti::oxts::{
     EARTH_RADIUS_M, OxtsRecord, lat_lon_to_mercator, lat_to_scale, write_oxts,
 };
 use crate::kitti::poses::write_kitti_poses;
+use crate::kitti::raw::ELEVATION_CORRECTION_FILE;
 use crate::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
 use crate::kitti::velodyne::encode_bin;
 use crate::kitti::{KittiError, detections::LidarBox};
@@ -251,5 +253,6 @@ pub fn export_dataset(dataset_dir: &Path, out: &Path) -> Result<PathBuf, ExportE
     write(&out.join("poses/0000.txt"), write_kitti_poses(&poses))?;
     let times: String = times_s.iter().map(|t| format!("{t}\n")).collect();
     write(&out.join("times.txt"), times)?;
+    write(&out.join(ELEVATION_CORRECTION_FILE), "0\n")?;
     Ok(out.to_path_buf())
 }

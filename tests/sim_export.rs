@@ -7,6 +7,7 @@ use limot::kitti::calib::Calib;
 use limot::kitti::detections::{ScoreMap, camera_box_to_lidar, read_ab3dmot_csv};
 use limot::kitti::labels::read_labels;
 use limot::kitti::oxts::{oxts_to_poses, read_oxts};
+use limot::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
 use limot::kitti::velodyne::read_bin;
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::imu::ImuSimulator;
@@ -54,6 +55,14 @@ fn kitti_copy_matches_the_simulated_dataset() {
     for (a, b) in bin.scan.points.iter().zip(&frame.scan.points) {
         assert_eq!((a.x, a.y, a.z, a.intensity), (b.x, b.y, b.z, b.intensity));
     }
+    // ... and the copy declares that they need none of KITTI's elevation correction
+    let drive = RawDrive::open_tracking_sequence(&kitti, 0).unwrap();
+    assert_eq!(drive.elevation_correction_rad, 0.0);
+    assert_eq!(
+        fs::read_to_string(kitti.join(ELEVATION_CORRECTION_FILE)).unwrap(),
+        "0\n"
+    );
+    assert_eq!(drive.scan(5).unwrap().points, bin.scan.points);
 
     // labels convert back to the ground-truth boxes in the LiDAR frame
     let labels = read_labels(&kitti.join("label_02/0000.txt")).unwrap();

@@ -32,7 +32,10 @@
 
 use super::calib::{Calib, isometry_from_3x4};
 use super::oxts::{OxtsRecord, oxts_to_imu, oxts_to_poses, parse_oxts};
-use super::velodyne::{SWEEP_DURATION_S, VelodyneScan, encode_bin, parse_bin, read_bin};
+use super::velodyne::{
+    KITTI_HDL64_ELEVATION_CORRECTION_DEG, SWEEP_DURATION_S, VelodyneScan, encode_bin, parse_bin,
+    raise_scan_elevation, read_bin,
+};
 use super::{KittiError, LineCtx, Result, content_lines, read_text};
 use limot_estimator::input::{ImuSample, LidarPoint, LidarScan};
 use nalgebra::{Isometry3, Matrix3, Matrix3x4};
@@ -520,7 +523,52 @@ pub struct RawDrive {
     pub velodyne: Vec<VelodyneFrame>,
     /// Nominal OXTS period: the median positive step (`None` for < 2 distinct times).
     pub oxts_period_s: Option<f64>,
+    /// Elevation added to every loaded point (rad, see
+    /// [`raise_elevation`](super::velodyne::raise_elevation)): KITTI's
+    /// [`KITTI_HDL64_ELEVATION_CORRECTION_DEG`] for KITTI's own recordings,
+    /// 0 for scans of other origin; set it to 0 to read the points as stored.
+    pub elevation_correction_rad: f64,
     gaps: Vec<ImuGap>,
+}
+
+/// File of a KITTI-tracking-style directory declaring the elevation
+/// correction its scans need, in degrees (one number): `limot simulate`
+/// writes `0` into its copies; a user may write one to override the default.
+pub const ELEVATION_CORRECTION_FILE: &str = "velodyne_elevation_correction_deg.txt";
+
+/// The elevation correction (rad) of the scans of a tracking directory: the
+/// number in [`ELEVATION_CORRECTION_FILE`] when present; else none for our
+/// own copies (they have `times.txt`, KITTI has not) and KITTI's
+/// [`KITTI_HDL64_ELEVATION_CORRECTION_DEG`] for KITTI's recordings.
+pub fn declared_elevation_correction_rad(dir: &Path) -> Result<f64> {
+    let path = dir.join(ELEVATION_CORRECTION_FILE);
+    if path.is_file() {
+        let text = read_text(&path)?;
+        let mut lines = content_lines(&text);
+        let (line_no, line) = lines.next().ok_or_else(|| KittiError::Invalid {
+            path: path.clone(),
+            why: "empty: expected one angle in degrees".to_string(),
+        })?;
+        let ctx = LineCtx::new(&path, line_no);
+        let tokens: Vec<&str> = line.split_whitespace().collect();
+        if tokens.len() != 1 || lines.next().is_some() {
+            return Err(ctx.line_error("expected one angle in degrees".to_string()));
+        }
+        let deg = ctx.f64(tokens[0], 1, "elevation_correction_deg")?;
+        if deg.abs() > 5.0 {
+            return Err(ctx.field_error(
+                1,
+                "elevation_correction_deg",
+                format!("{deg}° is not a plausible correction (|angle| ≤ 5°)"),
+            ));
+        }
+        return Ok(deg.to_radians());
+    }
+    Ok(if dir.join("times.txt").is_file() {
+        0.0
+    } else {
+        KITTI_HDL64_ELEVATION_CORRECTION_DEG.to_radians()
+    })
 }
 
 /// Numbered data files `dir/NNNNNNNNNN.<ext>` sorted; their numbers must be
@@ -622,6 +670,7 @@ impl RawDrive {
     /// Opens a drive directory: reads every OXTS record with its timestamp,
     /// lists the Velodyne sweeps (if `velodyne_points/data` exists) with
     /// their times, and checks numbering, counts and time order (module docs).
+    /// Its scans get KITTI's elevation correction.
     pub fn open(drive_dir: &Path) -> Result<RawDrive> {
         let oxts = read_oxts_stream(&drive_dir.join("oxts"))?;
         let velodyne_dir = drive_dir.join("velodyne_points");
@@ -630,11 +679,21 @@ impl RawDrive {
         } else {
             Vec::new()
         };
-        Ok(RawDrive::from_streams(drive_dir, oxts, velodyne))
+        Ok(RawDrive::from_streams(
+            drive_dir,
+            oxts,
+            velodyne,
+            KITTI_HDL64_ELEVATION_CORRECTION_DEG.to_radians(),
+        ))
     }
 
     /// A drive of these streams; the OXTS period and gaps follow from its times.
-    fn from_streams(dir: &Path, oxts: Vec<TimedOxts>, velodyne: Vec<VelodyneFrame>) -> RawDrive {
+    fn from_streams(
+        dir: &Path,
+        oxts: Vec<TimedOxts>,
+        velodyne: Vec<VelodyneFrame>,
+        elevation_correction_rad: f64,
+    ) -> RawDrive {
         let times: Vec<f64> = oxts.iter().map(|o| o.t_s).collect();
         let oxts_period_s = nominal_period_s(&times);
         let gaps = oxts_period_s
@@ -645,6 +704,7 @@ impl RawDrive {
             oxts,
             velodyne,
             oxts_period_s,
+            elevation_correction_rad,
             gaps,
         }
     }
@@ -652,7 +712,9 @@ impl RawDrive {
     /// Opens a directory of bare numbered `.bin`/`.txt` scans with no
     /// timestamps and no OXTS (e.g. `shared/data/kitti_raw_scans`). The
     /// timing is SYNTHETIC: frame `i` starts at `0.1·i` s (10 Hz from 0),
-    /// marked [`SweepStart::Synthetic10Hz`].
+    /// marked [`SweepStart::Synthetic10Hz`]. The points are read as stored
+    /// (no elevation correction: a directory of `.bin` files says nothing of
+    /// the sensor that recorded them).
     pub fn open_bare_scans(dir: &Path) -> Result<RawDrive> {
         let (files, format) = scan_files(dir)?;
         let velodyne = files
@@ -672,6 +734,7 @@ impl RawDrive {
             oxts: Vec::new(),
             velodyne,
             oxts_period_s: None,
+            elevation_correction_rad: 0.0,
             gaps: Vec::new(),
         })
     }
@@ -683,7 +746,8 @@ impl RawDrive {
     /// With `times.txt` (our copies) scans start at its times and each OXTS
     /// record is at its scan's start; without (KITTI), frame `i` starts at
     /// `0.1·i` s and its OXTS record is at the camera trigger, half a sweep
-    /// later, as KITTI synchronises them.
+    /// later, as KITTI synchronises them. The scans' elevation correction is
+    /// [`declared_elevation_correction_rad`].
     pub fn open_tracking_sequence(dir: &Path, sequence: u32) -> Result<RawDrive> {
         let name = format!("{sequence:04}");
         let (files, format) = scan_files(&dir.join("velodyne").join(&name))?;
@@ -731,7 +795,13 @@ impl RawDrive {
                 record,
             })
             .collect();
-        Ok(RawDrive::from_streams(dir, oxts, velodyne))
+        let elevation_correction_rad = declared_elevation_correction_rad(dir)?;
+        Ok(RawDrive::from_streams(
+            dir,
+            oxts,
+            velodyne,
+            elevation_correction_rad,
+        ))
     }
 
     pub fn oxts_times_s(&self) -> Vec<f64> {
@@ -769,7 +839,8 @@ impl RawDrive {
         self.velodyne.len()
     }
 
-    /// Loads sweep `i` with its rings; `t_s` = sweep start.
+    /// Loads sweep `i` with its rings; `t_s` = sweep start; points raised by
+    /// [`RawDrive::elevation_correction_rad`].
     pub fn velodyne_scan(&self, i: usize) -> Result<VelodyneScan> {
         let Some(frame) = self.velodyne.get(i) else {
             return Err(KittiError::Invalid {
@@ -780,10 +851,12 @@ impl RawDrive {
                 ),
             });
         };
-        match frame.format {
+        let mut scan = match frame.format {
             ScanFormat::Bin => read_bin(&frame.path, frame.t_start_s),
             ScanFormat::Txt => read_velodyne_txt(&frame.path, frame.t_start_s),
-        }
+        }?;
+        raise_scan_elevation(&mut scan.scan, self.elevation_correction_rad);
+        Ok(scan)
     }
 
     /// Loads sweep `i` as the estimator's [`LidarScan`] (`t_s` = sweep start).
@@ -1310,7 +1383,18 @@ mod tests {
         assert!(worst_pos_m < 1e-5, "{worst_pos_m}");
         assert!(worst_yaw_rad < 1e-6, "{worst_yaw_rad}");
 
-        // Scans load with t_s = sweep start and the written points.
+        // Scans load with t_s = sweep start and the written points, raised by
+        // KITTI's elevation correction (a raw drive is KITTI's recording).
+        let raised = drive.velodyne_scan(0).unwrap();
+        let angle = KITTI_HDL64_ELEVATION_CORRECTION_DEG.to_radians();
+        assert_eq!(drive.elevation_correction_rad, angle);
+        for (a, b) in raised.scan.points.iter().zip(&written.scans[0]) {
+            let p = Vector3::new(b.x as f64, b.y as f64, b.z as f64);
+            let q = crate::kitti::velodyne::raise_elevation(&p, angle);
+            assert_eq!((a.x, a.y, a.z), (q.x as f32, q.y as f32, q.z as f32));
+        }
+        let mut drive = drive;
+        drive.elevation_correction_rad = 0.0;
         assert_eq!(drive.num_scans(), 3);
         for k in 0..3 {
             let frame = &drive.velodyne[k];
@@ -1525,6 +1609,78 @@ mod tests {
     }
 
     #[test]
+    fn tracking_scans_are_corrected_unless_declared_otherwise() {
+        let tmp = TempDir::new("tracking_elev");
+        let velo = tmp.0.join("velodyne/0000");
+        std::fs::create_dir_all(&velo).unwrap();
+        std::fs::create_dir_all(tmp.0.join("oxts")).unwrap();
+        let points = scan_points(0);
+        write_bin(&velo.join("000000.bin"), &points).unwrap();
+        write_text(
+            &tmp.0.join("oxts/0000.txt"),
+            &format!("{}\n", circle_record(0.0, 0).to_line()),
+        )
+        .unwrap();
+        let z_of = |drive: &RawDrive| drive.scan(0).unwrap().points[0].z;
+        let stored = points[0].z;
+        let p = Vector3::new(points[0].x as f64, points[0].y as f64, stored as f64);
+        let raise =
+            |deg: f64| crate::kitti::velodyne::raise_elevation(&p, f64::to_radians(deg)).z as f32;
+
+        // KITTI's own layout (no times.txt): KITTI's correction.
+        let drive = RawDrive::open_tracking_sequence(&tmp.0, 0).unwrap();
+        let kitti = KITTI_HDL64_ELEVATION_CORRECTION_DEG.to_radians();
+        assert_eq!(drive.elevation_correction_rad, kitti);
+        assert_eq!(z_of(&drive), raise(KITTI_HDL64_ELEVATION_CORRECTION_DEG));
+        assert_ne!(z_of(&drive), stored);
+
+        // Our copies (times.txt): the points as stored.
+        write_text(&tmp.0.join("times.txt"), "0.0\n").unwrap();
+        let drive = RawDrive::open_tracking_sequence(&tmp.0, 0).unwrap();
+        assert_eq!(drive.elevation_correction_rad, 0.0);
+        assert_eq!(z_of(&drive), stored);
+
+        // The declaration file wins either way.
+        let declared = tmp.0.join(ELEVATION_CORRECTION_FILE);
+        write_text(&declared, "0.1\n").unwrap();
+        let drive = RawDrive::open_tracking_sequence(&tmp.0, 0).unwrap();
+        assert!((drive.elevation_correction_rad - 0.1f64.to_radians()).abs() < 1e-15);
+        assert_eq!(z_of(&drive), raise(0.1));
+        std::fs::remove_file(tmp.0.join("times.txt")).unwrap();
+        write_text(&declared, "0\n").unwrap();
+        let drive = RawDrive::open_tracking_sequence(&tmp.0, 0).unwrap();
+        assert_eq!(z_of(&drive), stored);
+
+        // Garbled declarations name the file and line.
+        for (text, why) in [
+            ("abc\n", "not a number"),
+            ("0.2 0.3\n", "one angle"),
+            ("\n9\n", "plausible"),
+            ("", "empty"),
+        ] {
+            write_text(&declared, text).unwrap();
+            let err = RawDrive::open_tracking_sequence(&tmp.0, 0)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains(ELEVATION_CORRECTION_FILE) && err.contains(why),
+                "{err}"
+            );
+        }
+        write_text(&declared, "\n\n0.3\n").unwrap();
+        let err = declared_elevation_correction_rad(&tmp.0);
+        assert!(err.is_ok());
+        write_text(&declared, "9\n").unwrap();
+        let err = declared_elevation_correction_rad(&tmp.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("{ELEVATION_CORRECTION_FILE}:1")),
+            "{err}"
+        );
+    }
+
+    #[test]
     fn bare_scans_get_synthetic_10hz_times() {
         let tmp = TempDir::new("bare");
         for k in 0..3 {
@@ -1538,6 +1694,8 @@ mod tests {
             let scan = drive.scan(k).unwrap();
             assert_eq!(scan.t_s, k as f64 * 0.1);
             assert_eq!(scan.points.len(), scan_points(k).len());
+            // Read as stored: no elevation correction for bare scans.
+            assert_eq!(scan.points[7].z, scan_points(k)[7].z);
         }
         // The 20 real scans of shared/data, when present.
         let real = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti_raw_scans");

@@ -49,6 +49,46 @@ pub struct VelodyneScan {
     pub ring_source: RingSource,
 }
 
+/// Elevation error of the point clouds KITTI recorded with its HDL-64E, in
+/// degrees: every point KITTI stores lies this much too low, seen from the
+/// sensor, so a flat road comes out as a shallow bowl and straight walls
+/// lean. Found by Deschaud (IMLS-SLAM, ICRA 2018, 0.22°) and used by CT-ICP
+/// (Dellenbach et al., ICRA 2022, 0.22°) and KISS-ICP (its KITTI readers,
+/// 0.205°); [`raise_elevation`] undoes it. On KITTI tracking 0000 it lowers
+/// limot's attitude error; it does not change the odometry's scale (see
+/// docs/kitti-real-data.md).
+pub const KITTI_HDL64_ELEVATION_CORRECTION_DEG: f64 = 0.22;
+
+/// `p_lidar` with its elevation raised by `angle_rad`: a rotation by
+/// `angle_rad` about the horizontal axis `p × z` through the sensor origin,
+/// so range and azimuth are kept (and with them the ring and the sweep
+/// time). Points on the z axis have no azimuth and are returned unchanged.
+pub fn raise_elevation(p_lidar: &Vector3<f64>, angle_rad: f64) -> Vector3<f64> {
+    let rho = p_lidar.xy().norm();
+    if rho == 0.0 || angle_rad == 0.0 {
+        return *p_lidar;
+    }
+    let (sin, cos) = angle_rad.sin_cos();
+    let new_rho = rho * cos - p_lidar.z * sin;
+    let new_z = rho * sin + p_lidar.z * cos;
+    Vector3::new(p_lidar.x * new_rho / rho, p_lidar.y * new_rho / rho, new_z)
+}
+
+/// Applies [`raise_elevation`] to every point of `scan` (rings, times and
+/// intensities unchanged).
+pub fn raise_scan_elevation(scan: &mut LidarScan, angle_rad: f64) {
+    if angle_rad == 0.0 {
+        return;
+    }
+    for point in &mut scan.points {
+        let p = Vector3::new(point.x as f64, point.y as f64, point.z as f64);
+        let q = raise_elevation(&p, angle_rad);
+        point.x = q.x as f32;
+        point.y = q.y as f32;
+        point.z = q.z as f32;
+    }
+}
+
 /// Time after the sweep start at which the laser pointed at `p_lidar`
 /// (see the module docs), in [0, 0.1] s.
 pub fn sweep_time_offset_s(p_lidar: &Vector3<f64>) -> f64 {
@@ -272,6 +312,68 @@ mod tests {
         assert!((t(1.0, 0.0) - 0.05).abs() < 1e-12);
         assert!((t(0.0, -1.0) - 0.075).abs() < 1e-12);
         assert!((t(-1.0, -1e-9) - 0.1).abs() < 1e-6);
+    }
+
+    fn elevation_deg(p: &Vector3<f64>) -> f64 {
+        p.z.atan2(p.xy().norm()).to_degrees()
+    }
+
+    #[test]
+    fn raising_elevation_keeps_range_and_azimuth() {
+        let angle = KITTI_HDL64_ELEVATION_CORRECTION_DEG.to_radians();
+        for (az_deg, el_deg, range) in [
+            (0.0, 0.0, 10.0),
+            (37.0, -24.0, 5.5),
+            (-120.0, 2.0, 80.0),
+            (179.0, -8.0, 30.0),
+        ] {
+            let (az, el) = (f64::to_radians(az_deg), f64::to_radians(el_deg));
+            let p = range * Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+            let q = raise_elevation(&p, angle);
+            assert!((q.norm() - range).abs() < 1e-12, "range {}", q.norm());
+            assert!((q.y.atan2(q.x) - az).abs() < 1e-12, "azimuth");
+            let raised = elevation_deg(&q) - el_deg;
+            assert!(
+                (raised - KITTI_HDL64_ELEVATION_CORRECTION_DEG).abs() < 1e-9,
+                "{raised}°"
+            );
+            // It is the rotation about p × z: the axis is kept and the
+            // rotated vector is perpendicular to it.
+            let axis = p.cross(&Vector3::z()).normalize();
+            let rotated =
+                nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle)
+                    * p;
+            assert!((rotated - q).norm() < 1e-12 * range);
+        }
+        // At 20 m a level point rises by 20 m · tan(0.22°) = 7.7 cm.
+        let q = raise_elevation(&Vector3::new(20.0, 0.0, 0.0), angle);
+        assert!((q.z - 0.0768).abs() < 1e-4, "{}", q.z);
+        // The z axis has no azimuth plane: unchanged; a zero angle is exact.
+        let up = Vector3::new(0.0, 0.0, 3.0);
+        assert_eq!(raise_elevation(&up, angle), up);
+        let p = Vector3::new(1.5, -2.0, 0.25);
+        assert_eq!(raise_elevation(&p, 0.0), p);
+    }
+
+    #[test]
+    fn raising_a_scan_keeps_rings_times_and_intensities() {
+        let points = synthetic_points();
+        let mut scan = parse_bin(&encode_bin(&points), Path::new("s.bin"), 0.0)
+            .unwrap()
+            .scan;
+        let before = scan.clone();
+        raise_scan_elevation(&mut scan, 0.3f64.to_radians());
+        for (a, b) in before.points.iter().zip(&scan.points) {
+            assert_eq!(
+                (a.ring, a.time_offset_s, a.intensity),
+                (b.ring, b.time_offset_s, b.intensity)
+            );
+            let (pa, pb) = (
+                Vector3::new(a.x as f64, a.y as f64, a.z as f64),
+                Vector3::new(b.x as f64, b.y as f64, b.z as f64),
+            );
+            assert!((elevation_deg(&pb) - elevation_deg(&pa) - 0.3).abs() < 1e-4);
+        }
     }
 
     #[test]
