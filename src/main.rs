@@ -499,7 +499,7 @@ fn run_estimator(
         let results = limot::run::write_kitti_tracks(
             &out.join("kitti_results"),
             0,
-            &limot::run::kitti_track_labels(&output, &calib, 0.0)?,
+            &limot::run::kitti_track_labels(&output, &calib, Default::default())?,
         )?;
         let e = evaluate_tracks(
             dataset_dir_of(dataset),

@@ -12,7 +12,7 @@ use crate::kitti::calib::Calib;
 use crate::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
 use crate::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use crate::kitti::raw::{RawCalib, RawDrive};
-use crate::kitti::velodyne::sweep_time_offset_s;
+use crate::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
 use crate::report::Variant;
 use crate::simulate::frame_progress_bar;
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
@@ -151,6 +151,9 @@ impl Source {
                     }));
                 }
                 for d in frames.iter_mut().flatten() {
+                    // The boxes were found in the stored points: they get the
+                    // scans' elevation correction too.
+                    d.center_lidar = raise_elevation(&d.center_lidar, drive.elevation_correction_rad);
                     d.time_offset_s = sweep_time_offset_s(&d.center_lidar);
                 }
                 frames
@@ -498,25 +501,37 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
     Ok(())
 }
 
+/// Where and when a source's labels were taken, relative to the scans the
+/// estimator saw. Limot datasets: at the sweep start, in the scans' frame
+/// (the default). Real KITTI: at the camera trigger, half a sweep after the
+/// sweep start, in the stored points before their elevation correction.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LabelFrame {
+    /// Time of a frame's labels after its sweep start, s.
+    pub delay_s: f64,
+    /// Elevation correction the scans (and detections) got, rad.
+    pub elevation_correction_rad: f64,
+}
+
 /// The confirmed tracks that matched a detection in each frame (as AB3DMOT
 /// reports) as KITTI tracking result lines: boxes moved back into each
 /// frame's LiDAR frame with the estimated pose and projected through `calib`
 /// (the dataset's KITTI copy uses [`crate::kitti_export::synthetic_calib`]).
 /// Boxes outside the camera image have no KITTI line.
 ///
-/// A frame's labels are taken `frame_delay_s` after its sweep start (real
-/// KITTI: at the camera trigger, half a sweep later; limot datasets: at the
-/// sweep start, 0): the boxes are moved there along their velocity and
-/// placed with the ego pose of that instant, interpolated between the
-/// sweeps' poses (extrapolated with the velocity after the last one).
+/// Boxes are given where the labels were taken ([`LabelFrame`]): moved along
+/// their velocity to the label time, placed with the ego pose of that
+/// instant (interpolated between the sweeps' poses, extrapolated with the
+/// velocity after the last one) and returned to the stored points' elevation.
 ///
 /// # Errors
 /// A track id beyond the result format's 32 bits.
 pub fn kitti_track_labels(
     output: &RunOutput,
     calib: &crate::kitti::calib::Calib,
-    frame_delay_s: f64,
+    label_frame: LabelFrame,
 ) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
+    let frame_delay_s = label_frame.delay_s;
     use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
     use crate::track_kitti::world_box_to_lidar;
     use limot_estimator::tracking::Lifecycle;
@@ -537,17 +552,20 @@ pub fn kitti_track_labels(
             if t.lifecycle != Lifecycle::Confirmed || t.predicted {
                 continue;
             }
+            let mut lidar_box = world_box_to_lidar(
+                &(t.center_world + t.velocity_world_mps * frame_delay_s),
+                &t.size_lwh,
+                t.yaw_rad,
+                &t_world_lidar,
+            );
+            lidar_box.center_lidar =
+                raise_elevation(&lidar_box.center_lidar, -label_frame.elevation_correction_rad);
             let track = TrackBox {
                 frame: e.frame_index as u32,
                 track_id: u32::try_from(t.id)
                     .map_err(|_| RunError::TrackIdOverflow { id: t.id })?,
                 class: t.class,
-                lidar_box: world_box_to_lidar(
-                    &(t.center_world + t.velocity_world_mps * frame_delay_s),
-                    &t.size_lwh,
-                    t.yaw_rad,
-                    &t_world_lidar,
-                ),
+                lidar_box,
                 // Confirmed and matched: the box of this frame's detection.
                 score: t.detection_score.unwrap_or(1.0),
             };

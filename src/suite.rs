@@ -532,7 +532,7 @@ fn run_variant(
     let results = write_kitti_tracks(
         &run_dir.join("kitti_results"),
         0,
-        &kitti_track_labels(&output, &calib, 0.0)?,
+        &kitti_track_labels(&output, &calib, Default::default())?,
     )?;
     let ego = evaluate_ego(
         &dataset.dir,

@@ -44,7 +44,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             let results = limot::run::write_kitti_tracks(
                 &dir.join("kitti_results"),
                 0,
-                &limot::run::kitti_track_labels(&output, &calib, 0.0).unwrap(),
+                &limot::run::kitti_track_labels(&output, &calib, Default::default()).unwrap(),
             )
             .unwrap();
             // Each result line carries its frame's detection score.

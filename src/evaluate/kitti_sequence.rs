@@ -30,9 +30,9 @@ use crate::kitti::calib::Calib;
 use crate::kitti::detections::camera_box_to_lidar;
 use crate::kitti::labels::{TrackingLabel, read_labels};
 use crate::kitti::oxts::read_oxts;
-use crate::kitti::raw::tracking_frame_times;
+use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
 use crate::kitti::sequence_file;
-use crate::run::{RunOutput, kitti_track_labels, write_kitti_tracks};
+use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
 use crate::track_kitti::kitti_3d_clear_mot;
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
@@ -313,8 +313,11 @@ pub fn score_run(
 ) -> Result<(KittiRunScores, PathBuf)> {
     let calib = Calib::read(&sequence_file(&training.join("calib"), sequence))?;
     let num_frames = read_oxts(&sequence_file(&training.join("oxts"), sequence))?.len();
-    let frame_delay_s = tracking_frame_times(training, num_frames)?.frame_delay_s;
-    let labels = kitti_track_labels(output, &calib, frame_delay_s).map_err(Box::new)?;
+    let label_frame = LabelFrame {
+        delay_s: tracking_frame_times(training, num_frames)?.frame_delay_s,
+        elevation_correction_rad: declared_elevation_correction_rad(training)?,
+    };
+    let labels = kitti_track_labels(output, &calib, label_frame).map_err(Box::new)?;
     let results_file = write_kitti_tracks(results_dir, sequence, &labels).map_err(Box::new)?;
     let estimate: Vec<(f64, Isometry3<f64>)> = output
         .estimates
