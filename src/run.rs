@@ -153,7 +153,8 @@ impl Source {
                 for d in frames.iter_mut().flatten() {
                     // The boxes were found in the stored points: they get the
                     // scans' elevation correction too.
-                    d.center_lidar = raise_elevation(&d.center_lidar, drive.elevation_correction_rad);
+                    d.center_lidar =
+                        raise_elevation(&d.center_lidar, drive.elevation_correction_rad);
                     d.time_offset_s = sweep_time_offset_s(&d.center_lidar);
                 }
                 frames
@@ -558,8 +559,10 @@ pub fn kitti_track_labels(
                 t.yaw_rad,
                 &t_world_lidar,
             );
-            lidar_box.center_lidar =
-                raise_elevation(&lidar_box.center_lidar, -label_frame.elevation_correction_rad);
+            lidar_box.center_lidar = raise_elevation(
+                &lidar_box.center_lidar,
+                -label_frame.elevation_correction_rad,
+            );
             let track = TrackBox {
                 frame: e.frame_index as u32,
                 track_id: u32::try_from(t.id)

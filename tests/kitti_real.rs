@@ -98,19 +98,22 @@ fn every_variant_runs_and_scores_on_real_sequence_0000() {
         eprintln!("{variant:?}: {}", e.summary_line());
         assert_eq!(e.poses, FRAMES - 10);
         assert_eq!(e.truth_frames_gated, 0);
-        // Measured (SE(3) / Sim(3) ATE_T, scale, RPE): 0.936-0.940 m,
-        // 0.314-0.317 m, 0.952, 1 frame 0.031 m / 0.00075 rad, 10 m 0.600 m.
-        assert!(e.ate_t_m < 0.96, "{variant:?}: {}", e.ate_t_m);
-        assert!(e.ate_r_rad < 0.03, "{variant:?}: {}", e.ate_r_rad);
+        // Measured (SE(3) ATE_T / ATE_R, Sim(3) ATE_T and scale, RPE): 0.896-
+        // 0.899 m / 0.0225 rad, 0.314-0.315 m at 0.954, 1 frame 0.0307 m /
+        // 0.00075 rad, 10 m 0.589 m. The scale (the OXTS positions are ~3 %
+        // short of the OXTS's own velocity) is most of the SE(3) ATE: see
+        // docs/kitti-real-data.md.
+        assert!(e.ate_t_m < 0.92, "{variant:?}: {}", e.ate_t_m);
+        assert!(e.ate_r_rad < 0.024, "{variant:?}: {}", e.ate_r_rad);
         assert!(e.sim3_ate_t_m < 0.33, "{variant:?}: {}", e.sim3_ate_t_m);
         assert!(
             (0.94..0.97).contains(&e.sim3_scale),
             "{variant:?}: {}",
             e.sim3_scale
         );
-        assert!(e.rpe_frame_t_m.unwrap() < 0.033, "{variant:?}");
-        assert!(e.rpe_frame_r_rad.unwrap() < 0.001, "{variant:?}");
-        assert!(e.rpe_10m_t_m.unwrap() < 0.62, "{variant:?}");
+        assert!(e.rpe_frame_t_m.unwrap() < 0.032, "{variant:?}");
+        assert!(e.rpe_frame_r_rad.unwrap() < 0.0009, "{variant:?}");
+        assert!(e.rpe_10m_t_m.unwrap() < 0.61, "{variant:?}");
         // The object variants are not worse than lio (within 1 %).
         assert!(
             e.ate_t_m <= 1.01 * lio.ate_t_m,
@@ -130,8 +133,9 @@ fn every_variant_runs_and_scores_on_real_sequence_0000() {
 }
 
 /// Measured on 0000 (PointRCNN cars): 2D / 3D@0.25 MOTA 81.4 %, 3D MOTP
-/// 83.2-83.7 %, FP 29, FN 11, no ID switch; the three longest-labelled cars
-/// tracked in 94-100 % of their frames within 0.08-0.14 m.
+/// 83.7 % (allfilt, dynafilt) and 81.3 % (limot), FP 29, FN 11, no ID
+/// switch; the three longest-labelled cars tracked in 94-100 % of their
+/// frames within 0.07-0.15 m.
 fn check_tracks(variant: Variant, t: &TrackScores) {
     for m in [&t.image_iou_50, &t.iou3d_25] {
         assert_eq!(m.gt_count, 215, "{variant:?}");
@@ -139,7 +143,7 @@ fn check_tracks(variant: Variant, t: &TrackScores) {
         assert!(m.id_switches <= 1, "{variant:?}");
     }
     assert!(
-        t.iou3d_25.motp.unwrap() > 0.82,
+        t.iou3d_25.motp.unwrap() > 0.81,
         "{variant:?}: {:?}",
         t.iou3d_25.motp
     );
