@@ -308,11 +308,14 @@ fn score_tracker(
     }
 }
 
-/// A peer's TUM trajectory `dir/SSSS.txt` scored like our runs.
+/// A peer's TUM trajectory `dir/SSSS.txt` (stamped like limot's poses: the
+/// sweep of frame `i` starts at `0.1·i` s) scored like our runs; when our
+/// runs start later (initialisation), only over the sweeps they cover.
 fn score_ego_peer(
     training: &Path,
     sequence: u32,
     dir: &Path,
+    runs: &[KittiVariantResult],
     opts: &KittiScoreOptions,
 ) -> Option<EgoPeerResult> {
     let path = sequence_file(dir, sequence);
@@ -321,7 +324,13 @@ fn score_ego_peer(
     }
     let attempt = || -> Result<_, Box<dyn std::error::Error>> {
         let poses = parse_tum(&read_text(&path)?, &path)?;
-        let poses: Vec<_> = poses.iter().map(|p| (p.t_s, p.pose)).collect();
+        let first_frame = runs.iter().map(|r| r.frames_before_init).max().unwrap_or(0);
+        let from_s = first_frame as f64 * crate::kitti::velodyne::SWEEP_DURATION_S;
+        let poses: Vec<_> = poses
+            .iter()
+            .filter(|p| p.t_s >= from_s)
+            .map(|p| (p.t_s, p.pose))
+            .collect();
         Ok(score_ego(training, sequence, &poses, opts)?)
     };
     Some(match attempt() {
@@ -432,7 +441,7 @@ pub fn run_kitti_suite(
             }
         }
         if let Some((_, dir)) = &spec.ego_peer {
-            result.ego_peer = score_ego_peer(&spec.training, sequence, dir, &opts);
+            result.ego_peer = score_ego_peer(&spec.training, sequence, dir, &result.runs, &opts);
         }
         results.push(result);
     }
