@@ -96,20 +96,25 @@ enum Command {
         what: EvalCommand,
     },
     /// Run the tracker alone on KITTI tracking sequences (detections + OXTS poses),
-    /// write KITTI result files to OUT/NNNN.txt and print CLEAR-MOT for Car.
+    /// write KITTI result files to OUT/NNNN.txt and print CLEAR-MOT (2D, 3D) and
+    /// AB3DMOT's sAMOTA/AMOTA for Car; or score a results directory (--score-only).
     TrackKitti {
         /// KITTI tracking `training` dir (calib/, oxts/, label_02/).
         #[arg(long)]
         training: PathBuf,
         /// AB3DMOT detection CSV dir (NNNN.txt), e.g. detections/pointrcnn_Car_val.
-        #[arg(long)]
-        detections: PathBuf,
+        #[arg(long, required_unless_present = "score_only")]
+        detections: Option<PathBuf>,
+        /// Score the KITTI result files RESULTS_DIR/NNNN.txt (any tracker's)
+        /// with the same evaluators instead of tracking.
+        #[arg(long, value_name = "RESULTS_DIR", conflicts_with = "detections")]
+        score_only: Option<PathBuf>,
         /// Sequence map (default: TRAINING/evaluate_tracking.seqmap.val).
         #[arg(long)]
         seqmap: Option<PathBuf>,
         /// Output directory of the result files.
-        #[arg(long)]
-        out: PathBuf,
+        #[arg(long, required_unless_present = "score_only")]
+        out: Option<PathBuf>,
         /// Tracker settings: `paper` (defaults) or `tuned` (KITTI val tuned).
         #[arg(long, default_value = "tuned")]
         config: String,
@@ -125,7 +130,31 @@ enum Command {
         /// Also write coasting (predicted) confirmed tracks.
         #[arg(long)]
         with_predicted: bool,
-        /// Skip seqmap sequences whose detection file is missing.
+        /// Override: write confirmed tracks coasting for at most N frames.
+        #[arg(long, value_name = "N", conflicts_with = "with_predicted")]
+        coast: Option<usize>,
+        /// Override: matched frames a track needs before its coasting boxes are written.
+        #[arg(long, value_name = "N")]
+        coast_min_hits: Option<usize>,
+        /// Override the consecutive hits that confirm a track.
+        #[arg(long)]
+        init_frames: Option<usize>,
+        /// Override: write matched tentative tracks in the first N frames.
+        #[arg(long, value_name = "N")]
+        startup_frames: Option<u32>,
+        /// Override the minimum mean raw detection score of a written track.
+        #[arg(long, allow_negative_numbers = true)]
+        min_track_score: Option<f64>,
+        /// Override the score (sigmoid of the raw score) a detection needs to start a track.
+        #[arg(long)]
+        birth_min_score: Option<f64>,
+        /// Confirm tracks on matched frames in all, not consecutive ones.
+        #[arg(long)]
+        total_hits: bool,
+        /// Write the matched detection's box instead of the fitted one.
+        #[arg(long)]
+        detection_boxes: bool,
+        /// Skip seqmap sequences whose detection (or result) file is missing.
         #[arg(long)]
         skip_missing: bool,
     },
@@ -310,6 +339,7 @@ fn main() -> ExitCode {
         Command::TrackKitti {
             training,
             detections,
+            score_only,
             seqmap,
             out,
             config,
@@ -317,15 +347,30 @@ fn main() -> ExitCode {
             max_misses,
             d_thres,
             with_predicted,
+            coast,
+            coast_min_hits,
+            init_frames,
+            startup_frames,
+            min_track_score,
+            birth_min_score,
+            total_hits,
+            detection_boxes,
             skip_missing,
         } => run_track_kitti(
             &training,
-            &detections,
+            (detections, score_only),
             seqmap,
-            &out,
+            out,
             &config,
             (min_score, max_misses, d_thres),
-            with_predicted,
+            (
+                with_predicted,
+                coast,
+                init_frames,
+                startup_frames,
+                min_track_score,
+            ),
+            (birth_min_score, total_hits, detection_boxes, coast_min_hits),
             skip_missing,
         ),
         Command::Report { results, out } => run_report(&results, out),
@@ -868,19 +913,58 @@ fn print_suite_report(
 #[allow(clippy::too_many_arguments)]
 fn run_track_kitti(
     training: &std::path::Path,
-    detections: &std::path::Path,
+    (detections, score_only): (Option<PathBuf>, Option<PathBuf>),
     seqmap: Option<PathBuf>,
-    out: &std::path::Path,
+    out: Option<PathBuf>,
     config: &str,
     overrides: (Option<f64>, Option<usize>, Option<f64>),
-    with_predicted: bool,
+    (with_predicted, coast, init_frames, startup_frames, min_track_score): (
+        bool,
+        Option<usize>,
+        Option<usize>,
+        Option<u32>,
+        Option<f64>,
+    ),
+    (birth_min_score, total_hits, detection_boxes, coast_min_hits): (
+        Option<f64>,
+        bool,
+        bool,
+        Option<usize>,
+    ),
     skip_missing: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::kitti::results::write_results_file;
     use limot::kitti::seqmap::read_seqmap;
     use limot::track_kitti::{
         OutputPolicy, TrackKittiOptions, evaluate_sequences, kitti_val_tuned_config,
+        kitti_val_tuned_options, read_results_dir, score_results,
     };
+    let seqmap_path = seqmap.unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
+    let mut entries = read_seqmap(&seqmap_path)?;
+    // The directory whose NNNN.txt must exist: the results to score or the detections.
+    let input_dir = score_only
+        .clone()
+        .or_else(|| detections.clone())
+        .ok_or("--detections or --score-only is required")?;
+    if skip_missing {
+        entries.retain(|e| {
+            let present = limot::kitti::sequence_file(&input_dir, e.sequence).is_file();
+            if !present {
+                eprintln!(
+                    "skipping sequence {:04}: no file in {}",
+                    e.sequence,
+                    input_dir.display()
+                );
+            }
+            present
+        });
+    }
+    if let Some(results_dir) = score_only {
+        let results = read_results_dir(&results_dir, &entries)?;
+        print!("{}", score_results(training, &entries, &results)?.to_text());
+        return Ok(());
+    }
+    let out = out.ok_or("--out is required when tracking")?;
     let mut tracker = match config {
         "paper" => limot_estimator::tracking::TrackerConfig::default(),
         "tuned" => kitti_val_tuned_config(),
@@ -896,30 +980,42 @@ fn run_track_kitti(
     if let Some(v) = d_thres {
         tracker.d_thres_m = v;
     }
-    let options = TrackKittiOptions {
-        tracker,
-        output: if with_predicted {
-            OutputPolicy::AllConfirmed
-        } else {
-            OutputPolicy::MatchedConfirmed
-        },
-        ..TrackKittiOptions::default()
-    };
-    let seqmap_path = seqmap.unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
-    let mut entries = read_seqmap(&seqmap_path)?;
-    if skip_missing {
-        entries.retain(|e| {
-            let present = limot::kitti::sequence_file(detections, e.sequence).is_file();
-            if !present {
-                eprintln!("skipping sequence {:04}: no detection file", e.sequence);
-            }
-            present
-        });
+    if let Some(v) = init_frames {
+        tracker.init_frames = v;
     }
-    std::fs::create_dir_all(out)?;
-    let (tracks, evaluation) = evaluate_sequences(training, detections, &entries, &options)?;
+    if let Some(v) = birth_min_score {
+        tracker.birth_min_score = v;
+    }
+    if total_hits {
+        tracker.confirm_on_total_hits = true;
+    }
+    let mut options = match config {
+        "tuned" => kitti_val_tuned_options(),
+        _ => TrackKittiOptions::default(),
+    };
+    options.tracker = tracker;
+    if with_predicted {
+        options.output = OutputPolicy::AllConfirmed;
+    }
+    if let Some(n) = coast {
+        options.output = OutputPolicy::CoastingUpTo(n);
+    }
+    if let Some(n) = startup_frames {
+        options.startup_frames = n;
+    }
+    if let Some(v) = min_track_score {
+        options.min_track_score = v;
+    }
+    if let Some(n) = coast_min_hits {
+        options.coast_min_hits = n;
+    }
+    if detection_boxes {
+        options.box_source = limot::track_kitti::BoxSource::Detection;
+    }
+    std::fs::create_dir_all(&out)?;
+    let (tracks, evaluation) = evaluate_sequences(training, &input_dir, &entries, &options)?;
     for t in &tracks {
-        write_results_file(out, t.sequence, &t.labels)?;
+        write_results_file(&out, t.sequence, &t.labels)?;
     }
     print!("{}", evaluation.to_text());
     Ok(())

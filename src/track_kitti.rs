@@ -10,11 +10,14 @@
 //! calib's `Tr_imu_velo` is `T_velo_imu`, so the LiDAR pose is
 //! `T_world_lidar = T_world_imu · T_velo_imu⁻¹`.
 //!
-//! Evaluation: [`evaluate_sequences`] scores the results of every sequence of a
-//! seqmap against `label_02` for class Car, with TrackEval's KITTI 2D box
-//! benchmark (image IoU ≥ 0.5, [`kitti_2d_clear_mot`]) and with an
-//! AB3DMOT-style 3D evaluation ([`kitti_3d_clear_mot`]: TrackEval's KITTI
-//! preprocessing on the image boxes, then CLEAR-MOT on 3D IoU ≥ 0.25).
+//! Evaluation: [`evaluate_sequences`] (our tracks) and [`score_results`] (any
+//! result files, e.g. AB3DMOT's) score every sequence of a seqmap against
+//! `label_02` for class Car, with TrackEval's KITTI 2D box benchmark (image
+//! IoU ≥ 0.5, [`kitti_2d_clear_mot`]), with a 3D CLEAR-MOT
+//! ([`kitti_3d_clear_mot`]: TrackEval's KITTI preprocessing on the image
+//! boxes, then 3D IoU ≥ 0.25) and with AB3DMOT's own evaluate.py
+//! ([`ab3dmot_evaluate`]: sAMOTA, AMOTA, MOTA at the best score threshold).
+//! Result lines carry the detector's raw score (a logit for PointRCNN).
 
 use crate::eval::EvalError;
 use crate::eval::clear_mot::{
@@ -25,6 +28,7 @@ use crate::eval::iou::{Box3, IouKind};
 use crate::eval::kitti_mot::{
     KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
 };
+use crate::eval::samota::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{
     LidarBox, ScoreMap, camera_box_to_lidar, detections_by_frame, read_ab3dmot_csv,
@@ -45,25 +49,36 @@ use std::path::{Path, PathBuf};
 /// KITTI tracking runs at 10 Hz.
 pub const FRAME_PERIOD_S: f64 = 0.1;
 
-/// Tracker settings tuned on the KITTI validation sequences with PointRCNN
-/// detections (the paper's defaults otherwise). Against the defaults
-/// (init 5, max_misses 3, no score gate: 2D MOTA 80.4 %):
-/// - `min_score` 0.6 (sigmoid of the PointRCNN logit, i.e. logit > 0.41)
-///   drops most false detections, which otherwise start tentative tracks and
-///   steal associations (FP 425 → 351);
-/// - `init_frames` 3 (AB3DMOT's `min_hits`): a track confirmed after 5 frames
-///   misses its first 4 frames, the largest FN source (FN 1045 → 927);
-/// - `max_misses` 2: coasting tracks are not written, shorter survival cuts
-///   wrong re-associations with passing cars.
-///
-/// Gives 2D MOTA 82.9 %, 3D (IoU 0.25) MOTA 82.9 % / MOTP 80.1 % on the 10
-/// available val sequences (see `tests/kitti_tracking.rs`).
+/// Tracker settings for KITTI with PointRCNN detections (the paper's
+/// defaults otherwise), chosen by two-fold cross-validation over the val
+/// split (see docs/tracking-kitti.md and `cross_validate_kitti_settings` in
+/// tests/kitti_tracking.rs):
+/// - `min_score` 0.6 (sigmoid of the PointRCNN logit, i.e. logit > 0.41):
+///   most false detections start no track;
+/// - `init_frames` 3 (AB3DMOT's `min_hits`) instead of the paper's 5;
+/// - `max_misses` 2: shorter coasting cuts wrong re-associations;
+/// - `d_thres_m` 3: the cubic prediction of a car seen again after a miss
+///   can be more than 2 m off.
 pub fn kitti_val_tuned_config() -> TrackerConfig {
     TrackerConfig {
         min_score: 0.6,
         init_frames: 3,
         max_misses: 2,
+        d_thres_m: 3.0,
         ..TrackerConfig::default()
+    }
+}
+
+/// The KITTI output settings that go with [`kitti_val_tuned_config`]:
+/// matched tentative tracks written in the first 3 frames (AB3DMOT's start-up
+/// rule) and tracks written once the mean raw score (logit) of their matched
+/// detections reaches 1.5.
+pub fn kitti_val_tuned_options() -> TrackKittiOptions {
+    TrackKittiOptions {
+        tracker: kitti_val_tuned_config(),
+        startup_frames: 3,
+        min_track_score: 1.5,
+        ..TrackKittiOptions::default()
     }
 }
 
@@ -99,6 +114,20 @@ pub enum OutputPolicy {
     MatchedConfirmed,
     /// Every confirmed track, including those coasting on their prediction.
     AllConfirmed,
+    /// Confirmed tracks matched this frame or coasting for at most this many
+    /// frames (AB3DMOT writes a track for one frame after a miss).
+    CoastingUpTo(usize),
+}
+
+impl OutputPolicy {
+    /// Whether a confirmed track that has missed `misses` frames in a row is written.
+    pub fn writes(self, misses: usize) -> bool {
+        match self {
+            OutputPolicy::MatchedConfirmed => misses == 0,
+            OutputPolicy::AllConfirmed => true,
+            OutputPolicy::CoastingUpTo(n) => misses <= n,
+        }
+    }
 }
 
 /// Which box a written track carries.
@@ -122,6 +151,20 @@ pub struct TrackKittiOptions {
     /// `min_score` applies to the mapped score). PointRCNN scores are logits.
     pub score_map: ScoreMap,
     pub image: ImageSize,
+    /// During the first `startup_frames` frames of a sequence, tentative
+    /// tracks matched this frame are written too: the objects in view when
+    /// the sequence starts were not just born (AB3DMOT's `frame_count <=
+    /// min_hits` rule). 0 = off.
+    pub startup_frames: u32,
+    /// A track is written only while the mean raw detector score (the CSV's
+    /// score: a logit for PointRCNN) of its matched detections so far is at
+    /// least this: weak detections may extend a track without starting a
+    /// written one (AB3DMOT gates whole tracks on this mean afterwards).
+    /// `-inf` = off.
+    pub min_track_score: f64,
+    /// A coasting track is written (see [`OutputPolicy`]) only once it has
+    /// been matched this many times in all.
+    pub coast_min_hits: usize,
 }
 
 impl Default for TrackKittiOptions {
@@ -132,6 +175,9 @@ impl Default for TrackKittiOptions {
             box_source: BoxSource::default(),
             score_map: ScoreMap::Sigmoid,
             image: ImageSize::KITTI_DEFAULT,
+            startup_frames: 0,
+            min_track_score: f64::NEG_INFINITY,
+            coast_min_hits: 0,
         }
     }
 }
@@ -251,8 +297,10 @@ pub fn track_sequence_with(
 
     let tracker_error = |source| TrackKittiError::Tracker { sequence, source };
     let mut tracker = Tracker::new(options.tracker.clone()).map_err(tracker_error)?;
-    // Score of each track's latest matched detection (coasting boxes keep it).
+    // Score of each track's latest matched detection (coasting boxes keep it),
+    // and the sum and count of its matched detections' scores.
     let mut last_score: HashMap<u64, f64> = HashMap::new();
+    let mut score_sums: HashMap<u64, (f64, usize)> = HashMap::new();
     let mut out = SequenceTracks {
         sequence,
         per_frame: Vec::with_capacity(frames.len()),
@@ -274,9 +322,26 @@ pub fn track_sequence_with(
             };
             if let Some(d) = matched_det {
                 last_score.insert(o.id, d.score);
+                let e = score_sums.entry(o.id).or_insert((0.0, 0));
+                e.0 += options.score_map.invert(d.score);
+                e.1 += 1;
             }
-            let write = o.lifecycle == Lifecycle::Confirmed
-                && (!o.predicted || options.output == OutputPolicy::AllConfirmed);
+            let (misses, hits) = tracker
+                .tracks()
+                .iter()
+                .find(|t| t.id() == o.id)
+                .map_or((0, 0), |t| (t.consecutive_misses(), t.total_hits()));
+            let coasting_written = misses == 0 || hits >= options.coast_min_hits;
+            let startup = (frame as u32) < options.startup_frames && !o.predicted;
+            let mean_score = score_sums
+                .get(&o.id)
+                .map_or(f64::NEG_INFINITY, |&(sum, n)| sum / n as f64);
+            let write = ((o.lifecycle == Lifecycle::Confirmed
+                && coasting_written
+                && options.output.writes(misses))
+                || startup)
+                && (options.min_track_score == f64::NEG_INFINITY
+                    || mean_score >= options.min_track_score);
             if !write {
                 continue;
             }
@@ -298,13 +363,20 @@ pub fn track_sequence_with(
         }
         for tb in &written {
             match track_to_label(tb, &calib, options.image) {
-                Some(label) => out.labels.push(label),
+                Some(mut label) => {
+                    // The detector's own scale: a sigmoid saturates to 1.0 for
+                    // confident detections, which ties the track scores that
+                    // AB3DMOT's evaluation ranks.
+                    label.score = Some(options.score_map.invert(tb.score));
+                    out.labels.push(label)
+                }
                 None => out.outside_image += 1,
             }
         }
         out.per_frame.push(written);
         let live: std::collections::HashSet<u64> = outputs.iter().map(|o| o.id).collect();
         last_score.retain(|id, _| live.contains(id));
+        score_sums.retain(|id, _| live.contains(id));
     }
     out.garbage_detections = tracker.garbage_detections();
     out.low_score_detections = tracker.low_score_detections();
@@ -411,6 +483,17 @@ pub struct TrackingEvaluation {
     pub per_sequence: Vec<SequenceScores>,
     pub total_image_iou_50: ClearMotResult,
     pub total_iou3d_25: ClearMotResult,
+    /// AB3DMOT's own evaluate.py over all sequences together (3D IoU ≥ 0.25):
+    /// sAMOTA, AMOTA, AMOTP and MOTA/MOTP at the best track-score threshold.
+    pub ab3dmot_3d: Ab3dmotResult,
+}
+
+/// One sequence's KITTI result rows, e.g. from [`track_sequence_with`] or a
+/// result file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SequenceResults {
+    pub sequence: u32,
+    pub labels: Vec<TrackingLabel>,
 }
 
 /// Tracks every sequence of `seqmap` and scores it against
@@ -421,17 +504,68 @@ pub fn evaluate_sequences(
     seqmap: &[SeqmapEntry],
     options: &TrackKittiOptions,
 ) -> Result<(Vec<SequenceTracks>, TrackingEvaluation)> {
-    let mut all_tracks = Vec::with_capacity(seqmap.len());
+    let all_tracks = seqmap
+        .iter()
+        .map(|e| track_sequence_with(training_dir, detections_dir, e.sequence, options))
+        .collect::<Result<Vec<_>>>()?;
+    let results: Vec<SequenceResults> = all_tracks
+        .iter()
+        .map(|t| SequenceResults {
+            sequence: t.sequence,
+            labels: t.labels.clone(),
+        })
+        .collect();
+    let evaluation = score_results(training_dir, seqmap, &results)?;
+    Ok((all_tracks, evaluation))
+}
+
+/// Reads `results_dir/NNNN.txt` (KITTI tracking result format) of every
+/// sequence of `seqmap`.
+pub fn read_results_dir(
+    results_dir: &Path,
+    seqmap: &[SeqmapEntry],
+) -> Result<Vec<SequenceResults>> {
+    seqmap
+        .iter()
+        .map(|e| {
+            Ok(SequenceResults {
+                sequence: e.sequence,
+                labels: read_labels(&sequence_file(results_dir, e.sequence))?,
+            })
+        })
+        .collect()
+}
+
+/// Scores result rows (one entry per `seqmap` entry, same order) against
+/// `training_dir/label_02` for class Car: the TrackEval 2D benchmark, the 3D
+/// CLEAR-MOT at IoU 0.25 and AB3DMOT's evaluate.py (see [`ab3dmot_evaluate`]).
+pub fn score_results(
+    training_dir: &Path,
+    seqmap: &[SeqmapEntry],
+    results: &[SequenceResults],
+) -> Result<TrackingEvaluation> {
+    if results.len() != seqmap.len()
+        || results
+            .iter()
+            .zip(seqmap)
+            .any(|(r, e)| r.sequence != e.sequence)
+    {
+        return Err(TrackKittiError::Input {
+            path: training_dir.to_path_buf(),
+            why: "results do not follow the seqmap's sequences".to_string(),
+        });
+    }
     let mut per_sequence = Vec::with_capacity(seqmap.len());
-    for entry in seqmap {
+    let mut gts = Vec::with_capacity(seqmap.len());
+    let mut kept = Vec::with_capacity(seqmap.len());
+    for (entry, seq_results) in seqmap.iter().zip(results) {
         let sequence = entry.sequence;
-        let tracks = track_sequence_with(training_dir, detections_dir, sequence, options)?;
         let gt = read_labels(&sequence_file(&training_dir.join("label_02"), sequence))?;
         let calib = Calib::read(&sequence_file(&training_dir.join("calib"), sequence))?;
         let eval_error = |source| TrackKittiError::Eval { sequence, source };
         // The seqmap's frame count bounds the evaluation (the devkit's rule).
         let num_frames = entry.end_frame;
-        let results: Vec<TrackingLabel> = tracks
+        let results: Vec<TrackingLabel> = seq_results
             .labels
             .iter()
             .filter(|l| l.frame < num_frames)
@@ -447,8 +581,27 @@ pub fn evaluate_sequences(
             image_iou_50,
             iou3d_25,
         });
-        all_tracks.push(tracks);
+        gts.push((gt, entry.end_frame));
+        kept.push(results);
     }
+    let sequences: Vec<Ab3dmotSequence<'_>> = gts
+        .iter()
+        .zip(&kept)
+        .map(|((gt, num_frames), results)| Ab3dmotSequence {
+            gt,
+            results,
+            num_frames: *num_frames,
+        })
+        .collect();
+    let ab3dmot_3d = ab3dmot_evaluate(
+        &sequences,
+        KittiEvalClass::Car,
+        &Ab3dmotEvalConfig::default(),
+    )
+    .map_err(|source| TrackKittiError::Eval {
+        sequence: seqmap.first().map_or(0, |e| e.sequence),
+        source,
+    })?;
     let total_image_iou_50 = combine_sequences(
         &per_sequence
             .iter()
@@ -461,14 +614,12 @@ pub fn evaluate_sequences(
             .map(|s| s.iou3d_25.clone())
             .collect::<Vec<_>>(),
     );
-    Ok((
-        all_tracks,
-        TrackingEvaluation {
-            per_sequence,
-            total_image_iou_50,
-            total_iou3d_25,
-        },
-    ))
+    Ok(TrackingEvaluation {
+        per_sequence,
+        total_image_iou_50,
+        total_iou3d_25,
+        ab3dmot_3d,
+    })
 }
 
 /// One table row: MOTA/MOTP in percent, then IDSW, FP, FN, matches, GT.
@@ -517,6 +668,25 @@ impl TrackingEvaluation {
             out.push_str(&row("all", total));
             out.push('\n');
         }
+        let a = &self.ab3dmot_3d;
+        let b = &a.best;
+        let pct = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{:.2}", 100.0 * x));
+        out.push_str(&format!(
+            "Car, AB3DMOT evaluate.py, 3D IoU >= 0.25, all sequences\n\
+             sAMOTA {:.2}  AMOTA {:.2}  AMOTP {:.2}\n\
+             best threshold {:.4}: MOTA {} MOTP {:.2} IDSW {} FP {} FN {} TP {} GT {}\n",
+            100.0 * a.samota,
+            100.0 * a.amota,
+            100.0 * a.amotp,
+            b.score_threshold,
+            pct(b.mota),
+            100.0 * b.motp,
+            b.id_switches,
+            b.false_positives,
+            b.false_negatives,
+            b.true_positives,
+            b.gt_count
+        ));
         out
     }
 }
@@ -556,6 +726,15 @@ mod tests {
         // Projecting the heading onto the level plane twice loses a little
         // with 0.02 rad of tilt; far below anything the metrics see.
         assert!(wrap_angle_rad(back.yaw_rad - det.yaw_rad).abs() < 1e-3);
+    }
+
+    #[test]
+    fn output_policies_write_coasting_tracks_as_documented() {
+        assert!(OutputPolicy::MatchedConfirmed.writes(0));
+        assert!(!OutputPolicy::MatchedConfirmed.writes(1));
+        assert!(OutputPolicy::AllConfirmed.writes(5));
+        assert!(OutputPolicy::CoastingUpTo(1).writes(1));
+        assert!(!OutputPolicy::CoastingUpTo(1).writes(2));
     }
 
     #[test]

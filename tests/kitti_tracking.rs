@@ -13,7 +13,8 @@ use limot::kitti::seqmap::read_seqmap;
 use limot::kitti::sequence_file;
 use limot::track_kitti::{
     BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
-    evaluate_sequences, kitti_val_tuned_config, lidar_poses, track_sequence, track_sequence_with,
+    evaluate_sequences, kitti_val_tuned_config, kitti_val_tuned_options, lidar_poses,
+    read_results_dir, score_results, track_sequence, track_sequence_with,
 };
 use limot_estimator::tracking::TrackerConfig;
 use nalgebra::Vector3;
@@ -71,21 +72,27 @@ const AB3DMOT_MOTP_3D: f64 = 0.7940;
 fn validation_sequences_reach_ab3dmot_level() {
     let Some(root) = data_root() else { return };
     // Measured on the 10 available val sequences (7560 evaluated car boxes):
-    //              2D MOTA / MOTP   3D@0.25 MOTA / MOTP   IDSW  FP   FN
-    // paper cfg:   80.42 / 87.14    80.45 / 80.02          10   425  1045
-    // tuned cfg:   82.90 / 87.17    82.88 / 80.10          15   351   927
+    //              2D MOTA / MOTP   3D@0.25 MOTA / MOTP   IDSW  FP   FN   evaluate.py best MOTA, sAMOTA
+    // paper cfg:   80.42 / 87.14    80.45 / 80.02          10   425  1045  82.13, 86.20
+    // tuned cfg:   83.65 / 87.08    83.61 / 79.97          20   349   867  85.33, 89.80
+    // AB3DMOT:     84.75 / 86.81    84.70 / 79.60          14   381   758  85.49, 86.97
     // Bounds: about one point below the measurement.
     let paper = evaluate(&root, &TrackKittiOptions::default());
     println!("paper config:\n{}", paper.to_text());
-    let tuned = evaluate(
-        &root,
-        &TrackKittiOptions {
-            tracker: kitti_val_tuned_config(),
-            ..TrackKittiOptions::default()
-        },
-    );
+    let tuned = evaluate(&root, &kitti_val_tuned_options());
     println!("tuned config:\n{}", tuned.to_text());
-    for (name, eval, min_mota) in [("paper", &paper, 0.79), ("tuned", &tuned, 0.815)] {
+    assert!(
+        tuned.ab3dmot_3d.samota > 0.89,
+        "{}",
+        tuned.ab3dmot_3d.samota
+    );
+    assert!(tuned.ab3dmot_3d.best.mota.unwrap() > 0.845);
+    assert!(
+        paper.ab3dmot_3d.samota > 0.855,
+        "{}",
+        paper.ab3dmot_3d.samota
+    );
+    for (name, eval, min_mota) in [("paper", &paper, 0.79), ("tuned", &tuned, 0.825)] {
         let (two_d, three_d) = (&eval.total_image_iou_50, &eval.total_iou3d_25);
         assert_eq!(two_d.gt_count, 7560, "{name}");
         assert_eq!(three_d.gt_count, 7560, "{name}");
@@ -119,6 +126,50 @@ fn validation_sequences_reach_ab3dmot_level() {
     // Tuning pays on both evaluations.
     assert!(tuned.total_image_iou_50.mota > paper.total_image_iou_50.mota);
     assert!(tuned.total_iou3d_25.mota > paper.total_iou3d_25.mota);
+}
+
+/// The 10 val sequences present in ../shared/data.
+fn present_val_seqmap(training: &Path) -> Vec<limot::kitti::seqmap::SeqmapEntry> {
+    read_seqmap(&training.join("evaluate_tracking.seqmap.val"))
+        .unwrap()
+        .into_iter()
+        .filter(|e| e.sequence != ABSENT_SEQUENCE)
+        .collect()
+}
+
+#[test]
+fn ab3dmot_peer_output_scores() {
+    let Some(root) = data_root() else { return };
+    let d = dirs(&root);
+    let peer_dir = root.join("kitti_tracking/peers/ab3dmot_pointrcnn_Car_val_thres");
+    let seqmap = present_val_seqmap(&d.training);
+    assert_eq!(seqmap.len(), 10);
+    let results = read_results_dir(&peer_dir, &seqmap).unwrap();
+    let eval = score_results(&d.training, &seqmap, &results).unwrap();
+    println!("{}", eval.to_text());
+    // Our figures for AB3DMOT's output on these labels. The peer README
+    // records 86.55 / 79.38 / 88.92 (evaluate.py) and 2D 85.82 with FP 394,
+    // FN 779, IDSW 15, which imply ~8380 ground-truth boxes instead of the
+    // 7560 here: other ground truth (see docs/tracking-kitti.md).
+    let a = &eval.ab3dmot_3d;
+    let pct = |x: f64| (100.0 * x * 100.0).round() / 100.0;
+    assert_eq!(pct(a.best.mota.unwrap()), 85.49, "{:?}", a.best);
+    assert_eq!(pct(a.best.motp), 79.54, "{:?}", a.best);
+    assert_eq!(pct(a.samota), 86.97);
+    assert_eq!(pct(a.amota), 41.76);
+    assert_eq!(a.best.gt_count, 7560);
+    // Recall samples stop where the output's recall does.
+    assert!(
+        a.curve.len() < 40 && a.curve.len() > 30,
+        "{}",
+        a.curve.len()
+    );
+    let t = &eval.total_image_iou_50;
+    assert_eq!(pct(t.mota.unwrap()), 84.75);
+    assert_eq!(
+        (t.false_positives, t.false_negatives, t.id_switches),
+        (381, 758, 14)
+    );
 }
 
 #[test]
@@ -317,4 +368,197 @@ fn matched_tracks_carry_their_detection_score() {
     let written_all: usize = all.per_frame.iter().map(Vec::len).sum();
     assert!(written_all > written, "{written_all} vs {written}");
     assert_eq!(matched.labels.len() + matched.outside_image, written);
+}
+
+/// The two folds of the 10 val sequences for cross-validation.
+const FOLDS: [[u32; 5]; 2] = [[1, 6, 8, 10, 12], [13, 14, 15, 16, 18]];
+
+/// Model-selection objective, the issue's aim (ahead of AB3DMOT in 2D MOTA,
+/// 3D MOTA at the best threshold and sAMOTA): the smallest of the three
+/// margins over AB3DMOT's own output scored on the same sequences.
+fn objective(e: &TrackingEvaluation, peer: &TrackingEvaluation) -> f64 {
+    let figures = |e: &TrackingEvaluation| {
+        [
+            e.total_image_iou_50.mota.unwrap(),
+            e.ab3dmot_3d.best.mota.unwrap(),
+            e.ab3dmot_3d.samota,
+        ]
+    };
+    let (ours, theirs) = (figures(e), figures(peer));
+    (0..3)
+        .map(|k| ours[k] - theirs[k])
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The candidate KITTI settings of the cross-validation.
+fn candidate_options() -> Vec<(String, TrackKittiOptions)> {
+    let mut out = Vec::new();
+    for startup in [0, 3] {
+        for min_score in [0.45, 0.6] {
+            for min_track in [f64::NEG_INFINITY, 1.0, 1.5, 2.0] {
+                for d_thres in [2.0, 3.0] {
+                    for coast in [0, 1] {
+                        for init in [2, 3] {
+                            let mut o = kitti_val_tuned_options();
+                            o.startup_frames = startup;
+                            o.tracker.min_score = min_score;
+                            o.min_track_score = min_track;
+                            o.tracker.d_thres_m = d_thres;
+                            o.output = match coast {
+                                0 => OutputPolicy::MatchedConfirmed,
+                                n => OutputPolicy::CoastingUpTo(n),
+                            };
+                            o.tracker.init_frames = init;
+                            let name = format!(
+                                "startup {startup} min_score {min_score} min_track {min_track} \
+                                 d_thres {d_thres} coast {coast} init {init}"
+                            );
+                            out.push((name, o));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+fn summary(e: &TrackingEvaluation) -> String {
+    let (t, a) = (&e.total_image_iou_50, &e.ab3dmot_3d);
+    format!(
+        "2D MOTA {:.2} FP {} FN {} IDSW {} | 3D MOTA {:.2} MOTP {:.2} | sAMOTA {:.2} AMOTA {:.2}",
+        100.0 * t.mota.unwrap(),
+        t.false_positives,
+        t.false_negatives,
+        t.id_switches,
+        100.0 * a.best.mota.unwrap(),
+        100.0 * a.best.motp,
+        100.0 * a.samota,
+        100.0 * a.amota
+    )
+}
+
+#[test]
+#[ignore = "two-fold cross-validation of the KITTI settings (~1 min); prints a table"]
+fn cross_validate_kitti_settings() {
+    let Some(root) = data_root() else { return };
+    let d = dirs(&root);
+    let all = present_val_seqmap(&d.training);
+    let fold_map = |k: usize| -> Vec<_> {
+        all.iter()
+            .filter(|e| FOLDS[k].contains(&e.sequence))
+            .cloned()
+            .collect()
+    };
+    let candidates = candidate_options();
+    let peer_dir = root.join("kitti_tracking/peers/ab3dmot_pointrcnn_Car_val_thres");
+    let peer = |seqmap: &[limot::kitti::seqmap::SeqmapEntry]| {
+        score_results(
+            &d.training,
+            seqmap,
+            &read_results_dir(&peer_dir, seqmap).unwrap(),
+        )
+        .unwrap()
+    };
+    let mut held_out: BTreeMap<u32, Vec<limot::kitti::labels::TrackingLabel>> = BTreeMap::new();
+    for train in 0..2 {
+        let test = 1 - train;
+        let mut best: Option<(f64, usize)> = None;
+        let peer_train = peer(&fold_map(train));
+        for (i, (_, o)) in candidates.iter().enumerate() {
+            let (_, e) =
+                evaluate_sequences(&d.training, &d.detections, &fold_map(train), o).unwrap();
+            let score = objective(&e, &peer_train);
+            if best.is_none_or(|(b, _)| score > b) {
+                best = Some((score, i));
+            }
+        }
+        let (score, i) = best.unwrap();
+        let (name, options) = &candidates[i];
+        let (tracks, e) =
+            evaluate_sequences(&d.training, &d.detections, &fold_map(test), options).unwrap();
+        println!(
+            "tuned on fold {train} (objective {:.2}): {name}\n  held-out fold {test}: {}\n  AB3DMOT on fold {test}: {}",
+            100.0 * score,
+            summary(&e),
+            summary(&peer(&fold_map(test)))
+        );
+        for t in tracks {
+            held_out.insert(t.sequence, t.labels);
+        }
+    }
+    let results: Vec<_> = all
+        .iter()
+        .map(|e| limot::track_kitti::SequenceResults {
+            sequence: e.sequence,
+            labels: held_out[&e.sequence].clone(),
+        })
+        .collect();
+    let e = score_results(&d.training, &all, &results).unwrap();
+    println!("held-out, whole split: {}", summary(&e));
+    // The same selection on the whole split gives the shipped settings.
+    let peer_all = peer(&all);
+    println!("AB3DMOT, whole split: {}", summary(&peer_all));
+    let (mut best, mut best_i) = (f64::NEG_INFINITY, 0);
+    for (i, (_, o)) in candidates.iter().enumerate() {
+        let (_, e) = evaluate_sequences(&d.training, &d.detections, &all, o).unwrap();
+        if objective(&e, &peer_all) > best {
+            (best, best_i) = (objective(&e, &peer_all), i);
+        }
+    }
+    let (name, options) = &candidates[best_i];
+    let (_, e) = evaluate_sequences(&d.training, &d.detections, &all, options).unwrap();
+    println!("selected on the whole split: {name}\n  {}", summary(&e));
+    assert_eq!(
+        options,
+        &kitti_val_tuned_options(),
+        "kitti_val_tuned_options() is the whole-split selection"
+    );
+}
+
+#[test]
+fn startup_rule_and_track_score_gate_change_what_is_written() {
+    let Some(root) = data_root() else { return };
+    let d = dirs(&root);
+    let seq = 1;
+    let base = TrackKittiOptions {
+        tracker: kitti_val_tuned_config(),
+        ..TrackKittiOptions::default()
+    };
+    let plain = track_sequence_with(&d.training, &d.detections, seq, &base).unwrap();
+    // Confirmation takes 3 frames: nothing is written in frames 0 and 1.
+    assert!(plain.per_frame[0].is_empty() && plain.per_frame[1].is_empty());
+    let startup = TrackKittiOptions {
+        startup_frames: 3,
+        ..base.clone()
+    };
+    let started = track_sequence_with(&d.training, &d.detections, seq, &startup).unwrap();
+    assert!(
+        started.per_frame[0].len() >= 3,
+        "{}",
+        started.per_frame[0].len()
+    );
+    assert_eq!(started.per_frame[5..], plain.per_frame[5..]);
+    // A mean-logit gate writes a subset, and only tracks whose written
+    // scores (raw, in the result lines) are high on average.
+    let gated = TrackKittiOptions {
+        min_track_score: 5.0,
+        ..base
+    };
+    let strict = track_sequence_with(&d.training, &d.detections, seq, &gated).unwrap();
+    let count =
+        |t: &limot::track_kitti::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
+    assert!(count(&strict) < count(&plain) && count(&strict) > 0);
+    let mut per_track: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+    for l in &strict.labels {
+        per_track
+            .entry(l.track_id)
+            .or_default()
+            .push(l.score.unwrap());
+    }
+    let low = per_track
+        .values()
+        .filter(|s| s.iter().sum::<f64>() / (s.len() as f64) < 3.0)
+        .count();
+    assert!(low * 10 < per_track.len(), "{low} of {}", per_track.len());
 }

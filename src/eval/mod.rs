@@ -1,5 +1,5 @@
 //! Evaluation metrics: ego trajectory (ATE, RPE), 3D boxes (IoU), multi-object
-//! tracking (CLEAR-MOT, per-object TP% and ATE), dynamic-point filtering
+//! tracking (CLEAR-MOT, AB3DMOT's sAMOTA, per-object TP% and ATE), dynamic-point filtering
 //! (precision/recall) and timing.
 //!
 //! The metric functions take plain inputs (timestamped poses, oriented boxes,
@@ -17,6 +17,7 @@ pub mod iou;
 pub mod kitti_mot;
 pub mod objects;
 pub mod rpe;
+pub mod samota;
 pub mod timing;
 
 pub use align::{Alignment, umeyama};
@@ -31,6 +32,9 @@ pub use interpolate::pose_at;
 pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
 pub use objects::{ObjectScore, object_scores};
 pub use rpe::{RpeDelta, RpeResult, rpe};
+pub use samota::{
+    Ab3dmotCounts, Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate,
+};
 pub use timing::{TimingAccumulator, TimingStats};
 
 /// Why a metric could not be computed from its inputs.

@@ -62,6 +62,13 @@ pub struct TrackerConfig {
     pub dynamic_confidence_sigmas: f64,
     /// Detections with a lower score are ignored.
     pub min_score: f64,
+    /// Unmatched detections with a lower score start no track: weak
+    /// detections may continue tracks but not begin them (at or below
+    /// `min_score` = every usable detection starts a track).
+    pub birth_min_score: f64,
+    /// Confirm after `init_frames` matched frames in all, not necessarily
+    /// consecutive (AB3DMOT's rule); `false` = the paper's consecutive rule.
+    pub confirm_on_total_hits: bool,
 }
 
 impl Default for TrackerConfig {
@@ -84,6 +91,8 @@ impl Default for TrackerConfig {
             detection_yaw_sigma_rad: 0.03,
             dynamic_confidence_sigmas: 2.0,
             min_score: 0.0,
+            birth_min_score: 0.0,
+            confirm_on_total_hits: false,
         }
     }
 }
@@ -191,6 +200,12 @@ impl TrackerConfig {
             self.min_score.is_finite(),
             "min_score",
             self.min_score,
+            "must be finite",
+        )?;
+        check(
+            self.birth_min_score.is_finite(),
+            "birth_min_score",
+            self.birth_min_score,
             "must be finite",
         )
     }

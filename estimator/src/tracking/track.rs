@@ -2,8 +2,8 @@
 //! window, the trajectory fit over it, lifecycle and static/dynamic state.
 //!
 //! Lifecycle (paper: "initialized" after 5 consecutive frames):
-//! * `Tentative` until `init_frames` consecutive matched frames, then
-//!   `Confirmed` for good.
+//! * `Tentative` until `init_frames` consecutive matched frames (in all, with
+//!   `confirm_on_total_hits`), then `Confirmed` for good.
 //! * Any track survives up to `max_misses` consecutive misses; meanwhile its
 //!   box is the trajectory prediction (output with `predicted = true`, never
 //!   fed back into the fit). A miss resets the consecutive-hit count, so a
@@ -230,7 +230,12 @@ impl Track {
     }
 
     fn update_lifecycle(&mut self, config: &TrackerConfig) {
-        if self.consecutive_hits >= config.init_frames {
+        let hits = if config.confirm_on_total_hits {
+            self.total_hits
+        } else {
+            self.consecutive_hits
+        };
+        if hits >= config.init_frames {
             self.lifecycle = Lifecycle::Confirmed;
         }
     }

@@ -224,7 +224,7 @@ impl Tracker {
         self.tracks.retain(|t| !t.is_lost(config));
 
         for ((det, matched), &index) in usable.iter().zip(&det_matched).zip(&usable_index) {
-            if *matched {
+            if *matched || det.score < self.config.birth_min_score {
                 continue;
             }
             let first = TimedBox {
@@ -354,6 +354,46 @@ mod tests {
         assert_eq!(out.len(), 1);
         assert_eq!(tracker.garbage_detections(), 2);
         assert_eq!(tracker.low_score_detections(), 1);
+    }
+
+    #[test]
+    fn weak_detections_continue_tracks_but_start_none() {
+        let config = TrackerConfig {
+            birth_min_score: 0.5,
+            ..TrackerConfig::default()
+        };
+        let mut tracker = Tracker::new(config).unwrap();
+        let mut weak = car_at(30.0, 0.0);
+        weak.score = 0.2;
+        // Frame 0: the strong car starts a track, the weak one does not.
+        let out = tracker.update(0.0, &[car_at(0.0, 0.0), weak]).unwrap();
+        assert_eq!(out.len(), 1);
+        // Frame 1: a weak detection of the tracked car continues its track.
+        let mut weak_hit = car_at(0.1, 0.0);
+        weak_hit.score = 0.2;
+        let out = tracker.update(0.1, &[weak_hit]).unwrap();
+        assert_eq!(out.len(), 1);
+        assert!(!out[0].predicted);
+        assert_eq!(out[0].detection_score, Some(0.2));
+    }
+
+    #[test]
+    fn confirmation_on_total_hits_survives_a_miss() {
+        let run = |total: bool| {
+            let config = TrackerConfig {
+                init_frames: 3,
+                confirm_on_total_hits: total,
+                ..TrackerConfig::default()
+            };
+            let mut tracker = Tracker::new(config).unwrap();
+            // Hit, hit, miss, hit.
+            tracker.update(0.0, &[car_at(0.0, 0.0)]).unwrap();
+            tracker.update(0.1, &[car_at(0.1, 0.0)]).unwrap();
+            tracker.update(0.2, &[]).unwrap();
+            tracker.update(0.3, &[car_at(0.3, 0.0)]).unwrap()[0].lifecycle
+        };
+        assert_eq!(run(true), Lifecycle::Confirmed);
+        assert_eq!(run(false), Lifecycle::Tentative);
     }
 
     #[test]
