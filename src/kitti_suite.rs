@@ -31,8 +31,10 @@ use crate::kitti::{read_text, sequence_file};
 use crate::report::Variant;
 use crate::run::{RunOptions, Source, run, write_output};
 use crate::suite::{SuiteError, error_chain, variant_name};
-use crate::track_kitti::{TrackKittiOptions, kitti_val_tuned_config, track_sequence_with};
+use crate::track_kitti::{TrackKittiOptions, kitti_val_tuned_options, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
+use limot_estimator::pipeline::EstimatorConfig;
+use limot_estimator::tracking::TrackerConfig;
 use serde::{Deserialize, Serialize};
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -52,6 +54,9 @@ pub struct KittiSuiteSpec {
     /// the tracker alone; without them only `lio` runs.
     pub detections: Option<PathBuf>,
     pub score_map: ScoreMap,
+    /// The tracker settings of the object variants (the tracker alone runs
+    /// with [`kitti_val_tuned_options`]).
+    pub tracker: TrackerConfig,
     pub variants: Vec<Variant>,
     /// Sequences to consider; `None`: every sequence with an OXTS file.
     pub sequences: Option<Vec<u32>>,
@@ -254,7 +259,11 @@ fn run_variant(
             variant,
             ..RunOptions::default()
         };
-        let output = run(&source, &spec.training, &options, None)?;
+        let config = EstimatorConfig {
+            tracker: spec.tracker.clone(),
+            ..EstimatorConfig::default()
+        };
+        let output = run(&source, &spec.training, &options, Some(config))?;
         write_output(&out, &output)?;
         let (scores, _) = score_run(
             &spec.training,
@@ -418,9 +427,8 @@ pub fn run_kitti_suite(
         {
             bar.set_message(format!("{sequence:04} tracker"));
             let options = TrackKittiOptions {
-                tracker: kitti_val_tuned_config(),
                 score_map: spec.score_map,
-                ..TrackKittiOptions::default()
+                ..kitti_val_tuned_options()
             };
             let out_dir = spec.out_dir.join("tracker");
             result.tracker = Some(score_tracker(&spec.training, sequence, frames, || {

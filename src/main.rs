@@ -89,6 +89,10 @@ enum Command {
         /// files) or `clamp01` for probabilities (limot's KITTI copies).
         #[arg(long, default_value = "clamp01")]
         score_map: String,
+        /// Tracker settings of the object variants: `paper`, or `tuned` (chosen
+        /// on the KITTI val split with PointRCNN boxes, docs/tracking-kitti.md).
+        #[arg(long, default_value = "paper")]
+        tracker: String,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
@@ -273,6 +277,10 @@ enum EvalCommand {
         /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
         #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
         variants: String,
+        /// Tracker settings of the object variants: `tuned` (chosen on the KITTI
+        /// val split with PointRCNN boxes, see docs/tracking-kitti.md) or `paper`.
+        #[arg(long, default_value = "tuned")]
+        tracker: String,
         /// A peer tracker's KITTI result files, NAME=DIR (DIR/SSSS.txt), scored beside ours.
         #[arg(long)]
         tracking_peer: Option<String>,
@@ -322,6 +330,7 @@ fn main() -> ExitCode {
             sequence,
             detections,
             score_map,
+            tracker,
         } => run_estimator(
             &dataset,
             out,
@@ -334,6 +343,7 @@ fn main() -> ExitCode {
                 detections,
                 score_map,
             },
+            &tracker,
         ),
         Command::Eval { what } => run_eval(what),
         Command::TrackKitti {
@@ -452,6 +462,7 @@ fn run_estimator(
     first_frame: usize,
     max_frames: Option<usize>,
     kitti_tracking: KittiTracking,
+    tracker: &str,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::report::Variant;
     use limot::run::{RunOptions, Source, run, write_output};
@@ -479,7 +490,11 @@ fn run_estimator(
         max_frames,
         progress: true,
     };
-    let output = run(&source, dataset, &options, None)?;
+    let config = limot_estimator::pipeline::EstimatorConfig {
+        tracker: parse_tracker_config(tracker)?,
+        ..Default::default()
+    };
+    let output = run(&source, dataset, &options, Some(config))?;
     write_output(&out, &output)?;
     let n = output.estimates.len();
     println!(
@@ -728,6 +743,7 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
             score_map,
             sequences,
             variants,
+            tracker,
             tracking_peer,
             ego_peer,
             out,
@@ -737,6 +753,7 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
             &score_map,
             sequences,
             &variants,
+            &tracker,
             tracking_peer,
             ego_peer,
             out,
@@ -823,6 +840,18 @@ fn print_kitti_report(
     Ok(())
 }
 
+/// `paper` (the paper's tracker settings) or `tuned` (chosen on the KITTI
+/// val split with PointRCNN boxes).
+fn parse_tracker_config(name: &str) -> Result<limot_estimator::tracking::TrackerConfig, String> {
+    match name {
+        "paper" => Ok(limot_estimator::tracking::TrackerConfig::default()),
+        "tuned" => Ok(limot::track_kitti::kitti_val_tuned_config()),
+        other => Err(format!(
+            "tracker settings `{other}`: expected paper or tuned"
+        )),
+    }
+}
+
 /// `NAME=DIR` of a peer option.
 fn parse_peer(option: &str, text: &str) -> Result<(String, PathBuf), String> {
     match text.split_once('=') {
@@ -840,6 +869,7 @@ fn run_eval_kitti(
     score_map: &str,
     sequences: Option<String>,
     variants: &str,
+    tracker: &str,
     tracking_peer: Option<String>,
     ego_peer: Option<String>,
     out: PathBuf,
@@ -851,6 +881,7 @@ fn run_eval_kitti(
         training,
         detections,
         score_map: parse_score_map(score_map)?,
+        tracker: parse_tracker_config(tracker)?,
         variants: parse_list("variants", variants, |s| {
             Variant::parse(s).map_err(|e| e.to_string())
         })?,
@@ -936,8 +967,8 @@ fn run_track_kitti(
     use limot::kitti::results::write_results_file;
     use limot::kitti::seqmap::read_seqmap;
     use limot::track_kitti::{
-        OutputPolicy, TrackKittiOptions, evaluate_sequences, kitti_val_tuned_config,
-        kitti_val_tuned_options, read_results_dir, score_results,
+        OutputPolicy, TrackKittiOptions, evaluate_sequences, kitti_val_tuned_options,
+        read_results_dir, score_results,
     };
     let seqmap_path = seqmap.unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
     let mut entries = read_seqmap(&seqmap_path)?;
@@ -965,11 +996,7 @@ fn run_track_kitti(
         return Ok(());
     }
     let out = out.ok_or("--out is required when tracking")?;
-    let mut tracker = match config {
-        "paper" => limot_estimator::tracking::TrackerConfig::default(),
-        "tuned" => kitti_val_tuned_config(),
-        other => return Err(format!("--config `{other}`: expected paper or tuned").into()),
-    };
+    let mut tracker = parse_tracker_config(config)?;
     let (min_score, max_misses, d_thres) = overrides;
     if let Some(v) = min_score {
         tracker.min_score = v;
