@@ -408,10 +408,10 @@ pub fn ego_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
             });
             table.push_row(cells)?;
         }
-        if let (Some(peer), Some(name)) = (&s.ego_peer, &results.ego_peer) {
+        for peer in &s.ego_peers {
             let mut cells = vec![
                 seq_cell(s.sequence),
-                Cell::from(name.as_str()),
+                Cell::from(peer.name.as_str()),
                 Cell::from("peer, scored here"),
             ];
             cells.extend(ego_cells(peer.scores.as_ref()));
@@ -687,8 +687,10 @@ fn errors(results: &KittiSuiteResults) -> Vec<String> {
                 lines.push(format!("{:04} / {what}: {e}", s.sequence));
             }
         }
-        if let Some(e) = s.ego_peer.as_ref().and_then(|p| p.error.as_ref()) {
-            lines.push(format!("{:04} / ego peer: {e}", s.sequence));
+        for peer in &s.ego_peers {
+            if let Some(e) = &peer.error {
+                lines.push(format!("{:04} / {}: {e}", s.sequence, peer.name));
+            }
         }
     }
     lines

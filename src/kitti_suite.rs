@@ -62,8 +62,8 @@ pub struct KittiSuiteSpec {
     pub sequences: Option<Vec<u32>>,
     /// Peer tracking results (KITTI format, `SSSS.txt`) scored beside ours.
     pub tracking_peer: Option<(String, PathBuf)>,
-    /// Peer ego trajectories (TUM, `SSSS.txt`, LiDAR poses) scored beside ours.
-    pub ego_peer: Option<(String, PathBuf)>,
+    /// Peer ego trajectories (TUM, `SSSS.txt`, LiDAR poses), each scored beside ours.
+    pub ego_peers: Vec<(String, PathBuf)>,
     pub out_dir: PathBuf,
 }
 
@@ -92,6 +92,7 @@ pub struct TrackerResult {
 /// A peer's ego trajectory on one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EgoPeerResult {
+    pub name: String,
     pub scores: Option<crate::evaluate::kitti_sequence::EgoScores>,
     pub error: Option<String>,
 }
@@ -107,7 +108,7 @@ pub struct KittiSequenceResult {
     /// The tracker alone with the KITTI settings, OXTS ego poses.
     pub tracker: Option<TrackerResult>,
     pub tracking_peer: Option<TrackerResult>,
-    pub ego_peer: Option<EgoPeerResult>,
+    pub ego_peers: Vec<EgoPeerResult>,
 }
 
 impl KittiSequenceResult {
@@ -127,7 +128,7 @@ pub struct KittiSuiteResults {
     #[serde(with = "variant_name::list")]
     pub variants: Vec<Variant>,
     pub tracking_peer: Option<String>,
-    pub ego_peer: Option<String>,
+    pub ego_peers: Vec<String>,
     pub sequences: Vec<KittiSequenceResult>,
 }
 
@@ -323,6 +324,7 @@ fn score_tracker(
 fn score_ego_peer(
     training: &Path,
     sequence: u32,
+    name: &str,
     dir: &Path,
     runs: &[KittiVariantResult],
     opts: &KittiScoreOptions,
@@ -344,10 +346,12 @@ fn score_ego_peer(
     };
     Some(match attempt() {
         Ok(scores) => EgoPeerResult {
+            name: name.to_string(),
             scores: Some(scores),
             error: None,
         },
         Err(e) => EgoPeerResult {
+            name: name.to_string(),
             scores: None,
             error: Some(error_chain(e.as_ref())),
         },
@@ -409,7 +413,7 @@ pub fn run_kitti_suite(
             runs: Vec::new(),
             tracker: None,
             tracking_peer: None,
-            ego_peer: None,
+            ego_peers: Vec::new(),
         };
         if result.has_scans {
             for &variant in &spec.variants {
@@ -448,8 +452,12 @@ pub fn run_kitti_suite(
                     }));
             }
         }
-        if let Some((_, dir)) = &spec.ego_peer {
-            result.ego_peer = score_ego_peer(&spec.training, sequence, dir, &result.runs, &opts);
+        for (name, dir) in &spec.ego_peers {
+            if let Some(peer) =
+                score_ego_peer(&spec.training, sequence, name, dir, &result.runs, &opts)
+            {
+                result.ego_peers.push(peer);
+            }
         }
         results.push(result);
     }
@@ -461,7 +469,11 @@ pub fn run_kitti_suite(
         detections: spec.detections.clone(),
         variants: spec.variants.clone(),
         tracking_peer: spec.tracking_peer.as_ref().map(|(name, _)| name.clone()),
-        ego_peer: spec.ego_peer.as_ref().map(|(name, _)| name.clone()),
+        ego_peers: spec
+            .ego_peers
+            .iter()
+            .map(|(name, _)| name.clone())
+            .collect(),
         sequences: results,
     };
     results.save(&spec.out_dir)?;

@@ -284,9 +284,10 @@ enum EvalCommand {
         /// A peer tracker's KITTI result files, NAME=DIR (DIR/SSSS.txt), scored beside ours.
         #[arg(long)]
         tracking_peer: Option<String>,
-        /// A peer odometry's LiDAR poses, NAME=DIR (DIR/SSSS.txt, TUM), scored beside ours.
+        /// A peer odometry's LiDAR poses, NAME=DIR (DIR/SSSS.txt, TUM, stamped like
+        /// limot's: sweep i starts at 0.1 i s), scored beside ours; repeatable.
         #[arg(long)]
-        ego_peer: Option<String>,
+        ego_peer: Vec<String>,
         /// Output directory.
         #[arg(long, default_value = "reports/kitti")]
         out: PathBuf,
@@ -871,7 +872,7 @@ fn run_eval_kitti(
     variants: &str,
     tracker: &str,
     tracking_peer: Option<String>,
-    ego_peer: Option<String>,
+    ego_peer: Vec<String>,
     out: PathBuf,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::kitti_suite::{KittiSuiteSpec, run_kitti_suite};
@@ -895,7 +896,10 @@ fn run_eval_kitti(
         tracking_peer: tracking_peer
             .map(|p| parse_peer("tracking-peer", &p))
             .transpose()?,
-        ego_peer: ego_peer.map(|p| parse_peer("ego-peer", &p)).transpose()?,
+        ego_peers: ego_peer
+            .iter()
+            .map(|p| parse_peer("ego-peer", p))
+            .collect::<Result<_, _>>()?,
         out_dir: out,
     };
     println!(

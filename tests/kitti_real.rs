@@ -56,7 +56,7 @@ fn run_all_variants() -> Option<KittiSuiteResults> {
         variants: Variant::ALL.to_vec(),
         sequences: Some(vec![0]),
         tracking_peer: None,
-        ego_peer: None,
+        ego_peers: Vec::new(),
         out_dir: out.clone(),
     };
     let results = run_kitti_suite(&spec, false).unwrap();
