@@ -4,7 +4,7 @@
 //! per table; rows of methods we do not run are marked as such).
 
 use crate::evaluate::kitti_sequence::{EgoScores, MotSummary, ObjectSummary, TrackScores};
-use crate::kitti_suite::{KittiSequenceResult, KittiSuiteResults};
+use crate::kitti_suite::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
 use crate::report::table::{Better, BoldRule, Cell, Table};
 use crate::report::{Report, ReportError, Section, Variant, write_report};
 use std::path::{Path, PathBuf};
@@ -541,7 +541,7 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
             combined(&both, peer),
         )?;
         push(
-            "tracker alone (limot)",
+            TRACKER_ALONE,
             "ours, OXTS ego",
             &both,
             combined(&both, tracker),
@@ -553,7 +553,7 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
         .filter(|s| tracker(s).is_some())
         .collect();
     push(
-        "tracker alone (limot)",
+        TRACKER_ALONE,
         "ours, OXTS ego",
         &all,
         combined(&all, tracker),
@@ -567,11 +567,49 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
     }
     if results.variants.iter().any(|v| v.tracks_objects()) {
         push(
-            "tracker alone (limot)",
+            TRACKER_ALONE,
             "ours, OXTS ego",
             &scanned,
             combined(&scanned, tracker),
         )?;
+    }
+    Ok(table)
+}
+
+/// AB3DMOT's evaluate.py rows (sAMOTA, AMOTA, AMOTP, MOTA/MOTP at the best
+/// threshold, [%]).
+pub fn ab3dmot_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
+    let mut table = Table::new(
+        "Tracking, class Car: AB3DMOT's evaluate.py (3D IoU 0.25) [%]",
+        header(&[
+            "Method",
+            "Sequences",
+            "sAMOTA",
+            "AMOTA",
+            "AMOTP",
+            "MOTA (best thr)",
+            "MOTP (best thr)",
+        ]),
+    );
+    for c in 2..7 {
+        table.set_decimals(c, 2);
+    }
+    for r in &results.ab3dmot_eval {
+        let sequences = r
+            .sequences
+            .iter()
+            .map(|s| format!("{s:02}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        table.push_row(vec![
+            Cell::from(r.name.as_str()),
+            Cell::from(sequences),
+            (100.0 * r.samota).into(),
+            (100.0 * r.amota).into(),
+            (100.0 * r.amotp).into(),
+            r.best_mota.map(|m| 100.0 * m).into(),
+            (100.0 * r.best_motp).into(),
+        ])?;
     }
     Ok(table)
 }
@@ -618,7 +656,7 @@ pub fn object_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
             .and_then(|t| object_of(t.scores.as_ref(), id));
         let mut cells = vec![
             Cell::from(key.as_str()),
-            Cell::from("tracker alone (limot)"),
+            Cell::from(TRACKER_ALONE),
             Cell::from(if ours.is_some() {
                 "ours, OXTS ego"
             } else {
@@ -658,7 +696,7 @@ pub fn object_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
             }
             let mut cells = vec![
                 Cell::from(key.as_str()),
-                Cell::from("tracker alone (limot)"),
+                Cell::from(TRACKER_ALONE),
                 Cell::from("ours, OXTS ego"),
             ];
             cells.extend(object_cells(object_of(tracker_scores, id).as_ref()));
@@ -732,7 +770,7 @@ pub fn kitti_report(results: &KittiSuiteResults) -> Result<Report, ReportError> 
         Section {
             heading: "Tracking (Table II)".into(),
             text: String::new(),
-            tables: vec![tracking_table(results)?],
+            tables: vec![tracking_table(results)?, ab3dmot_table(results)?],
             plots: Vec::new(),
         },
         Section {

@@ -18,6 +18,8 @@
 //! A run or sequence that fails is recorded with its error and the others go
 //! on; only a bad specification or an unwritable OUT stops the command.
 
+use crate::eval::kitti_mot::KittiEvalClass;
+use crate::eval::samota::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::evaluate::kitti_sequence::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,
@@ -117,6 +119,21 @@ impl KittiSequenceResult {
     }
 }
 
+/// AB3DMOT's evaluate.py ([`ab3dmot_evaluate`], Car, 3D IoU 0.25) of one
+/// tracker's result files over a set of sequences (its thresholds are shared
+/// by the whole set, so it is computed per set, not per sequence).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Ab3dmotSummary {
+    pub name: String,
+    pub sequences: Vec<u32>,
+    pub samota: f64,
+    pub amota: f64,
+    pub amotp: f64,
+    /// MOTA and MOTP at the score threshold with the best MOTA.
+    pub best_mota: Option<f64>,
+    pub best_motp: f64,
+}
+
 /// What `results.json` holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KittiSuiteResults {
@@ -130,6 +147,10 @@ pub struct KittiSuiteResults {
     pub tracking_peer: Option<String>,
     pub ego_peers: Vec<String>,
     pub sequences: Vec<KittiSequenceResult>,
+    /// evaluate.py of the tracker alone (and the tracking peer) over the
+    /// sequences both have, and of the tracker alone over all it ran on.
+    #[serde(default)]
+    pub ab3dmot_eval: Vec<Ab3dmotSummary>,
 }
 
 impl KittiSuiteResults {
@@ -358,6 +379,82 @@ fn score_ego_peer(
     })
 }
 
+/// evaluate.py of `name`'s result files `dir/SSSS.txt` over `sequences`.
+fn ab3dmot_summary(
+    training: &Path,
+    name: &str,
+    dir: &Path,
+    sequences: &[&KittiSequenceResult],
+) -> Result<Ab3dmotSummary, SuiteError> {
+    let data = |e: &dyn std::error::Error| SuiteError::Data(error_chain(e));
+    let mut labels = Vec::with_capacity(sequences.len());
+    for s in sequences {
+        let gt = read_sequence_labels(training, s.sequence)
+            .map_err(|e| data(&e))?
+            .unwrap_or_default();
+        let results = read_labels(&sequence_file(dir, s.sequence)).map_err(|e| data(&e))?;
+        labels.push((gt, results, s.frames as u32));
+    }
+    let input: Vec<Ab3dmotSequence<'_>> = labels
+        .iter()
+        .map(|(gt, results, num_frames)| Ab3dmotSequence {
+            gt,
+            results,
+            num_frames: *num_frames,
+        })
+        .collect();
+    let r = ab3dmot_evaluate(&input, KittiEvalClass::Car, &Ab3dmotEvalConfig::default())
+        .map_err(|e| data(&e))?;
+    Ok(Ab3dmotSummary {
+        name: name.to_string(),
+        sequences: sequences.iter().map(|s| s.sequence).collect(),
+        samota: r.samota,
+        amota: r.amota,
+        amotp: r.amotp,
+        best_mota: r.best.mota,
+        best_motp: r.best.motp,
+    })
+}
+
+/// evaluate.py of the tracker alone and the tracking peer on the sequences
+/// both scored, and of the tracker alone on every sequence it scored.
+fn ab3dmot_summaries(
+    spec: &KittiSuiteSpec,
+    results: &[KittiSequenceResult],
+) -> Result<Vec<Ab3dmotSummary>, SuiteError> {
+    let scored = |t: &Option<TrackerResult>| t.as_ref().is_some_and(|t| t.scores.is_some());
+    let tracker_dir = spec.out_dir.join("tracker");
+    let mut out = Vec::new();
+    if let Some((name, dir)) = &spec.tracking_peer {
+        let both: Vec<&KittiSequenceResult> = results
+            .iter()
+            .filter(|s| scored(&s.tracker) && scored(&s.tracking_peer))
+            .collect();
+        if !both.is_empty() {
+            out.push(ab3dmot_summary(&spec.training, name, dir, &both)?);
+            out.push(ab3dmot_summary(
+                &spec.training,
+                TRACKER_ALONE,
+                &tracker_dir,
+                &both,
+            )?);
+        }
+    }
+    let all: Vec<&KittiSequenceResult> = results.iter().filter(|s| scored(&s.tracker)).collect();
+    if !all.is_empty() {
+        out.push(ab3dmot_summary(
+            &spec.training,
+            TRACKER_ALONE,
+            &tracker_dir,
+            &all,
+        )?);
+    }
+    Ok(out)
+}
+
+/// The name of the tracker-alone rows.
+pub const TRACKER_ALONE: &str = "tracker alone (limot)";
+
 /// Runs everything `spec` asks for, saves `results.json` and returns the results.
 ///
 /// # Errors
@@ -462,6 +559,7 @@ pub fn run_kitti_suite(
         results.push(result);
     }
     bar.finish_and_clear();
+    let ab3dmot_eval = ab3dmot_summaries(spec, &results)?;
     let results = KittiSuiteResults {
         kind: KITTI_RESULTS_KIND.into(),
         format_version: KITTI_RESULTS_FORMAT_VERSION,
@@ -475,6 +573,7 @@ pub fn run_kitti_suite(
             .map(|(name, _)| name.clone())
             .collect(),
         sequences: results,
+        ab3dmot_eval,
     };
     results.save(&spec.out_dir)?;
     Ok(results)

@@ -455,6 +455,7 @@ fn parse_score_map(name: &str) -> Result<limot::kitti::detections::ScoreMap, Str
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run_estimator(
     dataset: &std::path::Path,
     out: Option<PathBuf>,
