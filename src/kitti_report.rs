@@ -3,7 +3,8 @@
 //! for the same sequences beside them (values copied from the paper, cited
 //! per table; rows of methods we do not run are marked as such).
 
-use crate::evaluate::kitti_sequence::{EgoScores, MotSummary, ObjectSummary, TrackScores};
+use crate::eval::MotSummary;
+use crate::evaluate::kitti_sequence::{EgoScores, ObjectSummary, TrackScores};
 use crate::kitti_suite::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
 use crate::report::table::{Better, BoldRule, Cell, Table};
 use crate::report::{Report, ReportError, Section, Variant, write_report};

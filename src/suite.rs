@@ -17,8 +17,8 @@
 //! suite specification (unknown family, empty lists, bad duration) or an
 //! unwritable OUT stops the suite.
 
-use crate::eval::TimingAccumulator;
 use crate::eval::iou::IouKind;
+use crate::eval::{MotSummary, TimingAccumulator};
 use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
 use crate::evaluate::filtering::{FilterEvaluation, evaluate_filtering};
 use crate::evaluate::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
@@ -198,13 +198,8 @@ pub struct MotMetrics {
     /// "3D" or "BEV".
     pub iou_kind: String,
     pub iou_threshold: f64,
-    pub mota: Option<f64>,
-    pub motp: Option<f64>,
-    pub id_switches: usize,
-    pub false_positives: usize,
-    pub false_negatives: usize,
-    pub matches: usize,
-    pub gt_count: usize,
+    #[serde(flatten)]
+    pub counts: MotSummary,
 }
 
 /// One ground-truth object as the tracker followed it (3D IoU ≥ 0.25).
@@ -472,13 +467,7 @@ fn mot_metrics(tracks: &TracksEvaluation) -> Vec<MotMetrics> {
         .map(|s| MotMetrics {
             iou_kind: iou_kind_name(s.iou_kind).to_string(),
             iou_threshold: s.iou_threshold,
-            mota: s.all.mota,
-            motp: s.all.motp,
-            id_switches: s.all.id_switches,
-            false_positives: s.all.false_positives,
-            false_negatives: s.all.false_negatives,
-            matches: s.all.matches,
-            gt_count: s.all.gt_count,
+            counts: MotSummary::from(&s.all),
         })
         .collect()
 }

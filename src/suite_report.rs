@@ -109,11 +109,11 @@ pub fn tracking_table_of(results: &SuiteResults, kind: &str) -> Result<Table> {
                     sequence: s.name.clone(),
                     variant: r.variant,
                     iou_threshold: threshold,
-                    mota_percent: mot.mota.map(|x| 100.0 * x),
-                    motp_percent: mot.motp.map(|x| 100.0 * x),
-                    idsw: mot.id_switches,
-                    fp: mot.false_positives,
-                    fn_: mot.false_negatives,
+                    mota_percent: mot.counts.mota.map(|x| 100.0 * x),
+                    motp_percent: mot.counts.motp.map(|x| 100.0 * x),
+                    idsw: mot.counts.id_switches,
+                    fp: mot.counts.false_positives,
+                    fn_: mot.counts.false_negatives,
                 });
             }
         }
@@ -150,7 +150,7 @@ pub fn motp_table(results: &SuiteResults) -> Result<Table> {
                 .map(|s| {
                     s.metrics(v)
                         .and_then(|m| m.mot("3D", threshold))
-                        .and_then(|m| m.motp)
+                        .and_then(|m| m.counts.motp)
                         .map(|x| 100.0 * x)
                 })
                 .collect();
@@ -851,13 +851,15 @@ mod tests {
                     [0.25, 0.5].map(|thr| MotMetrics {
                         iou_kind: kind.into(),
                         iou_threshold: thr,
-                        mota: Some(0.5),
-                        motp: Some(motp + thr / 10.0),
-                        id_switches: 1,
-                        false_positives: 2,
-                        false_negatives: 3,
-                        matches: 10,
-                        gt_count: 13,
+                        counts: crate::eval::MotSummary {
+                            mota: Some(0.5),
+                            motp: Some(motp + thr / 10.0),
+                            id_switches: 1,
+                            false_positives: 2,
+                            false_negatives: 3,
+                            matches: 10,
+                            gt_count: 13,
+                        },
                     })
                 })
                 .collect(),

@@ -77,10 +77,10 @@ fn every_run_tracks_the_ego_to_half_a_metre_and_is_scored() {
                 .mot(kind, thr)
                 .unwrap_or_else(|| panic!("{v}: no {kind} {thr}"));
             assert!(
-                mot.gt_count > 0 && mot.matches > 0,
+                mot.counts.gt_count > 0 && mot.counts.matches > 0,
                 "{v} {kind} {thr}: {mot:?}"
             );
-            assert!(mot.motp.is_some_and(|p| p >= thr && p <= 1.0));
+            assert!(mot.counts.motp.is_some_and(|p| p >= thr && p <= 1.0));
         }
         assert!(m.objects.iter().any(|o| o.tp_percent > 0.0));
         let total = m.timings.iter().find(|t| t.stage == "total").unwrap();

@@ -40,6 +40,7 @@ use super::assignment::min_cost_assignment;
 use super::iou::{AREA_EPS, Box3, IouKind, MotBox};
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::BoxTruth;
+use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 /// The IoU thresholds of the paper's tracking tables.
@@ -202,6 +203,61 @@ pub struct ClearMotResult {
     pub iou_sum: f64,
     /// The matches of every frame, in frame order.
     pub per_frame: Vec<Vec<FrameMatch>>,
+}
+
+/// The headline figures of a [`ClearMotResult`], as results files store them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotSummary {
+    pub mota: Option<f64>,
+    pub motp: Option<f64>,
+    pub id_switches: usize,
+    pub false_positives: usize,
+    pub false_negatives: usize,
+    pub matches: usize,
+    pub gt_count: usize,
+}
+
+impl From<&ClearMotResult> for MotSummary {
+    fn from(r: &ClearMotResult) -> Self {
+        MotSummary {
+            mota: r.mota,
+            motp: r.motp,
+            id_switches: r.id_switches,
+            false_positives: r.false_positives,
+            false_negatives: r.false_negatives,
+            matches: r.matches,
+            gt_count: r.gt_count,
+        }
+    }
+}
+
+impl MotSummary {
+    /// Counts summed over sequences, MOTA and MOTP recomputed from them (as
+    /// the devkit and TrackEval combine sequences).
+    pub fn combine<'a>(parts: impl IntoIterator<Item = &'a MotSummary>) -> MotSummary {
+        let mut total = MotSummary {
+            mota: None,
+            motp: None,
+            id_switches: 0,
+            false_positives: 0,
+            false_negatives: 0,
+            matches: 0,
+            gt_count: 0,
+        };
+        let mut iou_sum = 0.0;
+        for p in parts {
+            total.id_switches += p.id_switches;
+            total.false_positives += p.false_positives;
+            total.false_negatives += p.false_negatives;
+            total.matches += p.matches;
+            total.gt_count += p.gt_count;
+            iou_sum += p.motp.unwrap_or(0.0) * p.matches as f64;
+        }
+        let errors = total.false_negatives + total.false_positives + total.id_switches;
+        total.mota = (total.gt_count > 0).then(|| 1.0 - errors as f64 / total.gt_count as f64);
+        total.motp = (total.matches > 0).then(|| iou_sum / total.matches as f64);
+        total
+    }
 }
 
 fn validate_frame<B: MotBox>(index: usize, frame: &MotFrame<B>) -> Result<(), EvalError> {

@@ -24,8 +24,8 @@ pub use align::{Alignment, umeyama};
 pub use assignment::{Assignment, min_cost_assignment};
 pub use ate::{AlignMode, AteResult, associate, ate, ate_with, ego_trajectory};
 pub use clear_mot::{
-    ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, TrackedBox, clear_mot,
-    clear_mot_per_class, combine_sequences,
+    ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, MotSummary, TrackedBox,
+    clear_mot, clear_mot_per_class, combine_sequences,
 };
 pub use filtering::{FilterScore, filter_precision_recall};
 pub use interpolate::pose_at;

@@ -21,7 +21,7 @@
 
 use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
 use super::{EvaluateError, Result};
-use crate::eval::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox};
+use crate::eval::clear_mot::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
 use crate::eval::iou::{Box3, IouKind};
 use crate::eval::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
 use crate::eval::objects::object_scores;
@@ -87,32 +87,6 @@ pub struct EgoScores {
     pub truth_pos_accuracy_max_m: f64,
     /// Truth frames left out for their `pos_accuracy`.
     pub truth_frames_gated: usize,
-}
-
-/// The headline CLEAR-MOT counts of one evaluation.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct MotSummary {
-    pub mota: Option<f64>,
-    pub motp: Option<f64>,
-    pub id_switches: usize,
-    pub false_positives: usize,
-    pub false_negatives: usize,
-    pub matches: usize,
-    pub gt_count: usize,
-}
-
-impl From<&ClearMotResult> for MotSummary {
-    fn from(r: &ClearMotResult) -> Self {
-        MotSummary {
-            mota: r.mota,
-            motp: r.motp,
-            id_switches: r.id_switches,
-            false_positives: r.false_positives,
-            false_negatives: r.false_negatives,
-            matches: r.matches,
-            gt_count: r.gt_count,
-        }
-    }
 }
 
 /// TP % and ATE of one ground-truth object.
@@ -465,47 +439,19 @@ impl EgoScores {
     }
 }
 
-impl MotSummary {
-    /// Counts summed over sequences, MOTA and MOTP recomputed from them (as
-    /// the devkit and TrackEval combine sequences).
-    pub fn combine<'a>(parts: impl IntoIterator<Item = &'a MotSummary>) -> MotSummary {
-        let mut total = MotSummary {
-            mota: None,
-            motp: None,
-            id_switches: 0,
-            false_positives: 0,
-            false_negatives: 0,
-            matches: 0,
-            gt_count: 0,
-        };
-        let mut iou_sum = 0.0;
-        for p in parts {
-            total.id_switches += p.id_switches;
-            total.false_positives += p.false_positives;
-            total.false_negatives += p.false_negatives;
-            total.matches += p.matches;
-            total.gt_count += p.gt_count;
-            iou_sum += p.motp.unwrap_or(0.0) * p.matches as f64;
-        }
-        let errors = total.false_negatives + total.false_positives + total.id_switches;
-        total.mota = (total.gt_count > 0).then(|| 1.0 - errors as f64 / total.gt_count as f64);
-        total.motp = (total.matches > 0).then(|| iou_sum / total.matches as f64);
-        total
-    }
-
-    fn line(&self, name: &str) -> String {
-        let pct = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{:.2} %", 100.0 * x));
-        format!(
-            "{name}: MOTA {}, MOTP {}, IDSW {}, FP {}, FN {} ({} matches of {})",
-            pct(self.mota),
-            pct(self.motp),
-            self.id_switches,
-            self.false_positives,
-            self.false_negatives,
-            self.matches,
-            self.gt_count
-        )
-    }
+/// One printed line of a CLEAR-MOT summary.
+fn mot_line(m: &MotSummary, name: &str) -> String {
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{:.2} %", 100.0 * x));
+    format!(
+        "{name}: MOTA {}, MOTP {}, IDSW {}, FP {}, FN {} ({} matches of {})",
+        pct(m.mota),
+        pct(m.motp),
+        m.id_switches,
+        m.false_positives,
+        m.false_negatives,
+        m.matches,
+        m.gt_count
+    )
 }
 
 impl TrackScores {
@@ -513,10 +459,9 @@ impl TrackScores {
     /// the most labelled frames.
     pub fn summary_lines(&self, longest: usize) -> Vec<String> {
         let mut lines = vec![
-            self.image_iou_50
-                .line("Car, 2D (TrackEval, image IoU >= 0.5)"),
-            self.iou3d_25.line("Car, 3D IoU >= 0.25"),
-            self.iou3d_50.line("Car, 3D IoU >= 0.5"),
+            mot_line(&self.image_iou_50, "Car, 2D (TrackEval, image IoU >= 0.5)"),
+            mot_line(&self.iou3d_25, "Car, 3D IoU >= 0.25"),
+            mot_line(&self.iou3d_50, "Car, 3D IoU >= 0.5"),
         ];
         for o in self.objects.iter().take(longest) {
             let opt = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.3}"));
