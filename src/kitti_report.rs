@@ -428,7 +428,7 @@ pub fn ego_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     Ok(table)
 }
 
-fn mot_cells(m: &[&MotSummary; 3]) -> Vec<Cell> {
+fn mot_cells(m: &[MotSummary; 3]) -> Vec<Cell> {
     let pct = |v: Option<f64>| Cell::from(v.map(|x| 100.0 * x));
     let [image, d25, d50] = m;
     vec![
@@ -523,7 +523,7 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
                     Cell::from(source),
                     Cell::from(seq_list(seqs)),
                 ];
-                cells.extend(mot_cells(&[&m[0], &m[1], &m[2]]));
+                cells.extend(mot_cells(&m));
                 table.push_row(cells)
             } else {
                 Ok(())

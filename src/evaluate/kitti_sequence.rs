@@ -19,7 +19,7 @@
 //! placed with the estimated ego pose and are compared in each frame's LiDAR
 //! frame, so the object ATE includes the ego's error relative to the scene.
 
-use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
+use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories};
 use super::{EvaluateError, Result};
 use crate::eval::clear_mot::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
 use crate::eval::iou::{Box3, IouKind};
@@ -29,11 +29,11 @@ use crate::eval::{AlignMode, RpeDelta, pose_at};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::camera_box_to_lidar;
 use crate::kitti::labels::{TrackingLabel, read_labels};
-use crate::kitti::oxts::read_oxts;
+use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
 use crate::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
-use crate::track_kitti::kitti_3d_clear_mot;
+use crate::track_kitti::{kitti_3d_clear_mot, lidar_poses};
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
@@ -127,36 +127,46 @@ pub fn read_ego_truth(
     sequence: u32,
     opts: &KittiScoreOptions,
 ) -> Result<KittiEgoTruth> {
-    let ego_opts = EgoEvalOptions {
-        sequence,
-        ..EgoEvalOptions::default()
-    };
-    let mut trajectory = load_truth(training, &ego_opts)?;
-    let timing = tracking_frame_times(training, trajectory.poses.len())?;
-    for ((t, _), start) in trajectory.poses.iter_mut().zip(&timing.sweep_starts_s) {
-        *t = start + timing.frame_delay_s;
+    let oxts_path = sequence_file(&training.join("oxts"), sequence);
+    let records = read_oxts(&oxts_path)?;
+    if records.is_empty() {
+        return Err(EvaluateError::Input {
+            path: oxts_path,
+            why: "no OXTS records".into(),
+        });
     }
-    let records = read_oxts(&sequence_file(&training.join("oxts"), sequence))?;
-    let keep: Vec<bool> = records
+    let calib = Calib::read(&sequence_file(&training.join("calib"), sequence))?;
+    let timing = tracking_frame_times(training, records.len())?;
+    if timing.sweep_starts_s.len() != records.len() {
+        return Err(EvaluateError::TimesLength {
+            poses_path: oxts_path,
+            poses: records.len(),
+            times_path: training.join("times.txt"),
+            times: timing.sweep_starts_s.len(),
+        });
+    }
+    let t_world_lidar = lidar_poses(&oxts_to_poses(&records), &calib);
+    let mut poses = Vec::with_capacity(records.len());
+    let mut pos_accuracy_m = Vec::with_capacity(records.len());
+    for ((record, pose), start_s) in records
         .iter()
-        .map(|r| r.pos_accuracy_m <= opts.max_truth_pos_accuracy_m)
-        .collect();
-    let gated = keep.iter().filter(|k| !**k).count();
-    trajectory.poses = trajectory
-        .poses
-        .into_iter()
-        .zip(&keep)
-        .filter_map(|(p, k)| k.then_some(p))
-        .collect();
-    let pos_accuracy_m = records
-        .iter()
-        .zip(&keep)
-        .filter_map(|(r, k)| k.then_some(r.pos_accuracy_m))
-        .collect();
+        .zip(t_world_lidar)
+        .zip(&timing.sweep_starts_s)
+    {
+        if record.pos_accuracy_m <= opts.max_truth_pos_accuracy_m {
+            poses.push((start_s + timing.frame_delay_s, pose));
+            pos_accuracy_m.push(record.pos_accuracy_m);
+        }
+    }
     Ok(KittiEgoTruth {
-        trajectory,
+        gated: records.len() - poses.len(),
+        trajectory: Trajectory {
+            path: oxts_path,
+            kind: "KITTI OXTS poses in the LiDAR frame".into(),
+            poses,
+            frame_times: None,
+        },
         pos_accuracy_m,
-        gated,
     })
 }
 
@@ -183,14 +193,14 @@ pub fn score_ego(
         });
     }
     // The truth at the estimate's times (sweep starts), where it covers them.
-    let mut truth_at_estimates = truth.trajectory.clone();
-    truth_at_estimates.poses = estimate
-        .iter()
-        .filter_map(|(t, _)| Some((*t, pose_at(&truth.trajectory.poses, *t, |s| *s)?)))
-        .collect();
-    let truth = KittiEgoTruth {
-        trajectory: truth_at_estimates,
-        ..truth
+    let truth_at_estimates = Trajectory {
+        poses: estimate
+            .iter()
+            .filter_map(|(t, _)| Some((*t, pose_at(&truth.trajectory.poses, *t, |s| *s)?)))
+            .collect(),
+        path: truth.trajectory.path.clone(),
+        kind: truth.trajectory.kind.clone(),
+        frame_times: None,
     };
     let estimate = Trajectory {
         path: training.join("estimate"),
@@ -202,9 +212,9 @@ pub fn score_ego(
         sequence,
         ..EgoEvalOptions::default()
     };
-    let se3 = evaluate_trajectories(&truth.trajectory, &estimate, &se3_opts)?;
+    let se3 = evaluate_trajectories(&truth_at_estimates, &estimate, &se3_opts)?;
     let sim3 = evaluate_trajectories(
-        &truth.trajectory,
+        &truth_at_estimates,
         &estimate,
         &EgoEvalOptions {
             align: AlignMode::Sim3,
@@ -212,7 +222,7 @@ pub fn score_ego(
         },
     )?;
     let rpe_10m = evaluate_trajectories(
-        &truth.trajectory,
+        &truth_at_estimates,
         &estimate,
         &EgoEvalOptions {
             rpe_delta: RpeDelta::Meters {
@@ -224,23 +234,11 @@ pub fn score_ego(
         },
     )?
     .rpe;
-    // The true path over the time the estimate covers.
-    let (first_s, last_s) = estimate
+    // The true path over the scored poses.
+    let path_length_m = truth_at_estimates
         .poses
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (t, _)| {
-            (lo.min(*t), hi.max(*t))
-        });
-    let covered: Vec<&Isometry3<f64>> = truth
-        .trajectory
-        .poses
-        .iter()
-        .filter(|(t, _)| (first_s - se3_opts.max_dt_s..=last_s + se3_opts.max_dt_s).contains(t))
-        .map(|(_, p)| p)
-        .collect();
-    let path_length_m = covered
         .windows(2)
-        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+        .map(|w| (w[1].1.translation.vector - w[0].1.translation.vector).norm())
         .sum();
     let n_acc = truth.pos_accuracy_m.len().max(1) as f64;
     Ok(EgoScores {
