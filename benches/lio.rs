@@ -55,9 +55,7 @@ fn main() {
             estimator.push_imu(imu[next]).expect("imu");
             next += 1;
         }
-        if let Some(e) = estimator.push_frame(frame).expect("frame") {
-            estimates.push(e);
-        }
+        estimates.extend(estimator.push_frame(frame).expect("frame"));
     }
     let wall = clock.elapsed();
     let stages = estimates[0].timings.stages().map(|(n, _)| n);

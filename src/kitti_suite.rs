@@ -340,14 +340,13 @@ fn score_tracker(
 }
 
 /// A peer's TUM trajectory `dir/SSSS.txt` (stamped like limot's poses: the
-/// sweep of frame `i` starts at `0.1·i` s) scored like our runs; when our
-/// runs start later (initialisation), only over the sweeps they cover.
+/// sweep of frame `i` starts at `0.1·i` s) scored like our runs, which
+/// cover every frame.
 fn score_ego_peer(
     training: &Path,
     sequence: u32,
     name: &str,
     dir: &Path,
-    runs: &[KittiVariantResult],
     opts: &KittiScoreOptions,
 ) -> Option<EgoPeerResult> {
     let path = sequence_file(dir, sequence);
@@ -356,13 +355,7 @@ fn score_ego_peer(
     }
     let attempt = || -> Result<_, Box<dyn std::error::Error>> {
         let poses = parse_tum(&read_text(&path)?, &path)?;
-        let first_frame = runs.iter().map(|r| r.frames_before_init).max().unwrap_or(0);
-        let from_s = first_frame as f64 * crate::kitti::velodyne::SWEEP_DURATION_S;
-        let poses: Vec<_> = poses
-            .iter()
-            .filter(|p| p.t_s >= from_s)
-            .map(|p| (p.t_s, p.pose))
-            .collect();
+        let poses: Vec<_> = poses.iter().map(|p| (p.t_s, p.pose)).collect();
         Ok(score_ego(training, sequence, &poses, opts)?)
     };
     Some(match attempt() {
@@ -550,9 +543,7 @@ pub fn run_kitti_suite(
             }
         }
         for (name, dir) in &spec.ego_peers {
-            if let Some(peer) =
-                score_ego_peer(&spec.training, sequence, name, dir, &result.runs, &opts)
-            {
+            if let Some(peer) = score_ego_peer(&spec.training, sequence, name, dir, &opts) {
                 result.ego_peers.push(peer);
             }
         }

@@ -500,7 +500,7 @@ fn run_estimator(
     write_output(&out, &output)?;
     let n = output.estimates.len();
     println!(
-        "{}: {} frames estimated ({} before initialisation), {:?} mode, {:.1} s wall ({:.1} FPS)",
+        "{}: {} frames estimated ({} of them LiDAR-only before the inertial initialisation), {:?} mode, {:.1} s wall ({:.1} FPS)",
         variant.name(),
         n,
         output.frames_before_init,
@@ -625,7 +625,7 @@ fn run_demo(
     }
     for e in &s.estimators {
         println!(
-            "estimator {}: ego ATE_T {:.3} m, ATE_R {:.4} rad over {} frames ({} before initialisation); \
+            "estimator {}: ego ATE_T {:.3} m, ATE_R {:.4} rad over {} frames ({} LiDAR-only before initialisation); \
              tracks MOTA {:.1} %, MOTP {:.1} % (3D IoU 0.25); {:.1} ms/frame, {:.1} FPS; {}",
             e.variant,
             e.ate_t_m,

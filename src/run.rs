@@ -236,7 +236,8 @@ pub struct RunOutput {
     pub variant: Variant,
     pub mode: Mode,
     pub estimates: Vec<FrameEstimate>,
-    /// Frames consumed before the estimator initialised.
+    /// Frames before the inertial state initialised (IMU mode): their
+    /// estimates are LiDAR-only odometry, re-expressed in the inertial world.
     pub frames_before_init: usize,
     /// Detections the estimator skipped: non-finite or non-positive fields,
     /// scores outside [0, 1], times outside their sweep.
@@ -341,10 +342,11 @@ pub fn run(
                 .map_err(estimator_error)?;
             next_imu += 1;
         }
-        match estimator.push_frame(&frame).map_err(estimator_error)? {
-            Some(estimate) => estimates.push(estimate),
-            None => frames_before_init += 1,
+        let completed = estimator.push_frame(&frame).map_err(estimator_error)?;
+        if estimates.is_empty() && completed.len() > 1 {
+            frames_before_init = completed.len() - 1;
         }
+        estimates.extend(completed);
         bar.inc(1);
     }
     bar.finish_and_clear();

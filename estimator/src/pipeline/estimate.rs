@@ -36,6 +36,24 @@ pub struct FrameEstimate {
     pub timings: ModuleTimings,
 }
 
+impl FrameEstimate {
+    /// The same estimate in another world frame (`t_new_old` maps old world
+    /// coordinates to new ones): pose, velocity and tracks move, the rest is
+    /// frame-free.
+    pub fn transformed(&self, t_new_old: &Isometry3<f64>) -> FrameEstimate {
+        FrameEstimate {
+            t_world_lidar: t_new_old * self.t_world_lidar,
+            velocity_world_mps: t_new_old.rotation * self.velocity_world_mps,
+            tracks: self
+                .tracks
+                .iter()
+                .map(|t| t.transformed(t_new_old))
+                .collect(),
+            ..self.clone()
+        }
+    }
+}
+
 /// Diagnostics of the scan-to-map match of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanMatchSummary {

@@ -161,6 +161,9 @@ pub struct Estimator {
     bootstrap_mids: Vec<(f64, Isometry3<f64>)>,
     /// Index of the first bootstrap pose after the last degenerate match.
     bootstrap_usable_from: usize,
+    /// LiDAR-only estimates of the sweeps before the inertial
+    /// initialisation, LiDAR-only world.
+    bootstrap_estimates: Vec<FrameEstimate>,
     deskewed: Vec<Vector3<f64>>,
     /// The valid detections of the frame being processed.
     frame_detections: Vec<Detection>,
@@ -202,6 +205,7 @@ impl Estimator {
             lidar_only_history: VecDeque::new(),
             bootstrap_mids: Vec::new(),
             bootstrap_usable_from: 0,
+            bootstrap_estimates: Vec::new(),
             deskewed: Vec::new(),
             frame_detections: Vec::new(),
             tracker,
@@ -245,11 +249,15 @@ impl Estimator {
         Ok(())
     }
 
-    /// Processes one frame. Returns `None` while the estimator waits for a
-    /// static interval to initialise (IMU mode); frames are never queued.
+    /// Processes one frame and returns the estimates it completes, in frame
+    /// order: this frame's, except while the inertial state initialises
+    /// (IMU mode). Those sweeps run LiDAR-only; nothing is returned for them
+    /// until the initialisation, which returns their LiDAR-only estimates
+    /// (re-expressed in the gravity-aligned world) before its own. Every
+    /// frame gets exactly one estimate unless an error ends the run.
     /// Non-finite points are dropped (a driver's "no return"); a scan must
     /// start after the previous one.
-    pub fn push_frame(&mut self, frame: &Frame) -> Result<Option<FrameEstimate>, EstimatorError> {
+    pub fn push_frame(&mut self, frame: &Frame) -> Result<Vec<FrameEstimate>, EstimatorError> {
         let scan = &frame.scan;
         if !scan.t_s.is_finite() {
             return Err(InputError::ScanNotFinite {
@@ -299,12 +307,12 @@ impl Estimator {
             &finite
         };
         match self.config.mode {
-            Mode::LidarOnly => self.process_lidar_only(frame_index, scan).map(Some),
+            Mode::LidarOnly => self.process_lidar_only(frame_index, scan).map(|e| vec![e]),
             Mode::LidarInertial => {
                 if self.latest.is_none() {
                     self.try_initialize(frame_index, scan)
                 } else {
-                    self.process_inertial(frame_index, scan).map(Some)
+                    self.process_inertial(frame_index, scan).map(|e| vec![e])
                 }
             }
         }
@@ -332,13 +340,16 @@ impl Estimator {
     /// constant speed, so the static initialisation also needs the LiDAR
     /// poses to stand still; otherwise, after `bootstrap_frames` sweeps,
     /// gravity, velocity and gyroscope bias come from the LiDAR poses and the
-    /// IMU ([`moving_init`]). These sweeps yield no estimate.
+    /// IMU ([`moving_init`]). Their estimates wait in `bootstrap_estimates`
+    /// and are returned, moved into the inertial world, with the first
+    /// inertial estimate.
     fn try_initialize(
         &mut self,
         frame_index: u64,
         scan: &LidarScan,
-    ) -> Result<Option<FrameEstimate>, EstimatorError> {
+    ) -> Result<Vec<FrameEstimate>, EstimatorError> {
         let lidar_only = self.process_lidar_only(frame_index, scan)?;
+        let t_lidarworld_lidar = lidar_only.t_world_lidar;
         if let Some(&mid) = self.lidar_only_history.back() {
             self.bootstrap_mids.push(mid);
         }
@@ -351,10 +362,11 @@ impl Estimator {
         {
             self.bootstrap_usable_from = self.bootstrap_mids.len();
         }
+        self.bootstrap_estimates.push(lidar_only);
         let t0 = scan.t_s - self.config.init_window_s;
         let covered = self.imu.first().is_some_and(|s| s.t_s <= t0 + 0.02);
         if !covered || self.bootstrap_mids.len() < 3 {
-            return Ok(None);
+            return Ok(Vec::new());
         }
         let lidar_still = {
             let recent = &self.bootstrap_mids[self.bootstrap_mids.len() - 3..];
@@ -396,11 +408,11 @@ impl Estimator {
                 };
                 (state, sigmas)
             }
-            Err(NotStatic::TooFewSamples { .. }) => return Ok(None),
+            Err(NotStatic::TooFewSamples { .. }) => return Ok(Vec::new()),
             _ => {
                 let needed = self.config.bootstrap_frames.max(3);
                 if self.bootstrap_mids.len() < self.bootstrap_usable_from + needed {
-                    return Ok(None);
+                    return Ok(Vec::new());
                 }
                 let first = self.bootstrap_mids.len() - needed;
                 let Some(init) = moving_init(
@@ -410,7 +422,7 @@ impl Estimator {
                     self.config.gravity_mps2,
                     self.config.bootstrap_gravity_tolerance_mps2,
                 ) else {
-                    return Ok(None);
+                    return Ok(Vec::new());
                 };
                 let align = Isometry3::from_parts(
                     nalgebra::Translation3::identity(),
@@ -423,7 +435,7 @@ impl Estimator {
                 let state = EgoState {
                     frame_index,
                     t_s: scan.t_s,
-                    t_world_imu: align * lidar_only.t_world_lidar * self.t_lidar_imu,
+                    t_world_imu: align * t_lidarworld_lidar * self.t_lidar_imu,
                     velocity_world_mps: init.r_world_lidarworld * init.velocity_lidarworld_mps,
                     bias: ImuBias {
                         accel_mps2: Vector3::zeros(),
@@ -439,11 +451,31 @@ impl Estimator {
         self.lidar_only_history.clear();
         self.bootstrap_mids.clear();
         self.bootstrap_usable_from = 0;
-        self.start_inertial(state.0, scan, state.1).map(Some)
+        let mut first = self.start_inertial(state.0, scan, state.1)?;
+        // Everything of the LiDAR-only sweeps, this one's tracks included,
+        // moves into the inertial world; the tracker keeps its tracks.
+        let t_world_lidarworld = first.t_world_lidar * t_lidarworld_lidar.inverse();
+        let clock = Instant::now();
+        self.tracker
+            .transform_world(&t_world_lidarworld)
+            .map_err(EstimatorError::Tracker)?;
+        let mut estimates: Vec<FrameEstimate> = self
+            .bootstrap_estimates
+            .drain(..)
+            .map(|e| e.transformed(&t_world_lidarworld))
+            .collect();
+        // This sweep's LiDAR-only estimate is superseded by the inertial one.
+        if let Some(this) = estimates.pop() {
+            first.tracks = this.tracks;
+        }
+        first.timings.tracking += clock.elapsed();
+        estimates.push(first);
+        Ok(estimates)
     }
 
     /// Puts the first inertial state into the window with its priors and
-    /// starts the map with this sweep.
+    /// starts the map with this sweep. The estimate has no tracks: the
+    /// tracker already took this sweep's detections in the LiDAR-only world.
     fn start_inertial(
         &mut self,
         state: EgoState,
@@ -533,13 +565,6 @@ impl Estimator {
             .map_err(&window_error)?;
         self.window_frames.push_back(frame_index);
         self.latest = Some(state);
-
-        let clock = Instant::now();
-        // The world changed at initialisation: tracks start afresh.
-        self.tracker =
-            Tracker::new(self.config.tracker.clone()).map_err(EstimatorError::Tracker)?;
-        let tracks = self.track_objects(scan.t_s, &t_world_lidar, &motion)?;
-        timings.tracking = clock.elapsed();
         Ok(FrameEstimate {
             frame_index,
             t_s: scan.t_s,
@@ -549,7 +574,7 @@ impl Estimator {
             scan_match: None,
             removed_feature_indices: features.removed.clone(),
             feature_indices: features.all_indices.clone(),
-            tracks,
+            tracks: Vec::new(),
             timings,
         })
     }

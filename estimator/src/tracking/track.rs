@@ -32,7 +32,7 @@
 use super::TrackerConfig;
 use super::trajectory_fit::{FitPrediction, FitSample, TrajectoryFit};
 use crate::input::ObjectClass;
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 use std::collections::VecDeque;
 
 /// Lifecycle state of a track.
@@ -221,6 +221,23 @@ impl Track {
         self.consecutive_misses > config.max_misses
     }
 
+    /// Re-expresses the track in another world frame: every kept box is
+    /// moved by `t_new_old` (its heading rotated with it), then the fit and
+    /// the motion state are recomputed from the moved boxes.
+    pub fn transform_world(
+        &mut self,
+        t_new_old: &Isometry3<f64>,
+        config: &TrackerConfig,
+    ) -> Result<(), super::trajectory_fit::FitError> {
+        for b in &mut self.history {
+            b.center_world = t_new_old.transform_point(&b.center_world.into()).coords;
+            b.yaw_rad = rotated_yaw(t_new_old, b.yaw_rad);
+        }
+        self.refit(config)?;
+        self.update_motion(config);
+        Ok(())
+    }
+
     fn refit(&mut self, config: &TrackerConfig) -> Result<(), super::trajectory_fit::FitError> {
         let skip = self.history.len().saturating_sub(config.window_frames);
         let samples: Vec<FitSample> = self.history.iter().skip(skip).map(fit_sample).collect();
@@ -273,6 +290,14 @@ impl Track {
             unchanged => unchanged,
         };
     }
+}
+
+/// The heading `yaw_rad` (about the old frame's z) seen from the new frame:
+/// the yaw of the rotated heading vector, unwrapped to within π of `yaw_rad`
+/// so an unwrapped history stays unwrapped.
+pub(crate) fn rotated_yaw(t_new_old: &Isometry3<f64>, yaw_rad: f64) -> f64 {
+    let heading = t_new_old.rotation * Vector3::new(yaw_rad.cos(), yaw_rad.sin(), 0.0);
+    yaw_rad + super::tracker::wrap_angle(heading.y.atan2(heading.x) - yaw_rad)
 }
 
 fn fit_sample(b: &TimedBox) -> FitSample {

@@ -4,11 +4,11 @@
 //! detections.
 
 use super::association::{associate_by_class, matching_matrix};
-use super::track::{Lifecycle, Motion, TimedBox, Track};
+use super::track::{Lifecycle, Motion, TimedBox, Track, rotated_yaw};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
 use crate::input::ObjectClass;
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 use std::f64::consts::PI;
 
 /// A detection already transformed into the world frame by the caller
@@ -93,6 +93,19 @@ pub struct Tracker {
     low_score_detections: u64,
 }
 
+impl TrackOutput {
+    /// The same state in another world frame (`t_new_old` maps old world
+    /// coordinates to new ones).
+    pub fn transformed(&self, t_new_old: &Isometry3<f64>) -> TrackOutput {
+        TrackOutput {
+            center_world: t_new_old.transform_point(&self.center_world.into()).coords,
+            yaw_rad: wrap_angle(rotated_yaw(t_new_old, self.yaw_rad)),
+            velocity_world_mps: t_new_old.rotation * self.velocity_world_mps,
+            ..*self
+        }
+    }
+}
+
 /// Wraps an angle to (−π, π].
 pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
     let wrapped = (angle_rad + PI).rem_euclid(2.0 * PI) - PI;
@@ -146,6 +159,17 @@ impl Tracker {
         let track = self.tracks.iter().find(|t| t.id() == id)?;
         let p = track.predict(t_s);
         Some((p.center_world, wrap_angle(p.yaw_rad)))
+    }
+
+    /// Re-expresses every track in another world frame (`t_new_old` maps
+    /// old world coordinates to new ones), keeping ids, lifecycles and
+    /// hit counts: the ego's world may be re-anchored (gravity alignment at
+    /// initialisation) without losing what was tracked.
+    pub fn transform_world(&mut self, t_new_old: &Isometry3<f64>) -> Result<(), TrackerError> {
+        for track in &mut self.tracks {
+            track.transform_world(t_new_old, &self.config)?;
+        }
+        Ok(())
     }
 
     /// Processes one frame of detections taken at `t_s` (strictly after the
@@ -300,6 +324,49 @@ mod tests {
         let out = tracker.update(0.1, &[car_at(30.1, 5.0)]).unwrap();
         assert_eq!(by_x(&out, 30.0), Some(0));
         assert_eq!(by_x(&out, 10.0), None);
+    }
+
+    #[test]
+    fn a_tracker_moved_to_another_world_keeps_its_tracks_and_continues_there() {
+        use nalgebra::{Translation3, UnitQuaternion};
+        // A car driving along x at 8 m/s with a yaw of 0.3 rad, seen for 6 frames.
+        let drive = |k: usize| {
+            let mut d = car_at(5.0 + 0.8 * k as f64, 2.0);
+            d.yaw_rad = 0.3;
+            d
+        };
+        let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+        let mut before = Vec::new();
+        for k in 0..6 {
+            before = tracker.update(0.1 * k as f64, &[drive(k)]).unwrap();
+        }
+        // The new world: turned 0.5 rad about z and tilted 2 degrees, shifted.
+        let t_new_old = Isometry3::from_parts(
+            Translation3::new(1.0, -2.0, 0.5),
+            UnitQuaternion::from_euler_angles(0.0, 2f64.to_radians(), 0.5),
+        );
+        tracker.transform_world(&t_new_old).unwrap();
+        let moved: Vec<TrackOutput> = before.iter().map(|t| t.transformed(&t_new_old)).collect();
+        assert_eq!(moved.len(), 1);
+        let (center, yaw) = tracker.predict_box(moved[0].id, 0.5).unwrap();
+        assert!(
+            (center - moved[0].center_world).norm() < 1e-6,
+            "{center} vs {moved:?}"
+        );
+        assert!(wrap_angle(yaw - moved[0].yaw_rad).abs() < 1e-6);
+        assert!((wrap_angle(moved[0].yaw_rad - (0.3 + 0.5))).abs() < 0.01);
+        assert!(
+            (moved[0].velocity_world_mps.norm() - before[0].velocity_world_mps.norm()).abs() < 1e-9
+        );
+        // The next detection, seen in the new world, continues the same track.
+        let mut next = drive(6);
+        next.center_world = t_new_old.transform_point(&next.center_world.into()).coords;
+        next.yaw_rad = wrap_angle(rotated_yaw(&t_new_old, next.yaw_rad));
+        let after = tracker.update(0.6, &[next]).unwrap();
+        assert_eq!(after.len(), 1);
+        assert_eq!(after[0].id, before[0].id);
+        assert_eq!(after[0].lifecycle, Lifecycle::Confirmed);
+        assert_eq!(after[0].detection_index, Some(0));
     }
 
     #[test]
