@@ -67,7 +67,11 @@ impl AssociationMetric {
                     return 0.0;
                 }
                 let giou = giou_3d(predicted, detected);
-                if giou > min_giou { giou - min_giou } else { 0.0 }
+                if giou > min_giou {
+                    giou - min_giou
+                } else {
+                    0.0
+                }
             }
         }
     }

@@ -4,10 +4,10 @@
 //! detections.
 
 use super::association::{associate_by_class, matching_matrix};
-use crate::filter::OrientedBox;
 use super::track::{Lifecycle, Motion, TimedBox, Track};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
+use crate::filter::OrientedBox;
 use crate::input::ObjectClass;
 use nalgebra::Vector3;
 use std::f64::consts::PI;
@@ -550,7 +550,9 @@ mod tests {
             // Confirmed in frames 0-2, missed in 3-5 (lost after the second
             // miss), seen again in frame 6 where it would have been.
             for k in 0..3 {
-                tracker.update(0.1 * k as f64, &[car_at(k as f64, 0.0)]).unwrap();
+                tracker
+                    .update(0.1 * k as f64, &[car_at(k as f64, 0.0)])
+                    .unwrap();
             }
             let mut listed = Vec::new();
             for k in 3..6 {
