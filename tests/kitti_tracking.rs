@@ -688,8 +688,7 @@ fn cross_validate_kitti_settings() {
             }
         );
         let mut held_out: BTreeMap<u32, Vec<limot::kitti::labels::TrackingLabel>> = BTreeMap::new();
-        for train in 0..2 {
-            let test = 1 - train;
+        for (train, test) in [(0, 1), (1, 0)] {
             let i = select(train);
             let (name, options) = &candidates[i];
             let (tracks, e) =

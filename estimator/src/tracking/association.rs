@@ -63,7 +63,8 @@ impl AssociationMetric {
                 min_giou,
                 distance_gate,
             } => {
-                if distance_gate && !(distance_m < d_thres_m) {
+                // Outside the gate (or not finite): eq. 1 scores it 0.
+                if distance_gate && matching_score(distance_m, alpha_m, d_thres_m) <= 0.0 {
                     return 0.0;
                 }
                 let giou = giou_3d(predicted, detected);
