@@ -1005,6 +1005,7 @@ fn run_track_kitti(
     let out = out.ok_or("--out is required when tracking")?;
     let mut tracker = match config {
         "offline" => limot::track_kitti::kitti_val_offline_options().tracker,
+        "tuned" => kitti_val_tuned_options().tracker,
         name => parse_tracker_config(name)?,
     };
     let (min_score, max_misses, d_thres) = overrides;
