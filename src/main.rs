@@ -119,7 +119,9 @@ enum Command {
         /// Output directory of the result files.
         #[arg(long, required_unless_present = "score_only")]
         out: Option<PathBuf>,
-        /// Tracker settings: `paper` (defaults) or `tuned` (KITTI val tuned).
+        /// Tracker settings: `paper` (defaults), `tuned` (KITTI val tuned,
+        /// online) or `offline` (KITTI val tuned, with AB3DMOT's offline
+        /// whole-track score gate).
         #[arg(long, default_value = "tuned")]
         config: String,
         /// Override the detection score gate (sigmoid of the raw score).
@@ -1007,7 +1009,11 @@ fn run_track_kitti(
         return Ok(());
     }
     let out = out.ok_or("--out is required when tracking")?;
-    let mut tracker = parse_tracker_config(config)?;
+    let mut tracker = match config {
+        "offline" => limot::track_kitti::kitti_val_offline_options().tracker,
+        "tuned" => kitti_val_tuned_options().tracker,
+        name => parse_tracker_config(name)?,
+    };
     let (min_score, max_misses, d_thres) = overrides;
     if let Some(v) = min_score {
         tracker.min_score = v;
@@ -1029,6 +1035,7 @@ fn run_track_kitti(
     }
     let mut options = match config {
         "tuned" => kitti_val_tuned_options(),
+        "offline" => limot::track_kitti::kitti_val_offline_options(),
         _ => TrackKittiOptions::default(),
     };
     options.tracker = tracker;

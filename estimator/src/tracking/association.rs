@@ -1,7 +1,8 @@
 //! Track–detection association (LIMOT "Multi-object Tracking", eq. 1):
 //! matching scores `psi = 1 - d/alpha` for centre distances `d < d_thres`
-//! (0 otherwise), assignment by min-cost flow with successive shortest paths
-//! (Ahuja et al. 1993), maximising the total score.
+//! (0 otherwise) or, as an option, AB3DMOT's 3D GIoU of the predicted and
+//! the detected box ([`AssociationMetric`]); assignment by min-cost flow with
+//! successive shortest paths (Ahuja et al. 1993), maximising the total score.
 //!
 //! Matrices here are tracks × detections (the paper writes detections ×
 //! tracks; only the orientation differs). A zero score means "may not be
@@ -16,10 +17,25 @@
 //! (the initial network is a DAG with negative costs), so each augmentation is
 //! O(E log V). Detections left without flow start new tracks.
 
+use super::box_overlap::giou_3d;
+use crate::filter::OrientedBox;
 use crate::input::ObjectClass;
 use nalgebra::DMatrix;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
+
+/// What a track–detection pair is scored on.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AssociationMetric {
+    /// The paper's eq. 1 on the centre distance `d` of the predicted and
+    /// the detected box: `psi = 1 − d/alpha` for `d < d_thres`.
+    #[default]
+    CentreDistance,
+    /// AB3DMOT's affinity: the 3D GIoU of the predicted box (track size)
+    /// and the detected box, `psi = GIoU − min_giou` for `GIoU > min_giou`.
+    /// With `distance_gate`, pairs with `d ≥ d_thres` score 0 as well.
+    Giou3d { min_giou: f64, distance_gate: bool },
+}
 
 /// Score of one track–detection pair (paper eq. 1).
 pub fn matching_score(distance_m: f64, alpha_m: f64, d_thres_m: f64) -> f64 {
@@ -30,22 +46,51 @@ pub fn matching_score(distance_m: f64, alpha_m: f64, d_thres_m: f64) -> f64 {
     }
 }
 
-/// Scores between tracks and detections: `distance_m(i, j)` is the world
-/// distance between track `i` (predicted at the time detection `j` was seen)
-/// and detection `j`, asked for same-class pairs only; pairs of different
-/// classes score 0.
+impl AssociationMetric {
+    /// Score of the track's `predicted` box against the `detected` box
+    /// (positive: may be paired; 0: may not).
+    pub fn score(
+        &self,
+        predicted: &OrientedBox,
+        detected: &OrientedBox,
+        alpha_m: f64,
+        d_thres_m: f64,
+    ) -> f64 {
+        let distance_m = (predicted.center_world - detected.center_world).norm();
+        match *self {
+            AssociationMetric::CentreDistance => matching_score(distance_m, alpha_m, d_thres_m),
+            AssociationMetric::Giou3d {
+                min_giou,
+                distance_gate,
+            } => {
+                // Outside the gate (or not finite): eq. 1 scores it 0.
+                if distance_gate && matching_score(distance_m, alpha_m, d_thres_m) <= 0.0 {
+                    return 0.0;
+                }
+                let giou = giou_3d(predicted, detected);
+                if giou > min_giou {
+                    giou - min_giou
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+}
+
+/// Scores between tracks and detections: `score(i, j)` scores track `i`
+/// (predicted at the time detection `j` was seen) against detection `j`,
+/// asked for same-class pairs only; pairs of different classes score 0.
 pub fn matching_matrix(
     track_classes: &[ObjectClass],
     detection_classes: &[ObjectClass],
-    distance_m: impl Fn(usize, usize) -> f64,
-    alpha_m: f64,
-    d_thres_m: f64,
+    score: impl Fn(usize, usize) -> f64,
 ) -> DMatrix<f64> {
     DMatrix::from_fn(track_classes.len(), detection_classes.len(), |i, j| {
         if track_classes[i] != detection_classes[j] {
             return 0.0;
         }
-        matching_score(distance_m(i, j), alpha_m, d_thres_m)
+        score(i, j)
     })
 }
 
@@ -321,6 +366,7 @@ impl Ord for HeapEntry {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+    use std::f64::consts::PI;
 
     #[test]
     fn score_follows_eq_1() {
@@ -360,15 +406,52 @@ mod tests {
             (Vector3::new(0.5, 0.0, 0.0), ObjectClass::Cyclist),
             (Vector3::new(3.0, 0.0, 0.0), ObjectClass::Car),
         ];
-        let psi = matching_matrix(
-            &tracks.map(|t| t.1),
-            &dets.map(|d| d.1),
-            |i, j| (tracks[i].0 - dets[j].0).norm(),
-            100.0,
-            2.0,
-        );
+        let psi = matching_matrix(&tracks.map(|t| t.1), &dets.map(|d| d.1), |i, j| {
+            matching_score((tracks[i].0 - dets[j].0).norm(), 100.0, 2.0)
+        });
         assert!((psi[(0, 0)] - 0.99).abs() < 1e-15);
         assert_eq!(psi[(0, 1)], 0.0);
         assert_eq!(psi[(0, 2)], 0.0);
+    }
+
+    fn car(x: f64, y: f64, yaw: f64) -> OrientedBox {
+        OrientedBox {
+            center_world: Vector3::new(x, y, 0.8),
+            yaw_rad: yaw,
+            size_lwh: Vector3::new(4.0, 2.0, 1.5),
+        }
+    }
+
+    #[test]
+    fn giou_metric_scores_overlap_above_its_floor() {
+        let metric = AssociationMetric::Giou3d {
+            min_giou: -0.2,
+            distance_gate: false,
+        };
+        let track = car(0.0, 0.0, 0.0);
+        // 1 m along the length: GIoU 0.6, so psi 0.8.
+        assert!((metric.score(&track, &car(1.0, 0.0, 0.0), 100.0, 2.0) - 0.8).abs() < 1e-12);
+        // 2.5 m sideways, boxes apart by 0.5 m: GIoU = −(C − U)/C with
+        // C = 4·4.5·1.5 = 27, U = 24: −1/9 > −0.2, still a candidate,
+        // although beyond the 2 m centre gate.
+        let side = metric.score(&track, &car(0.0, 2.5, 0.0), 100.0, 2.0);
+        assert!((side - (0.2 - 1.0 / 9.0)).abs() < 1e-12, "{side}");
+        assert_eq!(
+            AssociationMetric::CentreDistance.score(&track, &car(0.0, 2.5, 0.0), 100.0, 2.0),
+            0.0
+        );
+        // The optional centre gate removes it.
+        let gated = AssociationMetric::Giou3d {
+            min_giou: -0.2,
+            distance_gate: true,
+        };
+        assert_eq!(gated.score(&track, &car(0.0, 2.5, 0.0), 100.0, 2.0), 0.0);
+        // Far away: GIoU below the floor, never paired.
+        assert_eq!(metric.score(&track, &car(8.0, 0.0, 0.0), 100.0, 2.0), 0.0);
+        // A box crossing the track at right angles overlaps less than one
+        // shifted along it by the same distance.
+        let along = metric.score(&track, &car(1.0, 0.0, 0.0), 100.0, 2.0);
+        let across = metric.score(&track, &car(1.0, 0.0, PI / 2.0), 100.0, 2.0);
+        assert!(across < along, "{across} vs {along}");
     }
 }

@@ -6,11 +6,13 @@
 //! LiDAR-frame detections with the ego pose.
 
 pub mod association;
+pub mod box_overlap;
 pub mod track;
 pub mod tracker;
 pub mod trajectory_fit;
 
-pub use track::{Lifecycle, Motion, TimedBox, Track};
+pub use association::AssociationMetric;
+pub use track::{Extrapolation, HeadingRule, Lifecycle, Motion, TimedBox, Track};
 pub use tracker::{TrackOutput, Tracker, TrackerError, WorldDetection};
 pub use trajectory_fit::{FitPrediction, FitPrior, FitSample, TrajectoryFit};
 
@@ -69,6 +71,18 @@ pub struct TrackerConfig {
     /// Confirm after `init_frames` matched frames in all, not necessarily
     /// consecutive (AB3DMOT's rule); `false` = the paper's consecutive rule.
     pub confirm_on_total_hits: bool,
+    /// What association scores a track–detection pair on (the paper's
+    /// centre distance, or AB3DMOT's 3D GIoU).
+    pub association: AssociationMetric,
+    /// How a track is predicted after its last measured box.
+    pub extrapolation: Extrapolation,
+    /// A confirmed track lost after `max_misses` misses is kept this many
+    /// more frames, out of the output, for re-association: a detection left
+    /// over by the live tracks that matches it revives it with its id
+    /// instead of starting a tentative track (0 = deleted at once).
+    pub revive_frames: usize,
+    /// Which of a box's two headings a track keeps.
+    pub heading_rule: HeadingRule,
 }
 
 impl Default for TrackerConfig {
@@ -93,6 +107,10 @@ impl Default for TrackerConfig {
             min_score: 0.0,
             birth_min_score: 0.0,
             confirm_on_total_hits: false,
+            association: AssociationMetric::CentreDistance,
+            extrapolation: Extrapolation::Fit,
+            revive_frames: 0,
+            heading_rule: HeadingRule::FirstDetection,
         }
     }
 }
@@ -207,7 +225,16 @@ impl TrackerConfig {
             "birth_min_score",
             self.birth_min_score,
             "must be finite",
-        )
+        )?;
+        if let AssociationMetric::Giou3d { min_giou, .. } = self.association {
+            check(
+                (-1.0..1.0).contains(&min_giou),
+                "association.min_giou",
+                min_giou,
+                "must be within [-1, 1)",
+            )?;
+        }
+        Ok(())
     }
 
     /// The trajectory fit's priors.

@@ -35,6 +35,34 @@ use crate::input::ObjectClass;
 use nalgebra::{Isometry3, Vector3};
 use std::collections::VecDeque;
 
+/// How a track is predicted after its last measured box.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Extrapolation {
+    /// The trajectory fit itself (the paper's cubic, extrapolated).
+    #[default]
+    Fit,
+    /// Constant velocity from the last measured time: the fitted centre
+    /// there plus the fit's velocity there times the elapsed time, the
+    /// fitted heading held (AB3DMOT's Kalman prediction). A polynomial
+    /// extrapolated over a few missed frames diverges; a straight line
+    /// does not.
+    ConstantVelocity,
+}
+
+/// Which of the two headings of a box (`yaw` or `yaw + π`: detectors
+/// confuse front and back) a track keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HeadingRule {
+    /// The first detection's heading; later ones are folded onto the track.
+    #[default]
+    FirstDetection,
+    /// A dynamic track faces its direction of travel; a static one keeps the
+    /// heading most of its detections gave (later detections are still
+    /// folded onto the track's heading, the whole history turns by π when
+    /// the rule disagrees with it).
+    MotionOrMajority,
+}
+
 /// Lifecycle state of a track.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Lifecycle {
@@ -80,6 +108,10 @@ pub struct Track {
     size_mean_lwh: Vector3<f64>,
     /// Latest horizontal window-average speed.
     speed_mps: f64,
+    extrapolation: Extrapolation,
+    /// Matched detections whose raw heading agreed with the track's / was
+    /// turned by π to fold onto it.
+    heading_votes: (usize, usize),
 }
 
 impl Track {
@@ -108,6 +140,8 @@ impl Track {
             total_hits: 1,
             size_mean_lwh: first.size_lwh,
             speed_mps: 0.0,
+            extrapolation: config.extrapolation,
+            heading_votes: (1, 0),
         };
         track.update_lifecycle(config);
         Ok(track)
@@ -163,9 +197,22 @@ impl Track {
             .expect("a track always holds its first box")
     }
 
-    /// Trajectory fit over the window (position, unwrapped yaw, velocity).
+    /// The track's state at `t_s`: the trajectory fit over the window
+    /// (position, unwrapped yaw, velocity), extrapolated after the last
+    /// measured box as `extrapolation` says.
     pub fn predict(&self, t_s: f64) -> FitPrediction {
-        self.fit.predict(t_s)
+        let t_last_s = self.last_box().t_s;
+        match self.extrapolation {
+            Extrapolation::ConstantVelocity if t_s > t_last_s => {
+                let last = self.fit.predict(t_last_s);
+                FitPrediction {
+                    center_world: last.center_world + last.velocity_world_mps * (t_s - t_last_s),
+                    yaw_rate_radps: 0.0,
+                    ..last
+                }
+            }
+            _ => self.fit.predict(t_s),
+        }
     }
 
     /// Degree of the current fit.
@@ -189,6 +236,17 @@ impl Track {
         }
     }
 
+    /// Counts one matched detection's heading vote: `raw_yaw_rad` as
+    /// detected, `folded_yaw_rad` what [`Self::unwrap_yaw`] made of it.
+    pub fn vote_heading(&mut self, raw_yaw_rad: f64, folded_yaw_rad: f64) {
+        let turned = (folded_yaw_rad - raw_yaw_rad).rem_euclid(2.0 * std::f64::consts::PI);
+        if (turned - std::f64::consts::PI).abs() < 0.5 * std::f64::consts::PI {
+            self.heading_votes.1 += 1;
+        } else {
+            self.heading_votes.0 += 1;
+        }
+    }
+
     /// Adds a matched detection (yaw already unwrapped with [`Self::unwrap_yaw`],
     /// time after the last box).
     pub fn record_hit(
@@ -207,7 +265,29 @@ impl Track {
         self.refit(config)?;
         self.update_lifecycle(config);
         self.update_motion(config);
+        if config.heading_rule == HeadingRule::MotionOrMajority && self.heading_is_backwards(config)
+        {
+            for b in &mut self.history {
+                b.yaw_rad += std::f64::consts::PI;
+            }
+            self.heading_votes = (self.heading_votes.1, self.heading_votes.0);
+            self.refit(config)?;
+        }
         Ok(())
+    }
+
+    /// [`HeadingRule::MotionOrMajority`]: a dynamic track moving faster than
+    /// `v_thres_mps` faces away from its velocity; otherwise more of its
+    /// detections pointed the other way than this way.
+    fn heading_is_backwards(&self, config: &TrackerConfig) -> bool {
+        let last = self.fit.predict(self.last_box().t_s);
+        let v = last.velocity_world_mps.xy();
+        if self.motion == Motion::Dynamic && v.norm() > config.v_thres_mps {
+            let heading = nalgebra::Vector2::new(last.yaw_rad.cos(), last.yaw_rad.sin());
+            heading.dot(&v) < 0.0
+        } else {
+            self.heading_votes.1 > self.heading_votes.0
+        }
     }
 
     /// Records a frame without a matching detection.
@@ -305,5 +385,57 @@ fn fit_sample(b: &TimedBox) -> FitSample {
         t_s: b.t_s,
         center_world: b.center_world,
         yaw_rad: b.yaw_rad,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn accelerating_track(extrapolation: Extrapolation) -> Track {
+        let config = TrackerConfig {
+            extrapolation,
+            ..TrackerConfig::default()
+        };
+        let at = |k: usize| {
+            let t_s = 0.1 * k as f64;
+            TimedBox {
+                t_s,
+                // 5 m/s, accelerating at 4 m/s², turning at 0.5 rad/s.
+                center_world: Vector3::new(5.0 * t_s + 2.0 * t_s * t_s, 0.0, 0.8),
+                yaw_rad: 0.5 * t_s,
+                size_lwh: Vector3::new(4.5, 1.8, 1.5),
+            }
+        };
+        let mut track = Track::new(0, ObjectClass::Car, at(0), &config).unwrap();
+        for k in 1..5 {
+            track.record_hit(at(k), &config).unwrap();
+        }
+        track
+    }
+
+    #[test]
+    fn constant_velocity_extrapolates_the_fit_from_the_last_box() {
+        let fit = accelerating_track(Extrapolation::Fit);
+        let cv = accelerating_track(Extrapolation::ConstantVelocity);
+        let t_last_s = 0.4;
+        // Up to the last box both are the fit.
+        for t_s in [0.0, 0.25, t_last_s] {
+            assert_eq!(cv.predict(t_s), fit.predict(t_s));
+        }
+        // After it: a straight line with the fit's velocity, heading held.
+        let last = fit.predict(t_last_s);
+        for dt_s in [0.1, 0.3] {
+            let p = cv.predict(t_last_s + dt_s);
+            let expected = last.center_world + last.velocity_world_mps * dt_s;
+            assert!((p.center_world - expected).norm() < 1e-12);
+            assert_eq!(p.yaw_rad, last.yaw_rad);
+            assert_eq!(p.velocity_world_mps, last.velocity_world_mps);
+        }
+        // The (regularised) cubic keeps part of the curvature: 0.3 s on,
+        // the two differ (the full acceleration term would be ½·4·0.3² =
+        // 0.18 m; the acceleration prior shrinks it).
+        let gap = (fit.predict(0.7).center_world - cv.predict(0.7).center_world).norm();
+        assert!(gap > 0.02, "{gap}");
     }
 }

@@ -7,6 +7,7 @@ use super::association::{associate_by_class, matching_matrix};
 use super::track::{Lifecycle, Motion, TimedBox, Track, rotated_yaw};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
+use crate::filter::OrientedBox;
 use crate::input::ObjectClass;
 use nalgebra::{Isometry3, Vector3};
 use std::f64::consts::PI;
@@ -31,6 +32,15 @@ pub struct WorldDetection {
 
 impl WorldDetection {
     /// True when every field is usable (finite, positive size).
+    /// The detected box.
+    fn oriented_box(&self) -> OrientedBox {
+        OrientedBox {
+            center_world: self.center_world,
+            yaw_rad: self.yaw_rad,
+            size_lwh: self.size_lwh,
+        }
+    }
+
     fn is_valid(&self) -> bool {
         self.center_world.iter().all(|v| v.is_finite())
             && self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0)
@@ -87,6 +97,9 @@ pub enum TrackerError {
 pub struct Tracker {
     config: TrackerConfig,
     tracks: Vec<Track>,
+    /// Confirmed tracks past `max_misses`, kept `revive_frames` frames for
+    /// re-association.
+    lost: Vec<Track>,
     next_id: u64,
     last_t_s: Option<f64>,
     garbage_detections: u64,
@@ -123,6 +136,7 @@ impl Tracker {
         Ok(Tracker {
             config,
             tracks: Vec::new(),
+            lost: Vec::new(),
             next_id: 0,
             last_t_s: None,
             garbage_detections: 0,
@@ -137,6 +151,12 @@ impl Tracker {
     /// Live tracks (tentative and confirmed, including coasting ones).
     pub fn tracks(&self) -> &[Track] {
         &self.tracks
+    }
+
+    /// Lost confirmed tracks kept for re-association (see
+    /// `TrackerConfig::revive_frames`); not in the output.
+    pub fn lost_tracks(&self) -> &[Track] {
+        &self.lost
     }
 
     /// Detections skipped so far because a field was not finite or a size
@@ -166,10 +186,65 @@ impl Tracker {
     /// hit counts: the ego's world may be re-anchored (gravity alignment at
     /// initialisation) without losing what was tracked.
     pub fn transform_world(&mut self, t_new_old: &Isometry3<f64>) -> Result<(), TrackerError> {
-        for track in &mut self.tracks {
+        for track in self.tracks.iter_mut().chain(&mut self.lost) {
             track.transform_world(t_new_old, &self.config)?;
         }
         Ok(())
+    }
+
+    /// Pairs `tracks` with the detections `candidates` (indices into
+    /// `detections`) by the configured metric; returns (track index,
+    /// detection index) pairs.
+    fn associate(
+        &self,
+        tracks: &[Track],
+        t_s: f64,
+        detections: &[&WorldDetection],
+        candidates: &[usize],
+    ) -> Vec<(usize, usize)> {
+        let track_classes: Vec<ObjectClass> = tracks.iter().map(|t| t.class()).collect();
+        let det_classes: Vec<ObjectClass> =
+            candidates.iter().map(|&j| detections[j].class).collect();
+        let psi = matching_matrix(&track_classes, &det_classes, |i, c| {
+            let det = detections[candidates[c]];
+            let predicted = tracks[i].predict(t_s + det.time_offset_s);
+            let predicted_box = OrientedBox {
+                center_world: predicted.center_world,
+                yaw_rad: predicted.yaw_rad,
+                size_lwh: tracks[i].size_lwh(),
+            };
+            self.config.association.score(
+                &predicted_box,
+                &det.oriented_box(),
+                self.config.alpha_m,
+                self.config.d_thres_m,
+            )
+        });
+        associate_by_class(&psi, &track_classes, &det_classes)
+            .into_iter()
+            .map(|(i, c)| (i, candidates[c]))
+            .collect()
+    }
+
+    /// Adds a matched detection to a track (heading folded onto the track's).
+    fn record_detection(
+        track: &mut Track,
+        t_s: f64,
+        det: &WorldDetection,
+        config: &TrackerConfig,
+    ) -> Result<(), FitError> {
+        let t_det_s = t_s + det.time_offset_s;
+        let yaw_rad = track.unwrap_yaw(t_det_s, det.yaw_rad);
+        track.vote_heading(det.yaw_rad, yaw_rad);
+        track.record_hit(
+            TimedBox {
+                t_s: t_det_s,
+                center_world: det.center_world,
+                yaw_rad,
+                size_lwh: det.size_lwh,
+            },
+            config,
+        )
     }
 
     /// Processes one frame of detections taken at `t_s` (strictly after the
@@ -208,33 +283,14 @@ impl Tracker {
         // Score matrix between the tracks and the detections, each track
         // predicted at the time the rolling LiDAR saw the detection (within
         // a sweep a car at 30 m/s moves 3 m, more than the 2 m gate).
-        let track_classes: Vec<ObjectClass> = self.tracks.iter().map(|t| t.class()).collect();
-        let det_classes: Vec<ObjectClass> = usable.iter().map(|d| d.class).collect();
-        let psi = matching_matrix(
-            &track_classes,
-            &det_classes,
-            |i, j| {
-                let det = usable[j];
-                let predicted = self.tracks[i].predict(t_s + det.time_offset_s);
-                (predicted.center_world - det.center_world).norm()
-            },
-            self.config.alpha_m,
-            self.config.d_thres_m,
-        );
-        let pairs = associate_by_class(&psi, &track_classes, &det_classes);
+        let all_detections: Vec<usize> = (0..usable.len()).collect();
+        let pairs = self.associate(&self.tracks, t_s, &usable, &all_detections);
 
         let mut track_matched = vec![false; self.tracks.len()];
         let mut det_matched = vec![false; usable.len()];
         for &(i, j) in &pairs {
-            let det = usable[j];
             let track = &mut self.tracks[i];
-            let measured = TimedBox {
-                t_s: t_s + det.time_offset_s,
-                center_world: det.center_world,
-                yaw_rad: track.unwrap_yaw(t_s + det.time_offset_s, det.yaw_rad),
-                size_lwh: det.size_lwh,
-            };
-            track.record_hit(measured, &self.config)?;
+            Self::record_detection(track, t_s, usable[j], &self.config)?;
             observed_by.insert(track.id(), usable_index[j]);
             track_matched[i] = true;
             det_matched[j] = true;
@@ -244,9 +300,48 @@ impl Tracker {
                 track.record_miss();
             }
         }
-        let config = &self.config;
-        self.tracks.retain(|t| !t.is_lost(config));
 
+        // Lost confirmed tracks of earlier frames may take the detections
+        // the live tracks left: they come back with their id.
+        if !self.lost.is_empty() {
+            let left: Vec<usize> = (0..usable.len()).filter(|&j| !det_matched[j]).collect();
+            let revived_pairs = self.associate(&self.lost, t_s, &usable, &left);
+            let mut revived = vec![false; self.lost.len()];
+            for &(i, j) in &revived_pairs {
+                let track = &mut self.lost[i];
+                Self::record_detection(track, t_s, usable[j], &self.config)?;
+                observed_by.insert(track.id(), usable_index[j]);
+                revived[i] = true;
+                det_matched[j] = true;
+            }
+            let mut kept = Vec::with_capacity(self.lost.len());
+            for (mut track, back) in std::mem::take(&mut self.lost).into_iter().zip(revived) {
+                if back {
+                    let at = self.tracks.partition_point(|t| t.id() < track.id());
+                    self.tracks.insert(at, track);
+                } else {
+                    track.record_miss();
+                    if track.consecutive_misses()
+                        <= self.config.max_misses + self.config.revive_frames
+                    {
+                        kept.push(track);
+                    }
+                }
+            }
+            self.lost = kept;
+        }
+        let config = &self.config;
+        let (live, newly_lost): (Vec<Track>, Vec<Track>) = std::mem::take(&mut self.tracks)
+            .into_iter()
+            .partition(|t| !t.is_lost(config));
+        self.tracks = live;
+        if config.revive_frames > 0 {
+            self.lost.extend(
+                newly_lost
+                    .into_iter()
+                    .filter(|t| t.lifecycle() == Lifecycle::Confirmed),
+            );
+        }
         for ((det, matched), &index) in usable.iter().zip(&det_matched).zip(&usable_index) {
             if *matched || det.score < self.config.birth_min_score {
                 continue;
@@ -263,7 +358,8 @@ impl Tracker {
             self.tracks.push(track);
         }
 
-        // Ids only grow and new tracks are appended: the list stays sorted.
+        // Ids only grow, new tracks are appended and revived ones inserted
+        // in place: the list stays sorted.
         Ok(self
             .tracks
             .iter()
@@ -290,6 +386,7 @@ impl Tracker {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{AssociationMetric, HeadingRule};
     use super::*;
 
     fn car_at(x: f64, y: f64) -> WorldDetection {
@@ -505,5 +602,128 @@ mod tests {
         let (_, yaw) = tracker.predict_box(0, 1.0).unwrap();
         assert!((wrap_angle(yaw - (PI - 0.3 + 0.6))).abs() < 1e-6, "{yaw}");
         assert!(tracker.predict_box(99, 1.0).is_none());
+    }
+
+    #[test]
+    fn lost_confirmed_track_is_revived_with_its_id() {
+        let run = |revive_frames: usize| {
+            let config = TrackerConfig {
+                init_frames: 2,
+                max_misses: 1,
+                revive_frames,
+                ..TrackerConfig::default()
+            };
+            let mut tracker = Tracker::new(config).unwrap();
+            // Confirmed in frames 0-2, missed in 3-5 (lost after the second
+            // miss), seen again in frame 6 where it would have been.
+            for k in 0..3 {
+                tracker
+                    .update(0.1 * k as f64, &[car_at(k as f64, 0.0)])
+                    .unwrap();
+            }
+            let mut listed = Vec::new();
+            for k in 3..6 {
+                listed.push(tracker.update(0.1 * k as f64, &[]).unwrap().len());
+            }
+            let out = tracker.update(0.6, &[car_at(6.0, 0.0)]).unwrap();
+            (listed, out)
+        };
+        let (listed, out) = run(3);
+        // Lost tracks are not in the output.
+        assert_eq!(listed, vec![1, 0, 0]);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].id, 0);
+        assert_eq!(out[0].lifecycle, Lifecycle::Confirmed);
+        assert!(!out[0].predicted);
+        assert_eq!(out[0].detection_index, Some(0));
+        // Without revival the detection starts a new tentative track.
+        let (_, out) = run(0);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].id, 1);
+        assert_eq!(out[0].lifecycle, Lifecycle::Tentative);
+        // Kept `revive_frames` frames after the loss (frame 4) only: with 2,
+        // frame 6 is the last chance; with 1 it is too late.
+        let (_, out) = run(2);
+        assert_eq!(out[0].id, 0);
+        let (_, out) = run(1);
+        assert_eq!(out[0].id, 1);
+    }
+
+    #[test]
+    fn live_tracks_take_detections_before_lost_ones() {
+        let config = TrackerConfig {
+            init_frames: 1,
+            max_misses: 0,
+            revive_frames: 5,
+            ..TrackerConfig::default()
+        };
+        let mut tracker = Tracker::new(config).unwrap();
+        // Two parked cars 1.5 m apart; car 0 is missed once (lost), car 1
+        // is seen throughout. A single detection between them goes to the
+        // live track even though the lost one is as close.
+        tracker
+            .update(0.0, &[car_at(0.0, 0.0), car_at(0.0, 1.5)])
+            .unwrap();
+        tracker.update(0.1, &[car_at(0.0, 1.5)]).unwrap();
+        assert_eq!(tracker.lost_tracks().len(), 1);
+        let out = tracker.update(0.2, &[car_at(0.0, 0.75)]).unwrap();
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].id, 1);
+        assert_eq!(tracker.lost_tracks()[0].id(), 0);
+    }
+
+    #[test]
+    fn giou_association_pairs_what_the_centre_gate_refuses() {
+        // A car detected 2.5 m sideways of its track (e.g. a poor first
+        // box): beyond the 2 m centre gate, within GIoU −0.2.
+        let run = |association| {
+            let config = TrackerConfig {
+                association,
+                ..TrackerConfig::default()
+            };
+            let mut tracker = Tracker::new(config).unwrap();
+            tracker.update(0.0, &[car_at(0.0, 0.0)]).unwrap();
+            let out = tracker.update(0.1, &[car_at(0.0, 2.5)]).unwrap();
+            out.iter().map(|o| o.id).collect::<Vec<_>>()
+        };
+        assert_eq!(run(AssociationMetric::CentreDistance), vec![0, 1]);
+        assert_eq!(
+            run(AssociationMetric::Giou3d {
+                min_giou: -0.2,
+                distance_gate: false
+            }),
+            vec![0]
+        );
+    }
+
+    #[test]
+    fn heading_follows_motion_or_the_majority() {
+        let final_yaw = |rule: HeadingRule, speed_mps: f64, yaws: &[f64]| {
+            let config = TrackerConfig {
+                heading_rule: rule,
+                ..TrackerConfig::default()
+            };
+            let mut tracker = Tracker::new(config).unwrap();
+            let mut out = Vec::new();
+            for (k, &yaw) in yaws.iter().enumerate() {
+                let t = 0.1 * k as f64;
+                let mut det = car_at(speed_mps * t, 0.0);
+                det.yaw_rad = yaw;
+                out = tracker.update(t, &[det]).unwrap();
+            }
+            wrap_angle(out[0].yaw_rad)
+        };
+        // Parked: the first box backwards, the next four forwards.
+        let parked = [PI - 0.02, 0.01, -0.01, 0.0, 0.02];
+        let first = final_yaw(HeadingRule::FirstDetection, 0.0, &parked);
+        let majority = final_yaw(HeadingRule::MotionOrMajority, 0.0, &parked);
+        assert!(wrap_angle(first - PI).abs() < 0.05, "{first}");
+        assert!(majority.abs() < 0.05, "{majority}");
+        // Driving along +x at 10 m/s, every box backwards: the motion wins.
+        let backwards = [PI; 12];
+        let first = final_yaw(HeadingRule::FirstDetection, 10.0, &backwards);
+        let moving = final_yaw(HeadingRule::MotionOrMajority, 10.0, &backwards);
+        assert!(wrap_angle(first - PI).abs() < 0.05, "{first}");
+        assert!(moving.abs() < 0.05, "{moving}");
     }
 }
