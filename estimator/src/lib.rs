@@ -10,4 +10,5 @@ pub mod input;
 pub mod lidar;
 pub mod lie;
 pub mod pipeline;
+pub mod polygon;
 pub mod tracking;

@@ -100,57 +100,7 @@ impl Box3 {
     }
 }
 
-/// Signed area of a polygon (positive for counter-clockwise vertices).
-pub fn polygon_area(poly: &[Vector2<f64>]) -> f64 {
-    let n = poly.len();
-    if n < 3 {
-        return 0.0;
-    }
-    let mut twice = 0.0;
-    for i in 0..n {
-        let a = poly[i];
-        let b = poly[(i + 1) % n];
-        twice += a.x * b.y - a.y * b.x;
-    }
-    0.5 * twice
-}
-
-fn cross(o: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
-    (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
-}
-
-/// Intersection of two convex counter-clockwise polygons (Sutherland–Hodgman:
-/// clip `subject` by each edge half-plane of `clip`).
-pub fn convex_intersection(subject: &[Vector2<f64>], clip: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
-    let mut output: Vec<Vector2<f64>> = subject.to_vec();
-    let m = clip.len();
-    for i in 0..m {
-        if output.is_empty() {
-            break;
-        }
-        let a = clip[i];
-        let b = clip[(i + 1) % m];
-        let input = std::mem::take(&mut output);
-        let n = input.len();
-        for j in 0..n {
-            let p = input[j];
-            let q = input[(j + 1) % n];
-            // Inside = left of (or on) the directed edge a→b.
-            let dp = cross(a, b, p);
-            let dq = cross(a, b, q);
-            let p_in = dp >= 0.0;
-            let q_in = dq >= 0.0;
-            if p_in {
-                output.push(p);
-            }
-            if p_in != q_in {
-                let t = dp / (dp - dq);
-                output.push(p + (q - p) * t);
-            }
-        }
-    }
-    output
-}
+pub use limot_estimator::polygon::{convex_intersection, polygon_area};
 
 /// Area of the footprint intersection.
 pub fn bev_intersection_area(a: &Box3, b: &Box3) -> f64 {

@@ -12,6 +12,7 @@
 //! disjoint pairs.
 
 use crate::filter::OrientedBox;
+use crate::polygon::{convex_intersection, hull_area, polygon_area};
 use nalgebra::Vector2;
 
 /// Footprint corners, counter-clockwise seen from above.
@@ -28,73 +29,6 @@ fn footprint(b: &OrientedBox) -> [Vector2<f64>; 4] {
     ]
 }
 
-/// Cross product of `a − o` and `b − o` (positive when o→a→b turns left).
-fn cross(o: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
-    (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
-}
-
-/// Area of a simple polygon (positive for counter-clockwise vertices).
-fn polygon_area(poly: &[Vector2<f64>]) -> f64 {
-    let n = poly.len();
-    if n < 3 {
-        return 0.0;
-    }
-    0.5 * (0..n)
-        .map(|i| {
-            let (a, b) = (poly[i], poly[(i + 1) % n]);
-            a.x * b.y - a.y * b.x
-        })
-        .sum::<f64>()
-}
-
-/// Intersection of two convex counter-clockwise polygons.
-fn clip_convex(subject: &[Vector2<f64>], clip: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
-    let mut output = subject.to_vec();
-    for i in 0..clip.len() {
-        if output.is_empty() {
-            break;
-        }
-        let (a, b) = (clip[i], clip[(i + 1) % clip.len()]);
-        let input = std::mem::take(&mut output);
-        for j in 0..input.len() {
-            let (p, q) = (input[j], input[(j + 1) % input.len()]);
-            let (dp, dq) = (cross(a, b, p), cross(a, b, q));
-            if dp >= 0.0 {
-                output.push(p);
-            }
-            if (dp >= 0.0) != (dq >= 0.0) {
-                output.push(p + (q - p) * (dp / (dp - dq)));
-            }
-        }
-    }
-    output
-}
-
-/// Area of the convex hull of `points` (Andrew's monotone chain).
-fn hull_area(points: &mut [Vector2<f64>]) -> f64 {
-    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    let mut hull: Vec<Vector2<f64>> = Vec::with_capacity(2 * points.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        let ordered: Box<dyn Iterator<Item = &Vector2<f64>>> = if pass == 0 {
-            Box::new(points.iter())
-        } else {
-            Box::new(points.iter().rev())
-        };
-        for &p in ordered {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
-            {
-                hull.pop();
-            }
-            hull.push(p);
-        }
-        // The last point of each chain starts the other one.
-        hull.pop();
-    }
-    polygon_area(&hull)
-}
-
 /// Intersection volume, union volume and enclosing volume of two boxes.
 fn volumes(a: &OrientedBox, b: &OrientedBox) -> (f64, f64, f64) {
     let (fa, fb) = (footprint(a), footprint(b));
@@ -108,7 +42,7 @@ fn volumes(a: &OrientedBox, b: &OrientedBox) -> (f64, f64, f64) {
     );
     let dz = (a_hi.min(b_hi) - a_lo.max(b_lo)).max(0.0);
     let inter_area = if dz > 0.0 {
-        polygon_area(&clip_convex(&fa, &fb)).max(0.0)
+        polygon_area(&convex_intersection(&fa, &fb)).max(0.0)
     } else {
         0.0
     };
