@@ -64,13 +64,17 @@ pub const FRAME_PERIOD_S: f64 = 0.1;
 /// - `init_frames` 3 (AB3DMOT's `min_hits`) instead of the paper's 5;
 /// - `max_misses` 2: shorter coasting cuts wrong re-associations;
 /// - `d_thres_m` 3: the cubic prediction of a car seen again after a miss
-///   can be more than 2 m off.
+///   can be more than 2 m off;
+/// - heading from motion or the majority of detections (not tuned: a box
+///   turned by π is the same box, so no overlap score changes; it turns
+///   parked cars whose first PointRCNN box faced backwards).
 pub fn kitti_val_tuned_config() -> TrackerConfig {
     TrackerConfig {
         min_score: 0.6,
         init_frames: 3,
         max_misses: 2,
         d_thres_m: 3.0,
+        heading_rule: HeadingRule::MotionOrMajority,
         ..TrackerConfig::default()
     }
 }
@@ -78,17 +82,10 @@ pub fn kitti_val_tuned_config() -> TrackerConfig {
 /// The KITTI output settings that go with [`kitti_val_tuned_config`]:
 /// matched tentative tracks written in the first 3 frames (AB3DMOT's start-up
 /// rule) and tracks written once the mean raw score (logit) of their matched
-/// detections reaches 1.5. The tracker also takes its heading from motion
-/// or the majority of detections (not tuned: a box turned by π is the same
-/// box, so no overlap-based score changes; it turns parked cars whose first
-/// PointRCNN box faced backwards). The SLAM pipeline's
-/// [`kitti_val_tuned_config`] keeps the first-detection heading.
+/// detections reaches 1.5.
 pub fn kitti_val_tuned_options() -> TrackKittiOptions {
     TrackKittiOptions {
-        tracker: TrackerConfig {
-            heading_rule: HeadingRule::MotionOrMajority,
-            ..kitti_val_tuned_config()
-        },
+        tracker: kitti_val_tuned_config(),
         startup_frames: 3,
         min_track_score: 1.5,
         ..TrackKittiOptions::default()
