@@ -313,6 +313,7 @@ pub fn dynamic_feature_mask(
 
     // A spinning LiDAR sees one azimuth sector per time bin: the bounding
     // box of each bin's points lets most boxes be skipped for the whole bin.
+    // Each point's bin is computed once and kept for the box tests below.
     let mut bin_aabb = vec![
         (
             Vector3::repeat(f64::INFINITY),
@@ -320,11 +321,17 @@ pub fn dynamic_feature_mask(
         );
         bins
     ];
-    for (p_lidar, &t_s) in points_lidar.iter().zip(point_times_s) {
-        let (lo, hi) = &mut bin_aabb[bin_of(t_s)];
-        *lo = lo.inf(p_lidar);
-        *hi = hi.sup(p_lidar);
-    }
+    let point_bins: Vec<u32> = points_lidar
+        .iter()
+        .zip(point_times_s)
+        .map(|(p_lidar, &t_s)| {
+            let bin = bin_of(t_s);
+            let (lo, hi) = &mut bin_aabb[bin];
+            *lo = lo.inf(p_lidar);
+            *hi = hi.sup(p_lidar);
+            bin as u32
+        })
+        .collect();
 
     // Boxes and ego pose once per bin, keeping only the boxes whose bounding
     // sphere reaches the bin's points: bin b owns bin_boxes[bin_start[b]..bin_start[b + 1]].
@@ -345,11 +352,12 @@ pub fn dynamic_feature_mask(
         bin_start.push(bin_boxes.len());
     }
 
-    for ((p_lidar, &t_s), drop) in points_lidar.iter().zip(point_times_s).zip(&mut mask) {
-        let bin = bin_of(t_s);
-        *drop = bin_boxes[bin_start[bin]..bin_start[bin + 1]]
-            .iter()
-            .any(|b| b.contains(p_lidar));
+    for ((p_lidar, &bin), drop) in points_lidar.iter().zip(&point_bins).zip(&mut mask) {
+        let bin = bin as usize;
+        let (start, end) = (bin_start[bin], bin_start[bin + 1]);
+        if start != end {
+            *drop = bin_boxes[start..end].iter().any(|b| b.contains(p_lidar));
+        }
     }
     Ok(mask)
 }

@@ -1085,16 +1085,12 @@ impl Estimator {
         if matches!(filter, FeatureFilter::Keep) {
             return Vec::new();
         }
-        let indices: Vec<usize> = features
-            .edge_indices
-            .iter()
-            .chain(&features.planar_indices)
-            .copied()
-            .collect();
-        let points: Vec<Vector3<f64>> =
-            indices.iter().map(|&i| scan.points[i].position()).collect();
-        let times: Vec<f64> = indices
-            .iter()
+        // Edge features first, then planar: mask[..n_edge] belongs to the
+        // edge list, mask[n_edge..] to the planar list.
+        let n_edge = features.edge_indices.len();
+        let indices = || features.edge_indices.iter().chain(&features.planar_indices);
+        let points: Vec<Vector3<f64>> = indices().map(|&i| scan.points[i].position()).collect();
+        let times: Vec<f64> = indices()
             .map(|&i| scan.t_s + f64::from(scan.points[i].time_offset_s))
             .collect();
         let pose_at = |t: f64| motion.pose_at(t);
@@ -1110,20 +1106,28 @@ impl Estimator {
         };
         // The inputs are finite and equally long and the config is
         // validated at construction, so the filter cannot fail here.
-        let mask = mask.unwrap_or_else(|_| vec![false; indices.len()]);
-        let removed: std::collections::HashSet<usize> = indices
-            .iter()
-            .zip(&mask)
-            .filter(|(_, drop)| **drop)
-            .map(|(i, _)| *i)
-            .collect();
-        if removed.is_empty() {
+        let mask = mask.unwrap_or_else(|_| vec![false; points.len()]);
+        if !mask.contains(&true) {
             return Vec::new();
         }
-        features.edge_indices.retain(|i| !removed.contains(i));
-        features.planar_indices.retain(|i| !removed.contains(i));
-        let mut removed: Vec<u32> = removed.into_iter().map(|i| i as u32).collect();
+        let mut removed: Vec<u32> = indices()
+            .zip(&mask)
+            .filter(|(_, drop)| **drop)
+            .map(|(&i, _)| i as u32)
+            .collect();
         removed.sort_unstable();
+        removed.dedup();
+        // The mask depends on a point's position and time only, so an index
+        // listed twice gets the same verdict at both places.
+        let (edge_mask, planar_mask) = mask.split_at(n_edge);
+        let mut edge_drop = edge_mask.iter();
+        features
+            .edge_indices
+            .retain(|_| !edge_drop.next().copied().unwrap_or(false));
+        let mut planar_drop = planar_mask.iter();
+        features
+            .planar_indices
+            .retain(|_| !planar_drop.next().copied().unwrap_or(false));
         removed
     }
 
