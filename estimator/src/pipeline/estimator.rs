@@ -464,9 +464,11 @@ impl Estimator {
             .drain(..)
             .map(|e| e.transformed(&t_world_lidarworld))
             .collect();
-        // This sweep's LiDAR-only estimate is superseded by the inertial one.
+        // This sweep's LiDAR-only estimate is superseded by the inertial
+        // one, which takes its tracks and the time spent tracking them.
         if let Some(this) = estimates.pop() {
             first.tracks = this.tracks;
+            first.timings.tracking = this.timings.tracking;
         }
         first.timings.tracking += clock.elapsed();
         estimates.push(first);

@@ -31,7 +31,6 @@ pub struct WorldDetection {
 }
 
 impl WorldDetection {
-    /// True when every field is usable (finite, positive size).
     /// The detected box.
     fn oriented_box(&self) -> OrientedBox {
         OrientedBox {
@@ -41,6 +40,7 @@ impl WorldDetection {
         }
     }
 
+    /// True when every field is usable (finite, positive size).
     fn is_valid(&self) -> bool {
         self.center_world.iter().all(|v| v.is_finite())
             && self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0)
