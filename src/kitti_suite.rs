@@ -31,11 +31,10 @@ use crate::kitti::oxts::read_oxts;
 use crate::kitti::poses::parse_tum;
 use crate::kitti::{read_text, sequence_file};
 use crate::report::Variant;
-use crate::run::{RunOptions, Source, run, write_output};
+use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
 use crate::suite::{SuiteError, error_chain, variant_name};
 use crate::track_kitti::{TrackKittiOptions, kitti_val_tuned_options, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
-use limot_estimator::pipeline::EstimatorConfig;
 use limot_estimator::tracking::TrackerConfig;
 use serde::{Deserialize, Serialize};
 use std::fs;
@@ -281,14 +280,7 @@ fn run_variant(
             variant,
             ..RunOptions::default()
         };
-        let mut config = EstimatorConfig {
-            tracker: spec.tracker.clone(),
-            ..EstimatorConfig::default()
-        };
-        // KITTI tracking sequences: on real 0000 the odometry drifts against the
-        // detections (cm per frame), so a parked car's static node rests on the
-        // window's observations only (chosen on 0000: docs/kitti-real-data.md).
-        config.objects.static_keeps_old_observations = false;
+        let config = kitti_tracking_config(spec.tracker.clone());
         let output = run(&source, &spec.training, &options, Some(config))?;
         write_output(&out, &output)?;
         let (scores, _) = score_run(

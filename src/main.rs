@@ -494,16 +494,15 @@ fn run_estimator(
         max_frames,
         progress: true,
     };
-    let mut config = limot_estimator::pipeline::EstimatorConfig {
-        tracker: parse_tracker_config(tracker)?,
-        ..Default::default()
+    let tracker = parse_tracker_config(tracker)?;
+    let config = if kitti_tracking.sequence.is_some() {
+        limot::run::kitti_tracking_config(tracker)
+    } else {
+        limot_estimator::pipeline::EstimatorConfig {
+            tracker,
+            ..Default::default()
+        }
     };
-    // KITTI tracking sequences: on real 0000 the odometry drifts against the
-    // detections (cm per frame), so a parked car's static node rests on the
-    // window's observations only (chosen on 0000: docs/kitti-real-data.md).
-    if kitti_tracking.sequence.is_some() {
-        config.objects.static_keeps_old_observations = false;
-    }
     let output = run(&source, dataset, &options, Some(config))?;
     write_output(&out, &output)?;
     let n = output.estimates.len();
