@@ -433,7 +433,13 @@ fn run_variant(
     let results = crate::run::write_kitti_tracks(
         &run_dir.join("kitti_results"),
         0,
-        &crate::run::kitti_track_labels(&output, &calib, Default::default())?,
+        &crate::run::kitti_track_labels(
+            &output,
+            &calib,
+            Default::default(),
+            &crate::track_kitti::ResultPolicy::default(),
+            crate::kitti::detections::ScoreMap::Clamp01,
+        )?,
     )?;
     let tracks_eval = crate::evaluate::tracks::evaluate_tracks(
         dataset_dir,

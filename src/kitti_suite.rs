@@ -25,7 +25,6 @@ use crate::evaluate::kitti_sequence::{
     score_tracks,
 };
 use crate::kitti::calib::Calib;
-use crate::kitti::detections::ScoreMap;
 use crate::kitti::labels::read_labels;
 use crate::kitti::oxts::read_oxts;
 use crate::kitti::poses::parse_tum;
@@ -33,9 +32,8 @@ use crate::kitti::{read_text, sequence_file};
 use crate::report::Variant;
 use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
 use crate::suite::{SuiteError, error_chain, variant_name};
-use crate::track_kitti::{TrackKittiOptions, kitti_val_tuned_options, track_sequence_with};
+use crate::track_kitti::{TrackKittiOptions, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
-use limot_estimator::tracking::TrackerConfig;
 use serde::{Deserialize, Serialize};
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -54,10 +52,10 @@ pub struct KittiSuiteSpec {
     /// AB3DMOT-format detections (`SSSS.txt`), for the object variants and
     /// the tracker alone; without them only `lio` runs.
     pub detections: Option<PathBuf>,
-    pub score_map: ScoreMap,
-    /// The tracker settings of the object variants (the tracker alone runs
-    /// with [`kitti_val_tuned_options`]).
-    pub tracker: TrackerConfig,
+    /// The tracker settings and result-file rules of the object variants and
+    /// of the tracker alone (e.g. [`crate::track_kitti::kitti_val_tuned_options`]), with the
+    /// detections' score map.
+    pub tracking: TrackKittiOptions,
     pub variants: Vec<Variant>,
     /// Sequences to consider; `None`: every sequence with an OXTS file.
     pub sequences: Option<Vec<u32>>,
@@ -274,13 +272,17 @@ fn run_variant(
             .detections
             .as_deref()
             .filter(|_| variant.tracks_objects());
-        let source =
-            Source::open_kitti_tracking(&spec.training, sequence, detections, spec.score_map)?;
+        let source = Source::open_kitti_tracking(
+            &spec.training,
+            sequence,
+            detections,
+            spec.tracking.score_map,
+        )?;
         let options = RunOptions {
             variant,
             ..RunOptions::default()
         };
-        let config = kitti_tracking_config(spec.tracker.clone());
+        let config = kitti_tracking_config(spec.tracking.tracker.clone());
         let output = run(&source, &spec.training, &options, Some(config))?;
         write_output(&out, &output)?;
         let (scores, _) = score_run(
@@ -463,7 +465,11 @@ pub fn run_kitti_suite(
         path: spec.out_dir.clone(),
         source,
     })?;
-    let opts = KittiScoreOptions::default();
+    let opts = KittiScoreOptions {
+        result: spec.tracking.result.clone(),
+        score_map: spec.tracking.score_map,
+        ..KittiScoreOptions::default()
+    };
     let detections_of = |sequence: u32| {
         spec.detections
             .as_ref()
@@ -516,13 +522,10 @@ pub fn run_kitti_suite(
             .filter(|_| detections_of(sequence).is_some())
         {
             bar.set_message(format!("{sequence:04} tracker"));
-            let options = TrackKittiOptions {
-                score_map: spec.score_map,
-                ..kitti_val_tuned_options()
-            };
+            let options = &spec.tracking;
             let out_dir = spec.out_dir.join("tracker");
             result.tracker = Some(score_tracker(&spec.training, sequence, frames, || {
-                let tracks = track_sequence_with(&spec.training, det_dir, sequence, &options)?;
+                let tracks = track_sequence_with(&spec.training, det_dir, sequence, options)?;
                 fs::create_dir_all(&out_dir)?;
                 crate::kitti::results::write_results_file(&out_dir, sequence, &tracks.labels)?;
                 Ok(tracks.labels)

@@ -89,8 +89,10 @@ enum Command {
         /// files) or `clamp01` for probabilities (limot's KITTI copies).
         #[arg(long, default_value = "clamp01")]
         score_map: String,
-        /// Tracker settings of the object variants: `paper`, or `tuned` (chosen
-        /// on the KITTI val split with PointRCNN boxes, docs/tracking-kitti.md).
+        /// Tracker settings of the object variants and the rules of their
+        /// KITTI result files: `paper`, `tuned` (chosen on the KITTI val split
+        /// with PointRCNN boxes, docs/tracking-kitti.md) or `offline` (tuned,
+        /// with AB3DMOT's whole-track score gate on the result files).
         #[arg(long, default_value = "paper")]
         tracker: String,
     },
@@ -102,68 +104,7 @@ enum Command {
     /// Run the tracker alone on KITTI tracking sequences (detections + OXTS poses),
     /// write KITTI result files to OUT/NNNN.txt and print CLEAR-MOT (2D, 3D) and
     /// AB3DMOT's sAMOTA/AMOTA for Car; or score a results directory (--score-only).
-    TrackKitti {
-        /// KITTI tracking `training` dir (calib/, oxts/, label_02/).
-        #[arg(long)]
-        training: PathBuf,
-        /// AB3DMOT detection CSV dir (NNNN.txt), e.g. detections/pointrcnn_Car_val.
-        #[arg(long, required_unless_present = "score_only")]
-        detections: Option<PathBuf>,
-        /// Score the KITTI result files RESULTS_DIR/NNNN.txt (any tracker's)
-        /// with the same evaluators instead of tracking.
-        #[arg(long, value_name = "RESULTS_DIR", conflicts_with = "detections")]
-        score_only: Option<PathBuf>,
-        /// Sequence map (default: TRAINING/evaluate_tracking.seqmap.val).
-        #[arg(long)]
-        seqmap: Option<PathBuf>,
-        /// Output directory of the result files.
-        #[arg(long, required_unless_present = "score_only")]
-        out: Option<PathBuf>,
-        /// Tracker settings: `paper` (defaults), `tuned` (KITTI val tuned,
-        /// online) or `offline` (KITTI val tuned, with AB3DMOT's offline
-        /// whole-track score gate).
-        #[arg(long, default_value = "tuned")]
-        config: String,
-        /// Override the detection score gate (sigmoid of the raw score).
-        #[arg(long)]
-        min_score: Option<f64>,
-        /// Override the number of misses a track survives.
-        #[arg(long)]
-        max_misses: Option<usize>,
-        /// Override the association gate, m.
-        #[arg(long)]
-        d_thres: Option<f64>,
-        /// Also write coasting (predicted) confirmed tracks.
-        #[arg(long)]
-        with_predicted: bool,
-        /// Override: write confirmed tracks coasting for at most N frames.
-        #[arg(long, value_name = "N", conflicts_with = "with_predicted")]
-        coast: Option<usize>,
-        /// Override: matched frames a track needs before its coasting boxes are written.
-        #[arg(long, value_name = "N")]
-        coast_min_hits: Option<usize>,
-        /// Override the consecutive hits that confirm a track.
-        #[arg(long)]
-        init_frames: Option<usize>,
-        /// Override: write matched tentative tracks in the first N frames.
-        #[arg(long, value_name = "N")]
-        startup_frames: Option<u32>,
-        /// Override the minimum mean raw detection score of a written track.
-        #[arg(long, allow_negative_numbers = true)]
-        min_track_score: Option<f64>,
-        /// Override the score (sigmoid of the raw score) a detection needs to start a track.
-        #[arg(long)]
-        birth_min_score: Option<f64>,
-        /// Confirm tracks on matched frames in all, not consecutive ones.
-        #[arg(long)]
-        total_hits: bool,
-        /// Write the matched detection's box instead of the fitted one.
-        #[arg(long)]
-        detection_boxes: bool,
-        /// Skip seqmap sequences whose detection (or result) file is missing.
-        #[arg(long)]
-        skip_missing: bool,
-    },
+    TrackKitti(TrackKittiArgs),
     /// Re-render the report of `limot eval suite` from its results.json (no re-running).
     Report {
         /// OUT/results.json of a suite, or the suite directory holding it.
@@ -279,8 +220,10 @@ enum EvalCommand {
         /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
         #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
         variants: String,
-        /// Tracker settings of the object variants: `tuned` (chosen on the KITTI
-        /// val split with PointRCNN boxes, see docs/tracking-kitti.md) or `paper`.
+        /// Tracker settings and result-file rules of the object variants and
+        /// of the tracker alone: `tuned` (chosen on the KITTI val split with
+        /// PointRCNN boxes, see docs/tracking-kitti.md), `offline` (tuned,
+        /// with AB3DMOT's whole-track score gate) or `paper`.
         #[arg(long, default_value = "tuned")]
         tracker: String,
         /// A peer tracker's KITTI result files, NAME=DIR (DIR/SSSS.txt), scored beside ours.
@@ -349,43 +292,7 @@ fn main() -> ExitCode {
             &tracker,
         ),
         Command::Eval { what } => run_eval(what),
-        Command::TrackKitti {
-            training,
-            detections,
-            score_only,
-            seqmap,
-            out,
-            config,
-            min_score,
-            max_misses,
-            d_thres,
-            with_predicted,
-            coast,
-            coast_min_hits,
-            init_frames,
-            startup_frames,
-            min_track_score,
-            birth_min_score,
-            total_hits,
-            detection_boxes,
-            skip_missing,
-        } => run_track_kitti(
-            &training,
-            (detections, score_only),
-            seqmap,
-            out,
-            &config,
-            (min_score, max_misses, d_thres),
-            (
-                with_predicted,
-                coast,
-                init_frames,
-                startup_frames,
-                min_track_score,
-            ),
-            (birth_min_score, total_hits, detection_boxes, coast_min_hits),
-            skip_missing,
-        ),
+        Command::TrackKitti(args) => run_track_kitti(args),
         Command::Report { results, out } => run_report(&results, out),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
@@ -448,6 +355,91 @@ struct KittiTracking {
     score_map: String,
 }
 
+/// Options of `limot track-kitti`.
+#[derive(clap::Args, Debug)]
+struct TrackKittiArgs {
+    /// KITTI tracking `training` dir (calib/, oxts/, label_02/).
+    #[arg(long)]
+    training: PathBuf,
+    /// AB3DMOT detection CSV dir (NNNN.txt), e.g. detections/pointrcnn_Car_val.
+    #[arg(long, required_unless_present = "score_only")]
+    detections: Option<PathBuf>,
+    /// Score the KITTI result files RESULTS_DIR/NNNN.txt (any tracker's)
+    /// with the same evaluators instead of tracking.
+    #[arg(long, value_name = "RESULTS_DIR", conflicts_with = "detections")]
+    score_only: Option<PathBuf>,
+    /// Sequence map (default: TRAINING/evaluate_tracking.seqmap.val).
+    #[arg(long)]
+    seqmap: Option<PathBuf>,
+    /// Output directory of the result files.
+    #[arg(long, required_unless_present = "score_only")]
+    out: Option<PathBuf>,
+    /// Tracker settings: `paper` (defaults), `tuned` (KITTI val tuned,
+    /// online) or `offline` (KITTI val tuned, with AB3DMOT's offline
+    /// whole-track score gate).
+    #[arg(long, default_value = "tuned")]
+    config: String,
+    /// Override the detection score gate (sigmoid of the raw score).
+    #[arg(long)]
+    min_score: Option<f64>,
+    /// Override the number of misses a track survives.
+    #[arg(long)]
+    max_misses: Option<usize>,
+    /// Override the association gate, m.
+    #[arg(long)]
+    d_thres: Option<f64>,
+    /// Override the association score: `distance` (the paper's eq. 1 on
+    /// centre distance) or `giou:MIN` (AB3DMOT's 3D GIoU above MIN, also
+    /// gated by --d-thres).
+    #[arg(long, value_name = "distance|giou:MIN", allow_hyphen_values = true)]
+    association: Option<String>,
+    /// Override the prediction of a missed track: `fit` (the cubic
+    /// extrapolated) or `constant-velocity`.
+    #[arg(long, value_name = "fit|constant-velocity")]
+    extrapolation: Option<String>,
+    /// Override: frames a lost track can still be revived by a match.
+    #[arg(long, value_name = "N")]
+    revive_frames: Option<usize>,
+    /// Override the heading rule: `first` (the first detection's) or
+    /// `motion-or-majority`.
+    #[arg(long, value_name = "first|motion-or-majority")]
+    heading_rule: Option<String>,
+    /// Also write coasting (predicted) confirmed tracks.
+    #[arg(long)]
+    with_predicted: bool,
+    /// Override: write confirmed tracks coasting for at most N frames.
+    #[arg(long, value_name = "N", conflicts_with = "with_predicted")]
+    coast: Option<usize>,
+    /// Override: matched frames a track needs before its coasting boxes are written.
+    #[arg(long, value_name = "N")]
+    coast_min_hits: Option<usize>,
+    /// Override the consecutive hits that confirm a track.
+    #[arg(long)]
+    init_frames: Option<usize>,
+    /// Override: write matched tentative tracks in the first N frames.
+    #[arg(long, value_name = "N")]
+    startup_frames: Option<u32>,
+    /// Override the minimum mean raw detection score of a written track.
+    #[arg(long, allow_negative_numbers = true)]
+    min_track_score: Option<f64>,
+    /// Override the offline gate: whole tracks whose mean raw detection
+    /// score over the sequence is below this are removed (not causal).
+    #[arg(long, allow_negative_numbers = true)]
+    offline_track_score: Option<f64>,
+    /// Override the score (sigmoid of the raw score) a detection needs to start a track.
+    #[arg(long)]
+    birth_min_score: Option<f64>,
+    /// Confirm tracks on matched frames in all, not consecutive ones.
+    #[arg(long)]
+    total_hits: bool,
+    /// Write the matched detection's box instead of the fitted one.
+    #[arg(long)]
+    detection_boxes: bool,
+    /// Skip seqmap sequences whose detection (or result) file is missing.
+    #[arg(long)]
+    skip_missing: bool,
+}
+
 fn parse_score_map(name: &str) -> Result<limot::kitti::detections::ScoreMap, String> {
     use limot::kitti::detections::ScoreMap;
     match name {
@@ -494,12 +486,12 @@ fn run_estimator(
         max_frames,
         progress: true,
     };
-    let tracker = parse_tracker_config(tracker)?;
+    let tracking = kitti_tracking_options(tracker, parse_score_map(&kitti_tracking.score_map)?)?;
     let config = if kitti_tracking.sequence.is_some() {
-        limot::run::kitti_tracking_config(tracker)
+        limot::run::kitti_tracking_config(tracking.tracker.clone())
     } else {
         limot_estimator::pipeline::EstimatorConfig {
-            tracker,
+            tracker: tracking.tracker.clone(),
             ..Default::default()
         }
     };
@@ -542,7 +534,11 @@ fn run_estimator(
             sequence,
             &output,
             &out.join("kitti_results"),
-            &KittiScoreOptions::default(),
+            &KittiScoreOptions {
+                result: tracking.result.clone(),
+                score_map: tracking.score_map,
+                ..KittiScoreOptions::default()
+            },
         )?;
         println!("ego vs OXTS: {}", scores.ego.summary_line());
         match &scores.tracks {
@@ -568,7 +564,13 @@ fn run_estimator(
         let results = limot::run::write_kitti_tracks(
             &out.join("kitti_results"),
             0,
-            &limot::run::kitti_track_labels(&output, &calib, Default::default())?,
+            &limot::run::kitti_track_labels(
+                &output,
+                &calib,
+                Default::default(),
+                &limot::track_kitti::ResultPolicy::default(),
+                limot::kitti::detections::ScoreMap::Clamp01,
+            )?,
         )?;
         let e = evaluate_tracks(
             dataset_dir_of(dataset),
@@ -849,16 +851,29 @@ fn print_kitti_report(
     Ok(())
 }
 
-/// `paper` (the paper's tracker settings) or `tuned` (chosen on the KITTI
-/// val split with PointRCNN boxes).
-fn parse_tracker_config(name: &str) -> Result<limot_estimator::tracking::TrackerConfig, String> {
-    match name {
-        "paper" => Ok(limot_estimator::tracking::TrackerConfig::default()),
-        "tuned" => Ok(limot::track_kitti::kitti_val_tuned_config()),
-        other => Err(format!(
-            "tracker settings `{other}`: expected paper or tuned"
-        )),
-    }
+/// The KITTI tracking settings (tracker and result-file rules) named `paper`
+/// (the paper's tracker; every matched confirmed track written), `tuned`
+/// (online, chosen on the KITTI val split with PointRCNN boxes) or `offline`
+/// (tuned, with AB3DMOT's whole-track score gate; not causal).
+fn kitti_tracking_options(
+    name: &str,
+    score_map: limot::kitti::detections::ScoreMap,
+) -> Result<limot::track_kitti::TrackKittiOptions, String> {
+    use limot::track_kitti::{TrackKittiOptions, kitti_val_offline_options};
+    let options = match name {
+        "paper" => TrackKittiOptions::default(),
+        "tuned" => limot::track_kitti::kitti_val_tuned_options(),
+        "offline" => kitti_val_offline_options(),
+        other => {
+            return Err(format!(
+                "tracker settings `{other}`: expected paper, tuned or offline"
+            ));
+        }
+    };
+    Ok(limot::track_kitti::TrackKittiOptions {
+        score_map,
+        ..options
+    })
 }
 
 /// `NAME=DIR` of a peer option.
@@ -889,8 +904,7 @@ fn run_eval_kitti(
     let spec = KittiSuiteSpec {
         training,
         detections,
-        score_map: parse_score_map(score_map)?,
-        tracker: parse_tracker_config(tracker)?,
+        tracking: kitti_tracking_options(tracker, parse_score_map(score_map)?)?,
         variants: parse_list("variants", variants, |s| {
             Variant::parse(s).map_err(|e| e.to_string())
         })?,
@@ -953,43 +967,23 @@ fn print_suite_report(
 }
 
 /// `limot track-kitti`: tracks, writes result files and prints the scores.
-#[allow(clippy::too_many_arguments)]
-fn run_track_kitti(
-    training: &std::path::Path,
-    (detections, score_only): (Option<PathBuf>, Option<PathBuf>),
-    seqmap: Option<PathBuf>,
-    out: Option<PathBuf>,
-    config: &str,
-    overrides: (Option<f64>, Option<usize>, Option<f64>),
-    (with_predicted, coast, init_frames, startup_frames, min_track_score): (
-        bool,
-        Option<usize>,
-        Option<usize>,
-        Option<u32>,
-        Option<f64>,
-    ),
-    (birth_min_score, total_hits, detection_boxes, coast_min_hits): (
-        Option<f64>,
-        bool,
-        bool,
-        Option<usize>,
-    ),
-    skip_missing: bool,
-) -> Result<(), Box<dyn std::error::Error>> {
+fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error>> {
     use limot::kitti::results::write_results_file;
     use limot::kitti::seqmap::read_seqmap;
-    use limot::track_kitti::{
-        OutputPolicy, TrackKittiOptions, evaluate_sequences, kitti_val_tuned_options,
-        read_results_dir, score_results,
-    };
-    let seqmap_path = seqmap.unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
+    use limot::track_kitti::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
+    use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule};
+    let training = &args.training;
+    let seqmap_path = args
+        .seqmap
+        .unwrap_or_else(|| training.join("evaluate_tracking.seqmap.val"));
     let mut entries = read_seqmap(&seqmap_path)?;
     // The directory whose NNNN.txt must exist: the results to score or the detections.
-    let input_dir = score_only
+    let input_dir = args
+        .score_only
         .clone()
-        .or_else(|| detections.clone())
+        .or_else(|| args.detections.clone())
         .ok_or("--detections or --score-only is required")?;
-    if skip_missing {
+    if args.skip_missing {
         entries.retain(|e| {
             let present = limot::kitti::sequence_file(&input_dir, e.sequence).is_file();
             if !present {
@@ -1002,58 +996,97 @@ fn run_track_kitti(
             present
         });
     }
-    if let Some(results_dir) = score_only {
+    if let Some(results_dir) = args.score_only {
         let results = read_results_dir(&results_dir, &entries)?;
         print!("{}", score_results(training, &entries, &results)?.to_text());
         return Ok(());
     }
-    let out = out.ok_or("--out is required when tracking")?;
-    let mut tracker = match config {
-        "offline" => limot::track_kitti::kitti_val_offline_options().tracker,
-        "tuned" => kitti_val_tuned_options().tracker,
-        name => parse_tracker_config(name)?,
-    };
-    let (min_score, max_misses, d_thres) = overrides;
-    if let Some(v) = min_score {
+    let out = args.out.ok_or("--out is required when tracking")?;
+    let mut options =
+        kitti_tracking_options(&args.config, limot::kitti::detections::ScoreMap::Sigmoid)?;
+    let tracker = &mut options.tracker;
+    if let Some(v) = args.min_score {
         tracker.min_score = v;
     }
-    if let Some(v) = max_misses {
+    if let Some(v) = args.max_misses {
         tracker.max_misses = v;
     }
-    if let Some(v) = d_thres {
+    if let Some(v) = args.d_thres {
         tracker.d_thres_m = v;
     }
-    if let Some(v) = init_frames {
+    if let Some(v) = args.init_frames {
         tracker.init_frames = v;
     }
-    if let Some(v) = birth_min_score {
+    if let Some(v) = args.birth_min_score {
         tracker.birth_min_score = v;
     }
-    if total_hits {
+    if args.total_hits {
         tracker.confirm_on_total_hits = true;
     }
-    let mut options = match config {
-        "tuned" => kitti_val_tuned_options(),
-        "offline" => limot::track_kitti::kitti_val_offline_options(),
-        _ => TrackKittiOptions::default(),
-    };
-    options.tracker = tracker;
-    if with_predicted {
-        options.output = OutputPolicy::AllConfirmed;
+    if let Some(text) = &args.association {
+        tracker.association = match text.split_once(':') {
+            None if text == "distance" => AssociationMetric::CentreDistance,
+            Some(("giou", min)) => AssociationMetric::Giou3d {
+                min_giou: min
+                    .parse()
+                    .map_err(|e| format!("--association `{text}`: MIN: {e}"))?,
+                distance_gate: true,
+            },
+            _ => {
+                return Err(
+                    format!("--association `{text}`: expected distance or giou:MIN").into(),
+                );
+            }
+        };
     }
-    if let Some(n) = coast {
-        options.output = OutputPolicy::CoastingUpTo(n);
+    if let Some(text) = &args.extrapolation {
+        tracker.extrapolation = match text.as_str() {
+            "fit" => Extrapolation::Fit,
+            "constant-velocity" => Extrapolation::ConstantVelocity,
+            _ => {
+                return Err(
+                    format!("--extrapolation `{text}`: expected fit or constant-velocity").into(),
+                );
+            }
+        };
     }
-    if let Some(n) = startup_frames {
-        options.startup_frames = n;
+    if let Some(n) = args.revive_frames {
+        tracker.revive_frames = n;
     }
-    if let Some(v) = min_track_score {
-        options.min_track_score = v;
+    if let Some(text) = &args.heading_rule {
+        tracker.heading_rule = match text.as_str() {
+            "first" => HeadingRule::FirstDetection,
+            "motion-or-majority" => HeadingRule::MotionOrMajority,
+            _ => {
+                return Err(format!(
+                    "--heading-rule `{text}`: expected first or motion-or-majority"
+                )
+                .into());
+            }
+        };
     }
-    if let Some(n) = coast_min_hits {
-        options.coast_min_hits = n;
+    // A bad override is reported here, before any sequence is read.
+    limot_estimator::tracking::Tracker::new(options.tracker.clone())?;
+    let result = &mut options.result;
+    if args.with_predicted {
+        result.output = OutputPolicy::AllConfirmed;
     }
-    if detection_boxes {
+    if let Some(n) = args.coast {
+        result.output = OutputPolicy::CoastingUpTo(n);
+    }
+    if let Some(n) = args.startup_frames {
+        result.startup_frames = n;
+    }
+    if let Some(v) = args.min_track_score {
+        result.min_track_score = v;
+    }
+    if let Some(v) = args.offline_track_score {
+        result.offline_track_score = v;
+    }
+    if let Some(n) = args.coast_min_hits {
+        result.coast_min_hits = n;
+    }
+    if args.detection_boxes {
         options.box_source = limot::track_kitti::BoxSource::Detection;
     }
     std::fs::create_dir_all(&out)?;

@@ -530,11 +530,14 @@ pub struct LabelFrame {
     pub elevation_correction_rad: f64,
 }
 
-/// The confirmed tracks that matched a detection in each frame (as AB3DMOT
-/// reports) as KITTI tracking result lines: boxes moved back into each
-/// frame's LiDAR frame with the estimated pose and projected through `calib`
-/// (the dataset's KITTI copy uses [`crate::kitti_export::synthetic_calib`]).
-/// Boxes outside the camera image have no KITTI line.
+/// The tracks `result` writes (by default, as AB3DMOT: the confirmed
+/// tracks that matched a detection this frame) as KITTI tracking result
+/// lines carrying the raw detector score (`score_map` inverted): boxes moved
+/// back into each frame's LiDAR frame with the estimated pose and projected
+/// through `calib` (the dataset's KITTI copy uses
+/// [`crate::kitti_export::synthetic_calib`]). Boxes outside the camera image
+/// have no KITTI line. The tracker alone writes through the same
+/// [`ResultWriter`](crate::track_kitti::ResultWriter).
 ///
 /// Boxes are given where the labels were taken ([`LabelFrame`]): moved along
 /// their velocity to the label time, placed with the ego pose of that
@@ -547,11 +550,13 @@ pub fn kitti_track_labels(
     output: &RunOutput,
     calib: &crate::kitti::calib::Calib,
     label_frame: LabelFrame,
+    result: &crate::track_kitti::ResultPolicy,
+    score_map: crate::kitti::detections::ScoreMap,
 ) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
     let frame_delay_s = label_frame.delay_s;
     use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
     use crate::track_kitti::world_box_to_lidar;
-    use limot_estimator::tracking::Lifecycle;
+    let mut writer = crate::track_kitti::ResultWriter::new(result.clone());
     let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
         .estimates
         .iter()
@@ -566,9 +571,11 @@ pub fn kitti_track_labels(
             pose
         });
         for t in &e.tracks {
-            if t.lifecycle != Lifecycle::Confirmed || t.predicted {
+            let raw_score =
+                (!t.predicted).then(|| score_map.invert(t.detection_score.unwrap_or(1.0)));
+            let Some(score) = writer.record(e.frame_index as u32, t, raw_score) else {
                 continue;
-            }
+            };
             let mut lidar_box = world_box_to_lidar(
                 &(t.center_world + t.velocity_world_mps * frame_delay_s),
                 &t.size_lwh,
@@ -585,14 +592,15 @@ pub fn kitti_track_labels(
                     .map_err(|_| RunError::TrackIdOverflow { id: t.id })?,
                 class: t.class,
                 lidar_box,
-                // Confirmed and matched: the box of this frame's detection.
-                score: t.detection_score.unwrap_or(1.0),
+                score,
             };
             if let Some(label) = track_to_label(&track, calib, ImageSize::KITTI_DEFAULT) {
                 labels.push(label);
             }
         }
     }
+    // The offline gate needs the whole sequence.
+    labels.retain(|l| l.track_id >= 0 && writer.keeps(l.track_id as u64));
     Ok(labels)
 }
 

@@ -521,7 +521,13 @@ fn run_variant(
     let results = write_kitti_tracks(
         &run_dir.join("kitti_results"),
         0,
-        &kitti_track_labels(&output, &calib, Default::default())?,
+        &kitti_track_labels(
+            &output,
+            &calib,
+            Default::default(),
+            &crate::track_kitti::ResultPolicy::default(),
+            crate::kitti::detections::ScoreMap::Clamp01,
+        )?,
     )?;
     let ego = evaluate_ego(
         &dataset.dir,

@@ -19,7 +19,7 @@
 //! ([`ab3dmot_evaluate`]: sAMOTA, AMOTA, MOTA at the best score threshold).
 //! Result lines carry the detector's raw score (a logit for PointRCNN).
 //!
-//! The tracker is online; [`TrackKittiOptions::offline_track_score`]
+//! The tracker is online; [`ResultPolicy::offline_track_score`]
 //! optionally adds AB3DMOT's offline post-processing (whole tracks removed
 //! by their mean score over the sequence), which AB3DMOT's thresholded
 //! output, the peer of docs/tracking-kitti.md, has been through.
@@ -86,8 +86,11 @@ pub fn kitti_val_tuned_config() -> TrackerConfig {
 pub fn kitti_val_tuned_options() -> TrackKittiOptions {
     TrackKittiOptions {
         tracker: kitti_val_tuned_config(),
-        startup_frames: 3,
-        min_track_score: 1.5,
+        result: ResultPolicy {
+            startup_frames: 3,
+            min_track_score: 1.5,
+            ..ResultPolicy::default()
+        },
         ..TrackKittiOptions::default()
     }
 }
@@ -106,9 +109,9 @@ pub fn kitti_val_offline_options() -> TrackKittiOptions {
     o.tracker.init_frames = 2;
     o.tracker.extrapolation = Extrapolation::ConstantVelocity;
     o.tracker.revive_frames = 2;
-    o.output = OutputPolicy::CoastingUpTo(1);
-    o.min_track_score = f64::NEG_INFINITY;
-    o.offline_track_score = 3.0;
+    o.result.output = OutputPolicy::CoastingUpTo(1);
+    o.result.min_track_score = f64::NEG_INFINITY;
+    o.result.offline_track_score = 3.0;
     o
 }
 
@@ -171,16 +174,14 @@ pub enum BoxSource {
     Detection,
 }
 
-/// Options of [`track_sequence_with`].
+/// Which of a tracker's boxes become KITTI result lines, per frame and
+/// over the sequence (AB3DMOT's conventions). The tracker alone
+/// ([`track_sequence_with`]) and the estimator's runs on KITTI
+/// (`run::kitti_track_labels`) both write through a [`ResultWriter`] with it,
+/// so their result files compare like with like.
 #[derive(Debug, Clone, PartialEq)]
-pub struct TrackKittiOptions {
-    pub tracker: TrackerConfig,
+pub struct ResultPolicy {
     pub output: OutputPolicy,
-    pub box_source: BoxSource,
-    /// How the CSV's raw detector score becomes a [0, 1] score (the tracker's
-    /// `min_score` applies to the mapped score). PointRCNN scores are logits.
-    pub score_map: ScoreMap,
-    pub image: ImageSize,
     /// During the first `startup_frames` frames of a sequence, tentative
     /// tracks matched this frame are written too: the objects in view when
     /// the sequence starts were not just born (AB3DMOT's `frame_count <=
@@ -203,14 +204,11 @@ pub struct TrackKittiOptions {
     pub offline_track_score: f64,
 }
 
-impl Default for TrackKittiOptions {
+impl Default for ResultPolicy {
+    /// Confirmed tracks matched this frame, no score gates.
     fn default() -> Self {
-        TrackKittiOptions {
-            tracker: TrackerConfig::default(),
+        ResultPolicy {
             output: OutputPolicy::default(),
-            box_source: BoxSource::default(),
-            score_map: ScoreMap::Sigmoid,
-            image: ImageSize::KITTI_DEFAULT,
             startup_frames: 0,
             min_track_score: f64::NEG_INFINITY,
             coast_min_hits: 0,
@@ -219,11 +217,112 @@ impl Default for TrackKittiOptions {
     }
 }
 
+/// A [`ResultPolicy`] applied to one sequence, frame after frame: it keeps
+/// each track's matches and scores so far (track ids are never reused
+/// within a sequence).
+#[derive(Debug, Clone)]
+pub struct ResultWriter {
+    policy: ResultPolicy,
+    tracks: HashMap<u64, TrackRecord>,
+}
+
+/// What a [`ResultWriter`] knows of one track.
+#[derive(Debug, Clone, Copy, Default)]
+struct TrackRecord {
+    /// Raw score of the latest matched detection (coasting boxes keep it).
+    last_score: Option<f64>,
+    /// Sum and count of the raw scores of every matched detection so far.
+    score_sum: f64,
+    hits: usize,
+    /// Frames in a row the track was output without a match.
+    misses: usize,
+}
+
+impl ResultWriter {
+    pub fn new(policy: ResultPolicy) -> Self {
+        ResultWriter {
+            policy,
+            tracks: HashMap::new(),
+        }
+    }
+
+    /// Records one track output of frame `frame` (`raw_score`: the raw score
+    /// of the detection it matched this frame, `None` when coasting) and
+    /// says whether it is written, with the raw score its line carries.
+    /// Call it for every output of a frame, frames in order.
+    pub fn record(
+        &mut self,
+        frame: u32,
+        output: &TrackOutput,
+        raw_score: Option<f64>,
+    ) -> Option<f64> {
+        let r = self.tracks.entry(output.id).or_default();
+        match raw_score {
+            Some(score) => {
+                r.last_score = Some(score);
+                r.score_sum += score;
+                r.hits += 1;
+                r.misses = 0;
+            }
+            None => r.misses += 1,
+        }
+        let policy = &self.policy;
+        let coasting_written = r.misses == 0 || r.hits >= policy.coast_min_hits;
+        let startup = frame < policy.startup_frames && !output.predicted;
+        let mean_score = if r.hits == 0 {
+            f64::NEG_INFINITY
+        } else {
+            r.score_sum / r.hits as f64
+        };
+        let write = ((output.lifecycle == Lifecycle::Confirmed
+            && coasting_written
+            && policy.output.writes(r.misses))
+            || startup)
+            && (policy.min_track_score == f64::NEG_INFINITY
+                || mean_score >= policy.min_track_score);
+        write.then(|| r.last_score.unwrap_or(1.0))
+    }
+
+    /// Whether the offline gate keeps track `id` (always, when it is off):
+    /// call after the last frame.
+    pub fn keeps(&self, id: u64) -> bool {
+        self.policy.offline_track_score == f64::NEG_INFINITY
+            || self.tracks.get(&id).is_some_and(|r| {
+                r.hits > 0 && r.score_sum / r.hits as f64 >= self.policy.offline_track_score
+            })
+    }
+}
+
+/// Options of [`track_sequence_with`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackKittiOptions {
+    pub tracker: TrackerConfig,
+    pub result: ResultPolicy,
+    pub box_source: BoxSource,
+    /// How the CSV's raw detector score becomes a [0, 1] score (the tracker's
+    /// `min_score` applies to the mapped score). PointRCNN scores are logits.
+    pub score_map: ScoreMap,
+    pub image: ImageSize,
+}
+
+impl Default for TrackKittiOptions {
+    fn default() -> Self {
+        TrackKittiOptions {
+            tracker: TrackerConfig::default(),
+            result: ResultPolicy::default(),
+            box_source: BoxSource::default(),
+            score_map: ScoreMap::Sigmoid,
+            image: ImageSize::KITTI_DEFAULT,
+        }
+    }
+}
+
 /// The tracker's output of one sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceTracks {
     pub sequence: u32,
-    /// Written tracks per frame (LiDAR frame), `frames` entries.
+    /// Written tracks per frame (LiDAR frame, the raw score of the latest
+    /// matched detection), `frames` entries.
     pub per_frame: Vec<Vec<TrackBox>>,
     /// KITTI result lines of the tracks with a 2D box in the image.
     pub labels: Vec<TrackingLabel>,
@@ -334,12 +433,7 @@ pub fn track_sequence_with(
 
     let tracker_error = |source| TrackKittiError::Tracker { sequence, source };
     let mut tracker = Tracker::new(options.tracker.clone()).map_err(tracker_error)?;
-    // Score of each track's latest matched detection (coasting boxes keep it),
-    // and the sum and count of its matched detections' scores.
-    let mut last_score: HashMap<u64, f64> = HashMap::new();
-    let mut score_sums: HashMap<u64, (f64, usize)> = HashMap::new();
-    // The same over the whole sequence, for the offline gate.
-    let mut whole_sums: HashMap<u64, (f64, usize)> = HashMap::new();
+    let mut writer = ResultWriter::new(options.result.clone());
     let mut out = SequenceTracks {
         sequence,
         per_frame: Vec::with_capacity(frames.len()),
@@ -359,34 +453,10 @@ pub fn track_sequence_with(
             } else {
                 matched_detection(&tracker, o, &world)
             };
-            if let Some(d) = matched_det {
-                last_score.insert(o.id, d.score);
-                let raw = options.score_map.invert(d.score);
-                for sums in [&mut score_sums, &mut whole_sums] {
-                    let e = sums.entry(o.id).or_insert((0.0, 0));
-                    e.0 += raw;
-                    e.1 += 1;
-                }
-            }
-            let (misses, hits) = tracker
-                .tracks()
-                .iter()
-                .find(|t| t.id() == o.id)
-                .map_or((0, 0), |t| (t.consecutive_misses(), t.total_hits()));
-            let coasting_written = misses == 0 || hits >= options.coast_min_hits;
-            let startup = (frame as u32) < options.startup_frames && !o.predicted;
-            let mean_score = score_sums
-                .get(&o.id)
-                .map_or(f64::NEG_INFINITY, |&(sum, n)| sum / n as f64);
-            let write = ((o.lifecycle == Lifecycle::Confirmed
-                && coasting_written
-                && options.output.writes(misses))
-                || startup)
-                && (options.min_track_score == f64::NEG_INFINITY
-                    || mean_score >= options.min_track_score);
-            if !write {
+            let raw_score = matched_det.map(|d| options.score_map.invert(d.score));
+            let Some(score) = writer.record(frame as u32, o, raw_score) else {
                 continue;
-            }
+            };
             let (center_world, yaw_world) = match (options.box_source, matched_det) {
                 (BoxSource::Detection, Some(d)) => (d.center_world, d.yaw_rad),
                 _ => (o.center_world, o.yaw_rad),
@@ -400,43 +470,26 @@ pub fn track_sequence_with(
                 track_id,
                 class: o.class,
                 lidar_box: world_box_to_lidar(&center_world, &o.size_lwh, yaw_world, pose),
-                score: last_score.get(&o.id).copied().unwrap_or(1.0),
+                score,
             });
         }
-        for tb in &written {
+        out.per_frame.push(written);
+    }
+    // The offline gate needs the whole sequence; the labels follow it.
+    for boxes in &mut out.per_frame {
+        boxes.retain(|b| writer.keeps(u64::from(b.track_id)));
+        for tb in boxes.iter() {
             match track_to_label(tb, &calib, options.image) {
+                // The detector's own scale: a sigmoid saturates to 1.0 for
+                // confident detections, which ties the track scores that
+                // AB3DMOT's evaluation ranks.
                 Some(mut label) => {
-                    // The detector's own scale: a sigmoid saturates to 1.0 for
-                    // confident detections, which ties the track scores that
-                    // AB3DMOT's evaluation ranks.
-                    label.score = Some(options.score_map.invert(tb.score));
+                    label.score = Some(tb.score);
                     out.labels.push(label)
                 }
                 None => out.outside_image += 1,
             }
         }
-        out.per_frame.push(written);
-        // Lost tracks kept for re-association keep their scores too.
-        let live: std::collections::HashSet<u64> = outputs
-            .iter()
-            .map(|o| o.id)
-            .chain(tracker.lost_tracks().iter().map(|t| t.id()))
-            .collect();
-        last_score.retain(|id, _| live.contains(id));
-        score_sums.retain(|id, _| live.contains(id));
-    }
-    if options.offline_track_score > f64::NEG_INFINITY {
-        let kept = |id: u64| {
-            whole_sums
-                .get(&id)
-                .is_some_and(|&(sum, n)| sum / n as f64 >= options.offline_track_score)
-        };
-        for boxes in &mut out.per_frame {
-            boxes.retain(|b| kept(u64::from(b.track_id)));
-        }
-        out.labels
-            .retain(|l| l.track_id >= 0 && kept(l.track_id as u64));
-        out.outside_image = out.per_frame.iter().map(Vec::len).sum::<usize>() - out.labels.len();
     }
     out.garbage_detections = tracker.garbage_detections();
     out.low_score_detections = tracker.low_score_detections();
@@ -758,6 +811,74 @@ mod tests {
 
     fn pose() -> Isometry3<f64> {
         Isometry3::new(Vector3::new(5.0, -3.0, 0.4), Vector3::new(0.02, -0.01, 1.1))
+    }
+
+    fn output(id: u64, lifecycle: Lifecycle, predicted: bool) -> TrackOutput {
+        TrackOutput {
+            id,
+            class: ObjectClass::Car,
+            center_world: Vector3::zeros(),
+            yaw_rad: 0.0,
+            size_lwh: Vector3::new(4.0, 1.8, 1.5),
+            velocity_world_mps: Vector3::zeros(),
+            lifecycle,
+            motion: limot_estimator::tracking::Motion::Static,
+            speed_mps: 0.0,
+            predicted,
+            detection_index: (!predicted).then_some(0),
+            detection_score: None,
+        }
+    }
+
+    #[test]
+    fn result_writer_applies_the_policy_frame_by_frame() {
+        use Lifecycle::{Confirmed, Tentative};
+        // Defaults: confirmed and matched only, with the matched raw score.
+        let mut w = ResultWriter::new(ResultPolicy::default());
+        assert_eq!(w.record(0, &output(1, Tentative, false), Some(2.0)), None);
+        assert_eq!(
+            w.record(1, &output(1, Confirmed, false), Some(4.0)),
+            Some(4.0)
+        );
+        assert_eq!(w.record(2, &output(1, Confirmed, true), None), None);
+        assert!(w.keeps(1) && w.keeps(99));
+
+        // Start-up frames write matched tentative tracks; coasting up to one
+        // frame keeps the last matched score; the running mean gates.
+        let mut w = ResultWriter::new(ResultPolicy {
+            output: OutputPolicy::CoastingUpTo(1),
+            startup_frames: 2,
+            min_track_score: 1.5,
+            ..ResultPolicy::default()
+        });
+        assert_eq!(
+            w.record(0, &output(1, Tentative, false), Some(2.0)),
+            Some(2.0)
+        );
+        assert_eq!(
+            w.record(1, &output(1, Confirmed, false), Some(1.6)),
+            Some(1.6)
+        );
+        assert_eq!(w.record(2, &output(1, Confirmed, true), None), Some(1.6));
+        assert_eq!(w.record(3, &output(1, Confirmed, true), None), None);
+        // mean (2 + 1.6 + 0) / 3 < 1.5: a weak match stops the writing
+        assert_eq!(w.record(4, &output(1, Confirmed, false), Some(0.0)), None);
+        assert_eq!(
+            w.record(5, &output(1, Confirmed, false), Some(3.0)),
+            Some(3.0)
+        );
+
+        // The offline gate judges the whole track afterwards.
+        let mut w = ResultWriter::new(ResultPolicy {
+            offline_track_score: 3.0,
+            ..ResultPolicy::default()
+        });
+        for (frame, score) in [(0, 5.0), (1, 2.0)] {
+            w.record(frame, &output(1, Confirmed, false), Some(score));
+            w.record(frame, &output(2, Confirmed, false), Some(score - 2.5));
+        }
+        w.record(2, &output(3, Confirmed, true), None);
+        assert!(w.keeps(1) && !w.keeps(2) && !w.keeps(3) && !w.keeps(4));
     }
 
     #[test]

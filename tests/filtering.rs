@@ -44,7 +44,14 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             let results = limot::run::write_kitti_tracks(
                 &dir.join("kitti_results"),
                 0,
-                &limot::run::kitti_track_labels(&output, &calib, Default::default()).unwrap(),
+                &limot::run::kitti_track_labels(
+                    &output,
+                    &calib,
+                    Default::default(),
+                    &limot::track_kitti::ResultPolicy::default(),
+                    limot::kitti::detections::ScoreMap::Clamp01,
+                )
+                .unwrap(),
             )
             .unwrap();
             // Each result line carries its frame's detection score.

@@ -237,13 +237,11 @@ fn sweep_tracker_knobs() {
             ..base.clone()
         },
     ));
-    variants.push((
-        "output=all-confirmed".into(),
-        TrackKittiOptions {
-            output: OutputPolicy::AllConfirmed,
-            ..base.clone()
-        },
-    ));
+    variants.push(("output=all-confirmed".into(), {
+        let mut o = base.clone();
+        o.result.output = OutputPolicy::AllConfirmed;
+        o
+    }));
     for init in [1, 2, 3] {
         let mut o = base.clone();
         o.tracker.init_frames = init;
@@ -364,28 +362,28 @@ fn matched_tracks_carry_their_detection_score() {
     for (frame, boxes) in matched.per_frame.iter().enumerate() {
         for b in boxes {
             written += 1;
+            // The raw score, through the tracker's [0, 1] score and back.
             let found = raw.iter().any(|r| {
-                r.frame as usize == frame && ScoreMap::Sigmoid.apply(r.score_raw) == b.score
+                r.frame as usize == frame
+                    && (ScoreMap::Sigmoid.apply(r.score_raw) - ScoreMap::Sigmoid.apply(b.score))
+                        .abs()
+                        < 1e-12
             });
             assert!(
                 found,
                 "frame {frame} track {}: score {}",
                 b.track_id, b.score
             );
-            assert!(b.score >= options.tracker.min_score);
+            assert!(ScoreMap::Sigmoid.apply(b.score) >= options.tracker.min_score - 1e-12);
         }
     }
     assert!(written > 2000, "{written}");
     // Writing coasting tracks too adds boxes (with their last detection's score).
-    let all = track_sequence_with(
-        &d.training,
-        &d.detections,
-        seq,
-        &TrackKittiOptions {
-            output: OutputPolicy::AllConfirmed,
-            ..options
-        },
-    )
+    let all = track_sequence_with(&d.training, &d.detections, seq, &{
+        let mut o = options;
+        o.result.output = OutputPolicy::AllConfirmed;
+        o
+    })
     .unwrap();
     let written_all: usize = all.per_frame.iter().map(Vec::len).sum();
     assert!(written_all > written, "{written_all} vs {written}");
@@ -444,14 +442,15 @@ fn candidate_options() -> Vec<(String, TrackKittiOptions)> {
                         for cv in [false, true] {
                             for revive in [0, 2] {
                                 let mut o = kitti_val_tuned_options();
-                                o.startup_frames = 3;
+                                o.result.startup_frames = 3;
                                 o.tracker.d_thres_m = 3.0;
                                 o.tracker.min_score = min_score;
-                                (o.min_track_score, o.offline_track_score) = match gate {
-                                    TrackGate::None => (f64::NEG_INFINITY, f64::NEG_INFINITY),
-                                    TrackGate::Online(v) => (v, f64::NEG_INFINITY),
-                                    TrackGate::Offline(v) => (f64::NEG_INFINITY, v),
-                                };
+                                (o.result.min_track_score, o.result.offline_track_score) =
+                                    match gate {
+                                        TrackGate::None => (f64::NEG_INFINITY, f64::NEG_INFINITY),
+                                        TrackGate::Online(v) => (v, f64::NEG_INFINITY),
+                                        TrackGate::Offline(v) => (f64::NEG_INFINITY, v),
+                                    };
                                 o.tracker.association = if giou {
                                     AssociationMetric::Giou3d {
                                         min_giou: -0.2,
@@ -460,7 +459,7 @@ fn candidate_options() -> Vec<(String, TrackKittiOptions)> {
                                 } else {
                                     AssociationMetric::CentreDistance
                                 };
-                                o.output = match coast {
+                                o.result.output = match coast {
                                     0 => OutputPolicy::MatchedConfirmed,
                                     n => OutputPolicy::CoastingUpTo(n),
                                 };
@@ -577,7 +576,7 @@ fn ablate_tracker_options() {
                 variants.push((
                     format!("combo coast {coast} giou {giou} cv revive {revive}"),
                     with(&|o| {
-                        o.output = match coast {
+                        o.result.output = match coast {
                             0 => OutputPolicy::MatchedConfirmed,
                             n => OutputPolicy::CoastingUpTo(n),
                         };
@@ -605,11 +604,11 @@ fn ablate_tracker_options() {
                         ),
                         with(&|o| {
                             o.tracker.min_score = min_score;
-                            o.min_track_score = f64::NEG_INFINITY;
-                            o.offline_track_score = offline;
+                            o.result.min_track_score = f64::NEG_INFINITY;
+                            o.result.offline_track_score = offline;
                             o.tracker.init_frames = init;
                             o.tracker.extrapolation = Extrapolation::ConstantVelocity;
-                            o.output = match coast {
+                            o.result.output = match coast {
                                 0 => OutputPolicy::MatchedConfirmed,
                                 n => OutputPolicy::CoastingUpTo(n),
                             };
@@ -667,8 +666,9 @@ fn cross_validate_kitti_settings() {
     // AB3DMOT's offline whole-track gate).
     let mut shipped = Vec::new();
     for online_only in [true, false] {
-        let allowed =
-            |i: usize| !online_only || candidates[i].1.offline_track_score == f64::NEG_INFINITY;
+        let allowed = |i: usize| {
+            !online_only || candidates[i].1.result.offline_track_score == f64::NEG_INFINITY
+        };
         let select = |k: usize| {
             (0..candidates.len())
                 .filter(|&i| allowed(i))
@@ -748,10 +748,8 @@ fn startup_rule_and_track_score_gate_change_what_is_written() {
     let plain = track_sequence_with(&d.training, &d.detections, seq, &base).unwrap();
     // Confirmation takes 3 frames: nothing is written in frames 0 and 1.
     assert!(plain.per_frame[0].is_empty() && plain.per_frame[1].is_empty());
-    let startup = TrackKittiOptions {
-        startup_frames: 3,
-        ..base.clone()
-    };
+    let mut startup = base.clone();
+    startup.result.startup_frames = 3;
     let started = track_sequence_with(&d.training, &d.detections, seq, &startup).unwrap();
     assert!(
         started.per_frame[0].len() >= 3,
@@ -761,10 +759,8 @@ fn startup_rule_and_track_score_gate_change_what_is_written() {
     assert_eq!(started.per_frame[5..], plain.per_frame[5..]);
     // A mean-logit gate writes a subset, and only tracks whose written
     // scores (raw, in the result lines) are high on average.
-    let gated = TrackKittiOptions {
-        min_track_score: 5.0,
-        ..base
-    };
+    let mut gated = base;
+    gated.result.min_track_score = 5.0;
     let strict = track_sequence_with(&d.training, &d.detections, seq, &gated).unwrap();
     let count =
         |t: &limot::track_kitti::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
@@ -781,4 +777,80 @@ fn startup_rule_and_track_score_gate_change_what_is_written() {
         .filter(|s| s.iter().sum::<f64>() / (s.len() as f64) < 3.0)
         .count();
     assert!(low * 10 < per_track.len(), "{low} of {}", per_track.len());
+}
+
+/// `limot track-kitti`'s flags set every tracker option, and a bad value is
+/// refused naming the flag before any sequence is read.
+#[test]
+fn track_kitti_flags_set_the_tracker_options() {
+    let Some(root) = data_root() else { return };
+    let d = dirs(&root);
+    let scratch = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("track_kitti_flags");
+    let _ = std::fs::remove_dir_all(&scratch);
+    std::fs::create_dir_all(&scratch).unwrap();
+    let seqmap = scratch.join("seqmap");
+    let line = std::fs::read_to_string(d.training.join("evaluate_tracking.seqmap.val"))
+        .unwrap()
+        .lines()
+        .find(|l| l.starts_with("0001"))
+        .unwrap()
+        .to_string();
+    std::fs::write(&seqmap, line + "\n").unwrap();
+    let run = |extra: &[&str], out: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_limot"))
+            .arg("track-kitti")
+            .arg("--training")
+            .arg(&d.training)
+            .arg("--detections")
+            .arg(&d.detections)
+            .arg("--seqmap")
+            .arg(&seqmap)
+            .arg("--out")
+            .arg(scratch.join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let plain = run(&[], "plain");
+    let flagged = run(
+        &[
+            "--association",
+            "giou:-0.5",
+            "--extrapolation",
+            "constant-velocity",
+            "--revive-frames",
+            "2",
+            "--heading-rule",
+            "first",
+            "--offline-track-score",
+            "3",
+        ],
+        "flagged",
+    );
+    for out in [&plain, &flagged] {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(String::from_utf8_lossy(&out.stdout).contains("MOTA"));
+    }
+    let file = |out: &str| std::fs::read_to_string(scratch.join(out).join("0001.txt")).unwrap();
+    assert_ne!(file("plain"), file("flagged"), "the flags changed nothing");
+    for (flag, value) in [
+        ("--association", "giou:x"),
+        ("--association", "nearest"),
+        ("--extrapolation", "wobble"),
+        ("--heading-rule", "last"),
+    ] {
+        let out = run(&[flag, value], "bad");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{flag} {value}");
+        assert!(stderr.contains(flag), "{flag} {value}: {stderr}");
+    }
+    // A value the tracker's own validation refuses (a GIoU threshold is
+    // at least -1).
+    let out = run(&["--association", "giou:-3"], "bad");
+    assert!(!out.status.success());
+    assert!(!String::from_utf8_lossy(&out.stderr).is_empty());
 }

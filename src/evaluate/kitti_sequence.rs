@@ -27,12 +27,14 @@ use crate::eval::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
 use crate::eval::objects::object_scores;
 use crate::eval::{AlignMode, RpeDelta, pose_at};
 use crate::kitti::calib::Calib;
+use crate::kitti::detections::ScoreMap;
 use crate::kitti::detections::camera_box_to_lidar;
 use crate::kitti::labels::{TrackingLabel, read_labels};
 use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
 use crate::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
+use crate::track_kitti::ResultPolicy;
 use crate::track_kitti::{kitti_3d_clear_mot, lidar_poses};
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
@@ -52,6 +54,11 @@ pub struct KittiScoreOptions {
     /// How many ground-truth cars (most labelled frames first) a summary
     /// lists with their TP % and ATE (the paper's Table III protocol).
     pub longest_objects: usize,
+    /// Which tracks the result file holds (the tracker alone's rules, so the
+    /// two compare like with like).
+    pub result: ResultPolicy,
+    /// How the detections' raw scores were mapped (inverted for the lines).
+    pub score_map: ScoreMap,
 }
 
 impl Default for KittiScoreOptions {
@@ -59,6 +66,8 @@ impl Default for KittiScoreOptions {
         KittiScoreOptions {
             max_truth_pos_accuracy_m: 1.0,
             longest_objects: 3,
+            result: ResultPolicy::default(),
+            score_map: ScoreMap::Sigmoid,
         }
     }
 }
@@ -289,7 +298,8 @@ pub fn score_run(
         delay_s: tracking_frame_times(training, num_frames)?.frame_delay_s,
         elevation_correction_rad: declared_elevation_correction_rad(training)?,
     };
-    let labels = kitti_track_labels(output, &calib, label_frame).map_err(Box::new)?;
+    let labels = kitti_track_labels(output, &calib, label_frame, &opts.result, opts.score_map)
+        .map_err(Box::new)?;
     let results_file = write_kitti_tracks(results_dir, sequence, &labels).map_err(Box::new)?;
     let estimate: Vec<(f64, Isometry3<f64>)> = output
         .estimates
