@@ -39,6 +39,10 @@ Options worth knowing:
                             (SE(3)) to the time of its OXTS record (below).
                             In `frame` mode LABEL=FILE@DELAY says when in
                             sweep i a file's pose holds (stamp 0.1 i + DELAY).
+  --rpe-split               after the table, split each file's 10 m RPE into
+                            its along-track, lateral and vertical parts and
+                            the yaw of the relative rotation (RMS, mean),
+                            in the frame of each segment's start.
   --truth velocity          a diagnostic truth: the OXTS attitude with the
                             OXTS velocity integrated over the record spacing
                             that its heading and yaw rate imply (0.1036 s on
@@ -336,6 +340,34 @@ def score(ref_poses, est_poses, times):
     return out
 
 
+def rpe10_split(ref_poses, est_poses):
+    """RMS and mean of the 10 m relative error split into along-track,
+    lateral and vertical parts (m) and the relative yaw error (deg), each
+    segment from pose i to the first pose at least 10 m of reference path
+    later (evo's `pairs_from_reference`, without its 10 % tolerance)."""
+    xyz = np.array([p[:3, 3] for p in ref_poses])
+    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
+    parts = {"along": [], "lateral": [], "vertical": [], "yaw_deg": []}
+    for i in range(len(ref_poses)):
+        later = np.flatnonzero(path - path[i] >= 10.0)
+        if len(later) == 0:
+            break
+        j = later[0]
+        d_ref = np.linalg.inv(ref_poses[i]) @ ref_poses[j]
+        d_est = np.linalg.inv(est_poses[i]) @ est_poses[j]
+        err = d_est[:3, 3] - d_ref[:3, 3]  # in frame i
+        ahead = d_ref[:3, 3] / np.linalg.norm(d_ref[:3, 3])
+        up = np.array([0.0, 0.0, 1.0])
+        left = np.cross(up, ahead)
+        left /= np.linalg.norm(left)
+        parts["along"].append(err @ ahead)
+        parts["lateral"].append(err @ left)
+        parts["vertical"].append(err @ np.cross(ahead, left))
+        r_err = d_ref[:3, :3].T @ d_est[:3, :3]
+        parts["yaw_deg"].append(math.degrees(math.atan2(r_err[1, 0], r_err[0, 0])))
+    return {k: (float(np.sqrt(np.mean(np.square(v)))), float(np.mean(v))) for k, v in parts.items()}
+
+
 def limot_ms_per_frame(tum: Path):
     path = tum.parent / "timings.csv"
     if not path.is_file():
@@ -375,6 +407,7 @@ def main():
         help="score each estimate on every frame it covers (default: only the frames all cover, "
         "e.g. limot starts after its 10 initialisation frames, KISS-ICP at frame 0)",
     )
+    ap.add_argument("--rpe-split", action="store_true", help="split the 10 m RPE (see the module doc)")
     ap.add_argument(
         "estimates",
         nargs="*",
@@ -433,6 +466,16 @@ def main():
             f"| {m['rpe1']:12.4f} | {m['rpe10m']:12.3f} | {m['n']} | {m['est_path_m']:.2f}/{m['path_m']:.2f} | {ms_text:>8} |"
         )
     print(f"| paper LIMOT (Table I)        | {PAPER_LIMOT_ATE_T:13.3f} |")
+    if args.rpe_split:
+        print()
+        print("10 m RPE split, RMS (mean) per part, in the frame of each segment's start:")
+        print(f"| {'estimate':<28} | along [m] | lateral [m] | vertical [m] | yaw [deg] |")
+        print("|---|---|---|---|---|")
+        for (label, tum, delay, ms), a in zip(runs, at):
+            frames = sorted(set(a) & set(np.flatnonzero(keep))) if args.all_frames else common
+            ref, est, _ = paired(gt, frames, a)
+            cells = " | ".join(f"{rms:.3f} ({mean:+.3f})" for rms, mean in rpe10_split(ref, est).values())
+            print(f"| {label:<28} | {cells} |")
 
 
 if __name__ == "__main__":
