@@ -107,8 +107,14 @@ enum Command {
     TrackKitti(TrackKittiArgs),
     /// Re-render the report of `limot eval suite` from its results.json (no re-running).
     Report {
-        /// OUT/results.json of a suite, or the suite directory holding it.
-        results: PathBuf,
+        /// OUT/results.json of a suite, or the suite directory holding it;
+        /// with --merge, every shard's results file (OUT/results-shard-K-of-N.json).
+        #[arg(required = true, num_args = 1..)]
+        results: Vec<PathBuf>,
+        /// Join the results files of all shards of one suite into
+        /// OUT/results.json (OUT: their directory), then render the report.
+        #[arg(long)]
+        merge: bool,
         /// Report directory (default: the suite directory's report/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -200,6 +206,15 @@ enum EvalCommand {
         /// Output directory (datasets in OUT/data are reused when their scenario matches).
         #[arg(long, default_value = "reports/suite")]
         out: PathBuf,
+        /// Run only shard K of N (sequence i of the family-major list is in
+        /// shard i mod N + 1) into OUT/results-shard-K-of-N.json; join the
+        /// shards with `limot report --merge OUT/results-shard-*.json`.
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
+        /// Sequences run at once (default: one per core). Use 1 for the
+        /// per-stage times of a quiet machine; the scores do not change.
+        #[arg(long, value_name = "N")]
+        jobs: Option<usize>,
     },
     /// Real KITTI tracking data: every variant on each sequence with scans, the
     /// tracker alone on each with detections, scored against OXTS and label_02;
@@ -293,7 +308,11 @@ fn main() -> ExitCode {
         ),
         Command::Eval { what } => run_eval(what),
         Command::TrackKitti(args) => run_track_kitti(args),
-        Command::Report { results, out } => run_report(&results, out),
+        Command::Report {
+            results,
+            merge,
+            out,
+        } => run_report(&results, merge, out),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
             Ok(())
@@ -747,7 +766,17 @@ fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
             duration,
             variants,
             out,
-        } => run_eval_suite(&families, &seeds, duration, &variants, out)?,
+            shard,
+            jobs,
+        } => run_eval_suite(
+            &families,
+            &seeds,
+            duration,
+            &variants,
+            out,
+            shard.as_deref(),
+            jobs,
+        )?,
         EvalCommand::Kitti {
             training,
             detections,
@@ -780,9 +809,11 @@ fn run_eval_suite(
     duration_s: f64,
     variants: &str,
     out: PathBuf,
+    shard: Option<&str>,
+    jobs: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::report::Variant;
-    use limot::suite::{SuiteSpec, parse_list, run_suite};
+    use limot::suite::{Shard, SuiteSpec, parse_list, run_suite};
     let spec = SuiteSpec {
         families: parse_list("families", families, |s| Ok(s.to_string()))?,
         seeds: parse_list("seeds", seeds, |s| {
@@ -793,6 +824,8 @@ fn run_eval_suite(
             Variant::parse(s).map_err(|e| e.to_string())
         })?,
         out_dir: out,
+        shard: shard.map(Shard::parse).transpose()?,
+        jobs,
     };
     let runs = spec.families.len() * spec.seeds.len() * spec.variants.len();
     println!(
@@ -803,14 +836,45 @@ fn run_eval_suite(
         spec.out_dir.display()
     );
     let results = run_suite(&spec, true)?;
+    if let Some(shard) = spec.shard {
+        println!(
+            "shard {}/{}: {} sequence(s) in {}; join all shards with `limot report --merge {}`",
+            shard.index,
+            shard.count,
+            results.sequences.len(),
+            spec.out_dir.join(shard.results_file_name()).display(),
+            spec.out_dir.join("results-shard-*.json").display()
+        );
+        return Ok(());
+    }
     print_suite_report(&results, &spec.out_dir, &spec.out_dir.join("report"))
 }
 
-/// `limot report`: re-renders a suite report from its results.json.
+/// `limot report`: re-renders a suite report from its results.json, or
+/// joins the shards' results files first (`--merge`).
 fn run_report(
-    results: &std::path::Path,
+    results: &[PathBuf],
+    merge: bool,
     out: Option<PathBuf>,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    if merge {
+        let (merged, suite_dir) = limot::suite::merge_shards(results)?;
+        let file = merged.save(&suite_dir)?;
+        println!(
+            "merged {} shard(s), {} sequence(s): {}",
+            results.len(),
+            merged.sequences.len(),
+            file.display()
+        );
+        let out = out.unwrap_or_else(|| suite_dir.join("report"));
+        return print_suite_report(&merged, &suite_dir, &out);
+    }
+    let [results] = results else {
+        return Err(
+            "one results file or suite directory (or --merge with the shards' files)".into(),
+        );
+    };
+    let results = results.as_path();
     let file = if results.is_dir() {
         results.join(limot::suite::RESULTS_FILE)
     } else {

@@ -10,7 +10,15 @@
 //! data/<family>_s<seed>/            the simulated dataset (reused when its scenario.toml matches)
 //! runs/<family>_s<seed>/<variant>/  poses_tum.txt, tracks.csv, ... and kitti_results/0000.txt
 //! results.json                      SuiteResults (paths inside are relative to OUT)
+//! results-shard-K-of-N.json         instead, when only shard K of N ran (`--shard K/N`)
 //! ```
+//!
+//! Sequences run in parallel (`SuiteSpec::jobs` threads; the figures are
+//! those of a serial run, the per-stage times those of a busy machine: use
+//! one job for timing). A suite also splits into `N` independent shards
+//! (sequence `i` of the family-major list belongs to shard `i mod N + 1`),
+//! for array jobs on a cluster; [`merge_shards`] joins their results files
+//! into the one a whole run writes.
 //!
 //! A variant whose run or scoring fails is recorded with its error text and
 //! the suite goes on; so does a sequence whose simulation fails. Only a bad
@@ -99,6 +107,48 @@ pub struct SuiteSpec {
     pub duration_s: f64,
     pub variants: Vec<Variant>,
     pub out_dir: PathBuf,
+    /// Run only this shard's sequences (and save them as its own results file).
+    pub shard: Option<Shard>,
+    /// Sequences run at once; `None`: one per core.
+    pub jobs: Option<usize>,
+}
+
+/// Shard `index` (1-based) of `count`: the sequences at positions
+/// `index - 1, index - 1 + count, ...` of the family-major sequence list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `K/N` with 1 <= K <= N.
+    pub fn parse(text: &str) -> Result<Shard> {
+        let bad = || {
+            SuiteError::Spec(format!(
+                "shard `{text}`: expected K/N with 1 <= K <= N (e.g. 2/4)"
+            ))
+        };
+        let (k, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            k.trim().parse::<usize>().map_err(|_| bad())?,
+            n.trim().parse::<usize>().map_err(|_| bad())?,
+        );
+        if index == 0 || index > count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether the sequence at `position` of the whole list is this shard's.
+    pub fn holds(self, position: usize) -> bool {
+        position % self.count == self.index - 1
+    }
+
+    /// `results-shard-K-of-N.json`.
+    pub fn results_file_name(self) -> String {
+        format!("results-shard-{}-of-{}.json", self.index, self.count)
+    }
 }
 
 impl SuiteSpec {
@@ -127,6 +177,12 @@ impl SuiteSpec {
                 "duration must be a positive number of seconds, got {}",
                 self.duration_s
             )));
+        }
+        if let Some(shard) = self.shard {
+            Shard::parse(&format!("{}/{}", shard.index, shard.count))?;
+        }
+        if self.jobs == Some(0) {
+            return Err(SuiteError::Spec("jobs must be at least 1".into()));
         }
         Ok(())
     }
@@ -310,13 +366,19 @@ pub struct SuiteResults {
     pub duration_s: f64,
     #[serde(with = "variant_name::list")]
     pub variants: Vec<Variant>,
+    /// Set when only this shard's sequences are here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<Shard>,
     pub sequences: Vec<SequenceResult>,
 }
 
 impl SuiteResults {
-    /// Writes `dir/results.json`.
+    /// Writes `dir/results.json` (a shard's: `dir/results-shard-K-of-N.json`).
     pub fn save(&self, dir: &Path) -> Result<PathBuf> {
-        let path = dir.join(RESULTS_FILE);
+        let path = dir.join(
+            self.shard
+                .map_or_else(|| RESULTS_FILE.to_string(), Shard::results_file_name),
+        );
         let text = serde_json::to_string_pretty(self).map_err(|source| SuiteError::Json {
             path: path.clone(),
             source,
@@ -587,8 +649,13 @@ fn run_sequence(
         variants: Vec::new(),
     };
     bar.set_message(format!("{name}: simulate"));
-    let opened = bar
-        .suspend(|| ensure_dataset(scenario, &dataset_dir, progress))
+    // Inner progress bars (serial runs only) draw while the overall bar waits.
+    let simulated = if progress {
+        bar.suspend(|| ensure_dataset(scenario, &dataset_dir, progress))
+    } else {
+        ensure_dataset(scenario, &dataset_dir, progress)
+    };
+    let opened = simulated
         .and_then(|_| Ok(Dataset::open(&dataset_dir)?))
         .and_then(|d| {
             let moving = moving_objects(&d)?;
@@ -613,12 +680,18 @@ fn run_sequence(
         bar.set_message(format!("{name}: {}", variant.name()));
         let run_rel = Path::new("runs").join(&name).join(variant.name());
         let run_dir = spec.out_dir.join(&run_rel);
-        let outcome = bar.suspend(|| run_variant(&source, &dataset, variant, &run_dir, progress));
+        let outcome = if progress {
+            bar.suspend(|| run_variant(&source, &dataset, variant, &run_dir, progress))
+        } else {
+            run_variant(&source, &dataset, variant, &run_dir, progress)
+        };
         let (metrics, error) = match outcome {
             Ok(m) => (Some(m), None),
             Err(e) => (None, Some(error_chain(e.as_ref()))),
         };
-        if progress {
+        if bar.is_hidden() {
+            // no overall bar: no per-run line either
+        } else {
             let what = match (&metrics, &error) {
                 (Some(m), _) => format!(
                     "ATE_T {:.3} m, ATE_R {:.4} rad, {:.1} FPS",
@@ -662,17 +735,41 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
         }
     }
     fs::create_dir_all(&spec.out_dir).map_err(io_err(&spec.out_dir))?;
-    let total = scenarios.len() * spec.variants.len();
-    let bar = overall_bar(total, progress);
-    bar.set_prefix("suite");
-    let mut sequences = Vec::with_capacity(scenarios.len());
     // families in the given order, then seeds in the given order
-    for family in &spec.families {
-        for &seed in &spec.seeds {
-            let scenario = &scenarios[&(family.clone(), seed)];
-            sequences.push(run_sequence(spec, scenario, family, seed, &bar, progress));
-        }
-    }
+    let mine: Vec<(&String, u64)> = spec
+        .families
+        .iter()
+        .flat_map(|family| spec.seeds.iter().map(move |&seed| (family, seed)))
+        .enumerate()
+        .filter(|(position, _)| spec.shard.is_none_or(|s| s.holds(*position)))
+        .map(|(_, sequence)| sequence)
+        .collect();
+    let total = mine.len() * spec.variants.len();
+    let bar = overall_bar(total, progress);
+    bar.set_prefix(match spec.shard {
+        Some(s) => format!("shard {}/{}", s.index, s.count),
+        None => "suite".to_string(),
+    });
+    let jobs = spec
+        .jobs
+        .unwrap_or_else(rayon::current_num_threads)
+        .min(mine.len())
+        .max(1);
+    // Inner progress bars only when one sequence runs at a time.
+    let inner_progress = progress && jobs == 1;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .map_err(|e| SuiteError::Spec(format!("cannot start {jobs} threads: {e}")))?;
+    let sequences: Vec<SequenceResult> = pool.install(|| {
+        use rayon::prelude::*;
+        mine.par_iter()
+            .map(|(family, seed)| {
+                let scenario = &scenarios[&((*family).clone(), *seed)];
+                run_sequence(spec, scenario, family, *seed, &bar, inner_progress)
+            })
+            .collect()
+    });
     bar.finish_and_clear();
     let results = SuiteResults {
         format_version: RESULTS_FORMAT_VERSION,
@@ -680,10 +777,102 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
         seeds: spec.seeds.clone(),
         duration_s: spec.duration_s,
         variants: spec.variants.clone(),
+        shard: spec.shard,
         sequences,
     };
     results.save(&spec.out_dir)?;
     Ok(results)
+}
+
+/// Joins the results files of every shard of one suite (all `N` of them,
+/// each once, same families, seeds, duration and variants, in one
+/// directory, which the run paths inside are relative to) into the results
+/// of the whole suite, sequences in the order a whole run gives them.
+pub fn merge_shards(files: &[PathBuf]) -> Result<(SuiteResults, PathBuf)> {
+    let spec_err = |text: String| SuiteError::Spec(text);
+    let mut loaded = Vec::with_capacity(files.len());
+    for file in files {
+        loaded.push((file, SuiteResults::load(file)?));
+    }
+    let Some((first_file, (first, dir))) = loaded.first() else {
+        return Err(spec_err("no shard results files given".into()));
+    };
+    let count = first
+        .shard
+        .ok_or_else(|| spec_err(format!("{}: not a shard's results", first_file.display())))?
+        .count;
+    let mut seen = vec![false; count];
+    for (file, (r, r_dir)) in &loaded {
+        let shard = r
+            .shard
+            .ok_or_else(|| spec_err(format!("{}: not a shard's results", file.display())))?;
+        if shard.count != count {
+            return Err(spec_err(format!(
+                "{}: shard {}/{} of a suite split {} ways, {} of {count}",
+                file.display(),
+                shard.index,
+                shard.count,
+                shard.count,
+                first_file.display()
+            )));
+        }
+        if std::mem::replace(&mut seen[shard.index - 1], true) {
+            return Err(spec_err(format!(
+                "{}: shard {}/{count} given twice",
+                file.display(),
+                shard.index
+            )));
+        }
+        if (&r.families, &r.seeds, r.duration_s, &r.variants)
+            != (
+                &first.families,
+                &first.seeds,
+                first.duration_s,
+                &first.variants,
+            )
+        {
+            return Err(spec_err(format!(
+                "{}: families, seeds, duration or variants differ from {}",
+                file.display(),
+                first_file.display()
+            )));
+        }
+        if r_dir != dir {
+            return Err(spec_err(format!(
+                "{}: not in {} with the other shards (the run paths are relative to it)",
+                file.display(),
+                dir.display()
+            )));
+        }
+    }
+    if let Some(missing) = seen.iter().position(|s| !s) {
+        return Err(spec_err(format!(
+            "shard {}/{count} is missing",
+            missing + 1
+        )));
+    }
+    let mut by_name: BTreeMap<String, SequenceResult> = loaded
+        .iter()
+        .flat_map(|(_, (r, _))| r.sequences.iter().cloned())
+        .map(|s| (s.name.clone(), s))
+        .collect();
+    let mut sequences = Vec::with_capacity(by_name.len());
+    for family in &first.families {
+        for &seed in &first.seeds {
+            let name = sequence_name(family, seed);
+            sequences.push(
+                by_name
+                    .remove(&name)
+                    .ok_or_else(|| spec_err(format!("no shard holds sequence {name}")))?,
+            );
+        }
+    }
+    let merged = SuiteResults {
+        shard: None,
+        sequences,
+        ..first.clone()
+    };
+    Ok((merged, dir.clone()))
 }
 
 #[cfg(test)]
@@ -697,6 +886,8 @@ mod tests {
             duration_s: 4.0,
             variants: vec![Variant::Lio],
             out_dir: PathBuf::from("unused"),
+            shard: None,
+            jobs: None,
         }
     }
 

@@ -921,6 +921,7 @@ mod tests {
             seeds: vec![1, 2],
             duration_s: 4.0,
             variants: vec![Variant::Lio, Variant::Dynafilt, Variant::Limot],
+            shard: None,
             sequences: vec![
                 sequence(
                     "urban_s1",

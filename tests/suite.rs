@@ -3,7 +3,7 @@
 //! not available without aborting the suite.
 
 use limot::report::Variant;
-use limot::suite::{RESULTS_FILE, SuiteResults, SuiteSpec, run_suite};
+use limot::suite::{RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite};
 use limot::suite_report::write_suite_report;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -25,6 +25,8 @@ fn spec(out_dir: PathBuf, duration_s: f64, variants: Vec<Variant>) -> SuiteSpec 
         duration_s,
         variants,
         out_dir,
+        shard: None,
+        jobs: None,
     }
 }
 
@@ -236,4 +238,74 @@ fn copy_dir(from: &Path, to: &Path) {
             fs::copy(entry.path(), &target).unwrap();
         }
     }
+}
+
+/// The figures of a suite without its wall-clock measurements.
+fn without_timings(mut results: SuiteResults) -> SuiteResults {
+    for s in &mut results.sequences {
+        for v in &mut s.variants {
+            if let Some(m) = &mut v.metrics {
+                m.wall_time_s = 0.0;
+                m.fps = 0.0;
+                m.timings.clear();
+            }
+        }
+    }
+    results
+}
+
+#[test]
+fn shards_merged_give_the_whole_suite_run_in_parallel() {
+    let whole_out = scratch("whole");
+    let shards_out = scratch("shards");
+    let two_sequences = |out: PathBuf, shard: Option<&str>, jobs: usize| SuiteSpec {
+        families: vec!["urban".into(), "highway".into()],
+        seeds: vec![3],
+        duration_s: 2.0,
+        variants: vec![Variant::Lio],
+        out_dir: out,
+        shard: shard.map(|s| Shard::parse(s).unwrap()),
+        jobs: Some(jobs),
+    };
+    // both sequences at once, against one at a time in two shards
+    let whole = run_suite(&two_sequences(whole_out.clone(), None, 2), false).unwrap();
+    let names: Vec<&str> = whole.sequences.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["urban_s3", "highway_s3"]);
+    assert!(whole.sequences.iter().all(|s| s.error.is_none()));
+    for shard in ["2/2", "1/2"] {
+        let part = run_suite(&two_sequences(shards_out.clone(), Some(shard), 1), false).unwrap();
+        assert_eq!(part.sequences.len(), 1);
+    }
+    let file = |k| shards_out.join(format!("results-shard-{k}-of-2.json"));
+    let status = Command::new(env!("CARGO_BIN_EXE_limot"))
+        .arg("report")
+        .arg("--merge")
+        .args([file(2), file(1)])
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let (merged, dir) = SuiteResults::load(&shards_out).unwrap();
+    assert_eq!(dir, shards_out);
+    assert!(merged.shard.is_none());
+    assert_eq!(without_timings(merged), without_timings(whole));
+    assert!(shards_out.join("report").join("README.md").is_file());
+
+    // An incomplete, repeated or whole-suite file list is refused by name.
+    for (files, expected) in [
+        (vec![file(1)], "shard 2/2 is missing".to_string()),
+        (vec![file(1), file(1)], "given twice".to_string()),
+        (
+            vec![file(1), whole_out.join(RESULTS_FILE)],
+            format!("{}: not a shard", whole_out.join(RESULTS_FILE).display()),
+        ),
+    ] {
+        let err = merge_shards(&files).unwrap_err().to_string();
+        assert!(err.contains(&expected), "{err}");
+    }
+    assert!(Shard::parse("0/2").is_err() && Shard::parse("3/2").is_err());
+    assert!(Shard::parse("2").is_err() && Shard::parse("a/b").is_err());
 }
