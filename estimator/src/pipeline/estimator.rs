@@ -141,6 +141,28 @@ enum FeatureFilter {
 /// The streaming estimator. Feed IMU samples in time order with
 /// [`Estimator::push_imu`] and frames with [`Estimator::push_frame`] once the
 /// IMU covers the sweep (the IMU is extrapolated, with a flag, when it does not).
+/// The sizes of what an [`Estimator`] keeps between frames. Each is bounded
+/// by the configuration and the scene around the ego (keyframes within the
+/// map radius, the sliding window, the objects in view), never by how long
+/// it has run: `benches/long_drive.rs` follows them over a long drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Footprint {
+    /// IMU samples buffered for preintegration and initialisation.
+    pub imu_samples: usize,
+    pub map_keyframes: usize,
+    /// Edge plus planar points of the local map.
+    pub map_points: usize,
+    /// Frames in the sliding window.
+    pub window_frames: usize,
+    pub tracks: usize,
+    /// Tracks kept for revival.
+    pub lost_tracks: usize,
+    /// Objects in the joint graph.
+    pub objects: usize,
+    /// LiDAR-only frames held until the inertial initialisation.
+    pub bootstrap_frames: usize,
+}
+
 pub struct Estimator {
     config: EstimatorConfig,
     t_lidar_imu: Isometry3<f64>,
@@ -222,6 +244,20 @@ impl Estimator {
     /// score outside [0, 1]).
     pub fn invalid_detections(&self) -> u64 {
         self.invalid_detections
+    }
+
+    /// How much state the estimator holds now (see [`Footprint`]).
+    pub fn footprint(&self) -> Footprint {
+        Footprint {
+            imu_samples: self.imu.len(),
+            map_keyframes: self.map.keyframe_count(),
+            map_points: self.map.edge_cloud().len() + self.map.planar_cloud().len(),
+            window_frames: self.window_frames.len(),
+            tracks: self.tracker.tracks().len(),
+            lost_tracks: self.tracker.lost_tracks().len(),
+            objects: self.objects.len(),
+            bootstrap_frames: self.bootstrap_estimates.len() + self.bootstrap_mids.len(),
+        }
     }
 
     /// True once the ego state is initialised (always, in LiDAR-only mode).

@@ -10,5 +10,5 @@ pub mod objects;
 
 pub use config::{EstimatorConfig, Mode, Variant};
 pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
-pub use estimator::{Estimator, EstimatorError};
+pub use estimator::{Estimator, EstimatorError, Footprint};
 pub use objects::{ObjectEstimate, ObjectGraphConfig};
