@@ -12,7 +12,9 @@
 //! record; the vehicle frame is the IMU (OXTS) frame of `calib/SSSS.txt`.
 
 use crate::eval::EvalError;
-use crate::eval::realism::{RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare};
+use crate::eval::realism::{
+    RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare,
+};
 use crate::kitti::KittiError;
 use crate::kitti::calib::Calib;
 use crate::kitti::raw::RawDrive;
@@ -271,8 +273,20 @@ fn histogram_table(
     reference: Option<&crate::eval::realism::Histogram>,
     decimals: usize,
 ) {
-    let _ = writeln!(md, "\n| {label} | dataset % |{}", if reference.is_some() { " reference % |" } else { "" });
-    let _ = writeln!(md, "|---|---|{}", if reference.is_some() { "---|" } else { "" });
+    let _ = writeln!(
+        md,
+        "\n| {label} | dataset % |{}",
+        if reference.is_some() {
+            " reference % |"
+        } else {
+            ""
+        }
+    );
+    let _ = writeln!(
+        md,
+        "|---|---|{}",
+        if reference.is_some() { "---|" } else { "" }
+    );
     let last = h.fractions.len().saturating_sub(1);
     for (i, f) in h.fractions.iter().enumerate() {
         let lo = h.start + i as f64 * h.bin_width;
@@ -283,7 +297,11 @@ fn histogram_table(
         };
         let _ = write!(md, "| {bin} | {:.2} |", 100.0 * f);
         if let Some(r) = reference {
-            let _ = write!(md, " {:.2} |", 100.0 * r.fractions.get(i).copied().unwrap_or(0.0));
+            let _ = write!(
+                md,
+                " {:.2} |",
+                100.0 * r.fractions.get(i).copied().unwrap_or(0.0)
+            );
         }
         md.push('\n');
     }

@@ -39,7 +39,11 @@ fn assert_finite(stats: &RealismStats) {
         assert!((sum - 1.0).abs() < 1e-9, "{h:?}");
     }
     let share: f64 = stats.information_share_pct.iter().sum();
-    assert!((share - 100.0).abs() < 1e-6, "{:?}", stats.information_share_pct);
+    assert!(
+        (share - 100.0).abs() < 1e-6,
+        "{:?}",
+        stats.information_share_pct
+    );
 }
 
 #[test]
@@ -52,13 +56,23 @@ fn simulated_dataset_gives_finite_plausible_figures() {
     assert_eq!(stats.sweeps, SIM_FRAMES);
     assert_finite(stats);
     assert_eq!(stats.roll_change_deg.n, SIM_FRAMES - 1);
-    assert!(stats.roll_change_deg.p95 < 1.0 && stats.pitch_change_deg.p95 < 1.0, "{stats:?}");
+    assert!(
+        stats.roll_change_deg.p95 < 1.0 && stats.pitch_change_deg.p95 < 1.0,
+        "{stats:?}"
+    );
     let ground = &stats.ground_ring_displacement_m;
-    assert!(ground.n + stats.ground_pairs_skipped == SIM_FRAMES - 1, "{stats:?}");
+    assert!(
+        ground.n + stats.ground_pairs_skipped == SIM_FRAMES - 1,
+        "{stats:?}"
+    );
     assert!(stats.ground_pairs_skipped <= 2, "{stats:?}");
     assert!(ground.median >= 0.0 && ground.p95 < 0.5, "{ground:?}");
     let along = stats.information_share_pct[0];
-    assert!((1.0..99.0).contains(&along), "{:?}", stats.information_share_pct);
+    assert!(
+        (1.0..99.0).contains(&along),
+        "{:?}",
+        stats.information_share_pct
+    );
     assert!(stats.information_points > 10_000, "{stats:?}");
     assert!((3.0..40.0).contains(&stats.range_median_m), "{stats:?}");
     assert!((0.0..0.5).contains(&stats.range_beyond_far_fraction));
@@ -86,10 +100,17 @@ fn cli_writes_json_and_markdown_beside_a_reference() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let report: RealismReport =
         serde_json::from_str(&fs::read_to_string(out.join("realism.json")).unwrap()).unwrap();
-    assert_eq!(report.comparison.len(), report.dataset.stats.scalars().len());
+    assert_eq!(
+        report.comparison.len(),
+        report.dataset.stats.scalars().len()
+    );
     assert!(
         report
             .comparison
@@ -100,7 +121,10 @@ fn cli_writes_json_and_markdown_beside_a_reference() {
     );
     let md = fs::read_to_string(out.join("realism.md")).unwrap();
     assert!(md.contains("| along-track information share | % |"), "{md}");
-    assert!(md.contains("11 of 11 statistics within a factor of 2"), "{md}");
+    assert!(
+        md.contains("11 of 11 statistics within a factor of 2"),
+        "{md}"
+    );
     assert!(stdout.contains("realism.json"), "{stdout}");
 }
 
@@ -192,7 +216,10 @@ fn broken_input_is_an_error_naming_the_file() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(!run.status.success() && stderr.contains("000002.bin"), "{stderr}");
+    assert!(
+        !run.status.success() && stderr.contains("000002.bin"),
+        "{stderr}"
+    );
 }
 
 /// The real scans of KITTI tracking 0000 under the target directory.
@@ -204,7 +231,12 @@ fn kitti_training(data: &Path) -> PathBuf {
         .arg(&dest)
         .status()
         .unwrap_or_else(|e| panic!("{}: {e}", script.display()));
-    assert!(status.success(), "{} {} failed", script.display(), dest.display());
+    assert!(
+        status.success(),
+        "{} {} failed",
+        script.display(),
+        dest.display()
+    );
     dest
 }
 
@@ -221,13 +253,23 @@ fn real_kitti_0000_figures() {
     assert_finite(stats);
     // measured (docs/realism.md), with margin: a real car's attitude moves
     // ~0.1 deg per frame and its ground rings centimetres
-    assert!((0.02..0.5).contains(&stats.roll_change_deg.mean), "{stats:?}");
-    assert!((0.02..0.5).contains(&stats.pitch_change_deg.mean), "{stats:?}");
+    assert!(
+        (0.02..0.5).contains(&stats.roll_change_deg.mean),
+        "{stats:?}"
+    );
+    assert!(
+        (0.02..0.5).contains(&stats.pitch_change_deg.mean),
+        "{stats:?}"
+    );
     let ground = &stats.ground_ring_displacement_m;
     assert!((0.01..0.3).contains(&ground.median), "{ground:?}");
     assert!(stats.ground_pairs_skipped <= 2, "{stats:?}");
     let along = stats.information_share_pct[0];
-    assert!((25.0..60.0).contains(&along), "{:?}", stats.information_share_pct);
+    assert!(
+        (25.0..60.0).contains(&along),
+        "{:?}",
+        stats.information_share_pct
+    );
     assert!((100_000.0..140_000.0).contains(&stats.points_per_sweep_mean));
     assert!((4.0..30.0).contains(&stats.range_median_m), "{stats:?}");
 }

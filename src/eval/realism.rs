@@ -162,10 +162,26 @@ impl RealismStats {
     /// The scalar statistics compared with a reference: (key, unit, value).
     pub fn scalars(&self) -> Vec<(&'static str, &'static str, f64)> {
         vec![
-            ("roll change per frame, mean", "deg", self.roll_change_deg.mean),
-            ("roll change per frame, p95", "deg", self.roll_change_deg.p95),
-            ("pitch change per frame, mean", "deg", self.pitch_change_deg.mean),
-            ("pitch change per frame, p95", "deg", self.pitch_change_deg.p95),
+            (
+                "roll change per frame, mean",
+                "deg",
+                self.roll_change_deg.mean,
+            ),
+            (
+                "roll change per frame, p95",
+                "deg",
+                self.roll_change_deg.p95,
+            ),
+            (
+                "pitch change per frame, mean",
+                "deg",
+                self.pitch_change_deg.mean,
+            ),
+            (
+                "pitch change per frame, p95",
+                "deg",
+                self.pitch_change_deg.p95,
+            ),
             (
                 "ground-ring displacement, median",
                 "m",
@@ -323,13 +339,11 @@ fn least_squares_plane<'a>(points: impl Iterator<Item = &'a Vector3<f64>>) -> Op
         return None;
     }
     let sol = ata.cholesky()?.solve(&atz);
-    sol.iter()
-        .all(|v| v.is_finite())
-        .then_some(GroundPlane {
-            a: sol[0],
-            b: sol[1],
-            c: sol[2],
-        })
+    sol.iter().all(|v| v.is_finite()).then_some(GroundPlane {
+        a: sol[0],
+        b: sol[1],
+        c: sol[2],
+    })
 }
 
 /// A neighbourhood is a surface, not a line, when its second principal
@@ -555,7 +569,13 @@ impl RealismAccumulator {
             cell.1 += 1;
         }
         sums.into_iter()
-            .map(|(s, c)| if c > 0 { (s / c as f64) as f32 } else { f32::NAN })
+            .map(|(s, c)| {
+                if c > 0 {
+                    (s / c as f64) as f32
+                } else {
+                    f32::NAN
+                }
+            })
             .collect()
     }
 
@@ -596,22 +616,14 @@ impl RealismAccumulator {
     /// The statistics; fewer than two sweeps, no ground pair or no normal
     /// is an error.
     pub fn finish(self) -> Result<RealismStats, EvalError> {
-        let too_few = |what: &'static str, got: usize, need: usize| EvalError::TooFew {
-            what,
-            got,
-            need,
-        };
+        let too_few =
+            |what: &'static str, got: usize, need: usize| EvalError::TooFew { what, got, need };
         let roll = Spread::of(&self.roll_changes_deg)
             .ok_or_else(|| too_few("realism: sweeps", self.sweeps, 2))?;
         let pitch = Spread::of(&self.pitch_changes_deg)
             .ok_or_else(|| too_few("realism: sweeps", self.sweeps, 2))?;
-        let ground = Spread::of(&self.displacements_m).ok_or_else(|| {
-            too_few(
-                "realism: sweep pairs with ground in the near rings",
-                0,
-                1,
-            )
-        })?;
+        let ground = Spread::of(&self.displacements_m)
+            .ok_or_else(|| too_few("realism: sweep pairs with ground in the near rings", 0, 1))?;
         let trace = self.information.trace();
         if self.information_points == 0 || trace <= 0.0 {
             return Err(too_few("realism: above-ground points with a normal", 0, 1));
@@ -755,8 +767,12 @@ mod tests {
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
         for &(roll, pitch, wall) in sweeps {
             let attitude = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
-            acc.add_sweep(&sweep(roll, pitch, wall), &attitude, &UnitQuaternion::identity())
-                .unwrap();
+            acc.add_sweep(
+                &sweep(roll, pitch, wall),
+                &attitude,
+                &UnitQuaternion::identity(),
+            )
+            .unwrap();
         }
         acc.finish().unwrap()
     }
@@ -776,7 +792,10 @@ mod tests {
         let d = -HEIGHT_M; // plane n·p = d in the sensor frame
         let (a, b, c) = (d / n.z, -n.x / n.z, -n.y / n.z);
         assert!((plane.a - a).abs() < 2e-3, "{plane:?} vs {a}");
-        assert!((plane.b - b).abs() < 1e-4 && (plane.c - c).abs() < 1e-4, "{plane:?}");
+        assert!(
+            (plane.b - b).abs() < 1e-4 && (plane.c - c).abs() < 1e-4,
+            "{plane:?}"
+        );
     }
 
     #[test]
@@ -801,16 +820,25 @@ mod tests {
     fn a_wall_across_the_track_is_all_along_track_information_and_one_along_none() {
         let across = stats_of(&[(0.0, 0.0, Some(('x', 12.0))), (0.0, 0.0, Some(('x', 12.0)))]);
         assert!(across.information_points > 100);
-        assert!(across.information_share_pct[0] > 99.0, "{:?}", across.information_share_pct);
+        assert!(
+            across.information_share_pct[0] > 99.0,
+            "{:?}",
+            across.information_share_pct
+        );
         let along = stats_of(&[(0.0, 0.0, Some(('y', 6.0))), (0.0, 0.0, Some(('y', 6.0)))]);
-        assert!(along.information_share_pct[0] < 1.0, "{:?}", along.information_share_pct);
+        assert!(
+            along.information_share_pct[0] < 1.0,
+            "{:?}",
+            along.information_share_pct
+        );
         assert!(along.information_share_pct[1] > 99.0);
         // the vehicle frame counts: a sensor mounted yawed by 90 deg turns one into the other
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
         let yawed = UnitQuaternion::from_euler_angles(0.0, 0.0, PI / 2.0);
         for _ in 0..2 {
             let points = sweep(0.0, 0.0, Some(('y', 6.0)));
-            acc.add_sweep(&points, &UnitQuaternion::identity(), &yawed).unwrap();
+            acc.add_sweep(&points, &UnitQuaternion::identity(), &yawed)
+                .unwrap();
         }
         assert!(acc.finish().unwrap().information_share_pct[0] > 99.0);
     }
@@ -833,7 +861,10 @@ mod tests {
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
         let id = UnitQuaternion::identity();
         let err = acc.add_sweep(&[], &id, &id).unwrap_err().to_string();
-        assert!(err.contains("sweep[0]") && err.contains("no points"), "{err}");
+        assert!(
+            err.contains("sweep[0]") && err.contains("no points"),
+            "{err}"
+        );
         let mut points = sweep(0.0, 0.0, None);
         points[7].y = f32::NAN;
         let err = acc.add_sweep(&points, &id, &id).unwrap_err().to_string();
@@ -850,13 +881,22 @@ mod tests {
 
     #[test]
     fn comparison_ratios() {
-        let s = stats_of(&[(0.0, 0.0, Some(('x', 12.0))), (0.0, 0.001, Some(('x', 12.0)))]);
+        let s = stats_of(&[
+            (0.0, 0.0, Some(('x', 12.0))),
+            (0.0, 0.001, Some(('x', 12.0))),
+        ]);
         let same = compare(&s, &s);
-        assert!(same.iter().all(|c| c.ratio == 1.0 && c.within_factor_2), "{same:?}");
+        assert!(
+            same.iter().all(|c| c.ratio == 1.0 && c.within_factor_2),
+            "{same:?}"
+        );
         let mut half = s.clone();
         half.points_per_sweep_mean /= 3.0;
         let c = compare(&half, &s);
-        let pts = c.iter().find(|c| c.statistic.starts_with("points per sweep")).unwrap();
+        let pts = c
+            .iter()
+            .find(|c| c.statistic.starts_with("points per sweep"))
+            .unwrap();
         assert!((pts.ratio - 1.0 / 3.0).abs() < 1e-12 && !pts.within_factor_2);
     }
 
