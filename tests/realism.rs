@@ -144,9 +144,8 @@ fn small_copy(name: &str) -> PathBuf {
     first_lines("oxts/0000.txt");
     first_lines("times.txt");
     fs::copy(src.join("calib/0000.txt"), dst.join("calib/0000.txt")).unwrap();
-    for f in ["velodyne_elevation_correction_deg.txt"] {
-        fs::copy(src.join(f), dst.join(f)).unwrap();
-    }
+    let f = "velodyne_elevation_correction_deg.txt";
+    fs::copy(src.join(f), dst.join(f)).unwrap();
     for i in 0..3 {
         let f = format!("velodyne/0000/{i:06}.bin");
         fs::copy(src.join(&f), dst.join(&f)).unwrap();

@@ -763,7 +763,10 @@ mod tests {
         points
     }
 
-    fn stats_of(sweeps: &[(f64, f64, Option<(char, f64)>)]) -> RealismStats {
+    /// Roll, pitch (rad) and wall of a synthetic sweep.
+    type SweepSpec = (f64, f64, Option<(char, f64)>);
+
+    fn stats_of(sweeps: &[SweepSpec]) -> RealismStats {
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
         for &(roll, pitch, wall) in sweeps {
             let attitude = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
