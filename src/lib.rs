@@ -7,6 +7,7 @@ pub mod kitti;
 pub mod kitti_export;
 pub mod kitti_report;
 pub mod kitti_suite;
+pub mod realism;
 pub mod report;
 pub mod run;
 pub mod simulate;

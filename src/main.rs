@@ -119,6 +119,25 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Realism statistics of a sequence from its scans and ground truth alone (attitude
+    /// change, ground-ring displacement, along-track information, range/intensity), written
+    /// to OUT/realism.json and OUT/realism.md, optionally beside a reference (real KITTI).
+    Realism {
+        /// A limot dataset, its KITTI copy (DATASET/kitti) or a KITTI tracking `training` dir.
+        path: PathBuf,
+        /// Sequence of PATH's KITTI layout.
+        #[arg(long, default_value_t = 0)]
+        sequence: u32,
+        /// Output directory (default: DATASET/realism for a limot dataset, else reports/realism).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// A KITTI tracking `training` dir (or a dataset) to put beside PATH.
+        #[arg(long)]
+        reference: Option<PathBuf>,
+        /// Sequence of the reference.
+        #[arg(long, default_value_t = 0)]
+        reference_sequence: u32,
+    },
     /// Print the version of every component.
     Version,
 }
@@ -313,6 +332,22 @@ fn main() -> ExitCode {
             merge,
             out,
         } => run_report(&results, merge, out),
+        Command::Realism {
+            path,
+            sequence,
+            out,
+            reference,
+            reference_sequence,
+        } => limot::realism::run_realism(&limot::realism::RealismOptions {
+            path,
+            sequence,
+            out,
+            reference,
+            reference_sequence,
+            progress: true,
+        })
+        .map(|_| ())
+        .map_err(Into::into),
         Command::Version => {
             println!("limot {}", env!("CARGO_PKG_VERSION"));
             Ok(())

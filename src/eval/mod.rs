@@ -16,6 +16,7 @@ pub mod interpolate;
 pub mod iou;
 pub mod kitti_mot;
 pub mod objects;
+pub mod realism;
 pub mod rpe;
 pub mod samota;
 pub mod timing;
