@@ -430,17 +430,8 @@ fn run_variant(
         .collect();
     let dataset = limot_sim::record::Dataset::open(dataset_dir)?;
     let (calib, _) = crate::evaluate::tracks::dataset_calib(&dataset, 0)?;
-    let results = crate::run::write_kitti_tracks(
-        &run_dir.join("kitti_results"),
-        0,
-        &crate::run::kitti_track_labels(
-            &output,
-            &calib,
-            Default::default(),
-            &crate::track_kitti::ResultPolicy::default(),
-            crate::kitti::detections::ScoreMap::Clamp01,
-        )?,
-    )?;
+    let results =
+        crate::run::write_dataset_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
     let tracks_eval = crate::evaluate::tracks::evaluate_tracks(
         dataset_dir,
         &results,

@@ -615,17 +615,8 @@ fn run_estimator(
     }
     if let Source::Dataset(dataset) = &source {
         let (calib, _) = limot::evaluate::tracks::dataset_calib(dataset, 0)?;
-        let results = limot::run::write_kitti_tracks(
-            &out.join("kitti_results"),
-            0,
-            &limot::run::kitti_track_labels(
-                &output,
-                &calib,
-                Default::default(),
-                &limot::track_kitti::ResultPolicy::default(),
-                limot::kitti::detections::ScoreMap::Clamp01,
-            )?,
-        )?;
+        let results =
+            limot::run::write_dataset_kitti_tracks(&out.join("kitti_results"), &output, &calib)?;
         let e = evaluate_tracks(
             dataset_dir_of(dataset),
             &results,

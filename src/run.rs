@@ -604,6 +604,25 @@ pub fn kitti_track_labels(
     Ok(labels)
 }
 
+/// The KITTI tracking result file `dir/0000.txt` of a run on a limot
+/// dataset (whose KITTI copy is sequence 0 with `calib`): the tracks
+/// [`kitti_track_labels`] writes by default; the simulated detector's scores
+/// are probabilities already. Returns the file.
+pub fn write_dataset_kitti_tracks(
+    dir: &Path,
+    output: &RunOutput,
+    calib: &crate::kitti::calib::Calib,
+) -> Result<PathBuf, RunError> {
+    let labels = kitti_track_labels(
+        output,
+        calib,
+        LabelFrame::default(),
+        &crate::track_kitti::ResultPolicy::default(),
+        crate::kitti::detections::ScoreMap::Clamp01,
+    )?;
+    write_kitti_tracks(dir, 0, &labels)
+}
+
 /// Writes `labels` as the KITTI tracking result file `DIR/SSSS.txt` of
 /// `sequence`. Returns the file.
 pub fn write_kitti_tracks(

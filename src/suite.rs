@@ -31,9 +31,7 @@ use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
 use crate::evaluate::filtering::{FilterEvaluation, evaluate_filtering};
 use crate::evaluate::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::report::Variant;
-use crate::run::{
-    RunOptions, RunOutput, Source, kitti_track_labels, run, write_kitti_tracks, write_output,
-};
+use crate::run::{RunOptions, RunOutput, Source, run, write_dataset_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use indicatif::{ProgressBar, ProgressStyle};
 use limot_estimator::pipeline::EstimatorConfig;
@@ -580,17 +578,7 @@ fn run_variant(
     write_output(run_dir, &output)?;
     let filtering = evaluate_filtering(dataset, &output)?;
     let (calib, _) = dataset_calib(dataset, 0)?;
-    let results = write_kitti_tracks(
-        &run_dir.join("kitti_results"),
-        0,
-        &kitti_track_labels(
-            &output,
-            &calib,
-            Default::default(),
-            &crate::track_kitti::ResultPolicy::default(),
-            crate::kitti::detections::ScoreMap::Clamp01,
-        )?,
-    )?;
+    let results = write_dataset_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
     let ego = evaluate_ego(
         &dataset.dir,
         &run_dir.join("poses_tum.txt"),

@@ -41,19 +41,9 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
         if variant == Variant::Dynafilt {
             // The tracks, as KITTI tracking results, scored against the truth.
             let (calib, _) = limot::evaluate::tracks::dataset_calib(&dataset, 0).unwrap();
-            let results = limot::run::write_kitti_tracks(
-                &dir.join("kitti_results"),
-                0,
-                &limot::run::kitti_track_labels(
-                    &output,
-                    &calib,
-                    Default::default(),
-                    &limot::track_kitti::ResultPolicy::default(),
-                    limot::kitti::detections::ScoreMap::Clamp01,
-                )
-                .unwrap(),
-            )
-            .unwrap();
+            let results =
+                limot::run::write_dataset_kitti_tracks(&dir.join("kitti_results"), &output, &calib)
+                    .unwrap();
             // Each result line carries its frame's detection score.
             let lines = limot::kitti::labels::read_labels(&results).unwrap();
             assert!(lines.len() > 1000, "{}", lines.len());

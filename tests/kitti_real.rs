@@ -12,7 +12,6 @@ use limot::kitti_suite::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::report::Variant;
 use limot::track_kitti::kitti_val_tuned_options;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 mod common;
 
@@ -23,24 +22,9 @@ const FRAMES: usize = 154;
 /// dir, once per test process (the tests run in parallel).
 fn training_dir(data: &Path) -> PathBuf {
     static UNPACKED: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    UNPACKED.get_or_init(|| unpack(data)).clone()
-}
-
-fn unpack(data: &Path) -> PathBuf {
-    let dest = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_training");
-    let script = data.join("unpack-kitti.sh");
-    let status = Command::new("bash")
-        .arg(&script)
-        .arg(&dest)
-        .status()
-        .unwrap_or_else(|e| panic!("{}: {e}", script.display()));
-    assert!(
-        status.success(),
-        "{} {} failed",
-        script.display(),
-        dest.display()
-    );
-    dest
+    UNPACKED
+        .get_or_init(|| common::kitti_training(data))
+        .clone()
 }
 
 fn run_all_variants() -> Option<KittiSuiteResults> {

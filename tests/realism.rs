@@ -221,30 +221,12 @@ fn broken_input_is_an_error_naming_the_file() {
     );
 }
 
-/// The real scans of KITTI tracking 0000 under the target directory.
-fn kitti_training(data: &Path) -> PathBuf {
-    let dest = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_training");
-    let script = data.join("unpack-kitti.sh");
-    let status = Command::new("bash")
-        .arg(&script)
-        .arg(&dest)
-        .status()
-        .unwrap_or_else(|e| panic!("{}: {e}", script.display()));
-    assert!(
-        status.success(),
-        "{} {} failed",
-        script.display(),
-        dest.display()
-    );
-    dest
-}
-
 #[test]
 fn real_kitti_0000_figures() {
     let Some(data) = common::data_root("real KITTI scans (realism of sequence 0000)") else {
         return;
     };
-    let training = kitti_training(&data);
+    let training = common::kitti_training(&data);
     let s = analyze_sequence(&training, 0, &RealismConfig::default(), false).unwrap();
     let stats = &s.stats;
     eprintln!("{stats:#?}");

@@ -20,6 +20,27 @@ pub fn data_root(what: &str) -> Option<PathBuf> {
     }
 }
 
+#[allow(dead_code)] // not every test binary reads the real scans
+/// A KITTI tracking `training` directory with the real scans of 0000,
+/// unpacked by `DATA/unpack-kitti.sh` under the test target's temporary
+/// directory; a failing unpack fails the test.
+pub fn kitti_training(data: &std::path::Path) -> PathBuf {
+    let dest = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_training");
+    let script = data.join("unpack-kitti.sh");
+    let status = std::process::Command::new("bash")
+        .arg(&script)
+        .arg(&dest)
+        .status()
+        .unwrap_or_else(|e| panic!("{}: {e}", script.display()));
+    assert!(
+        status.success(),
+        "{} {} failed",
+        script.display(),
+        dest.display()
+    );
+    dest
+}
+
 /// Simulates `spec` into a fresh temporary dataset directory named after
 /// `name` and the process.
 #[allow(dead_code)] // not every test binary simulates
