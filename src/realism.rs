@@ -121,11 +121,16 @@ pub fn analyze_sequence(
     for (i, (frame, t_world_lidar)) in drive.velodyne.iter().zip(&poses).enumerate() {
         let scan = drive.scan(i)?;
         let r_level_lidar = r_level_world * t_world_lidar.rotation;
-        acc.add_sweep(&scan.points, &r_level_lidar, &r_vehicle_lidar)
-            .map_err(|source| RealismError::Eval {
-                path: frame.path.clone(),
-                source,
-            })?;
+        acc.add_sweep(
+            &scan.points,
+            &r_level_lidar,
+            &t_world_lidar.translation.vector,
+            &r_vehicle_lidar,
+        )
+        .map_err(|source| RealismError::Eval {
+            path: frame.path.clone(),
+            source,
+        })?;
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -208,15 +213,16 @@ impl RealismReport {
         let _ = writeln!(
             md,
             "\nInformation share x / y / z (vehicle frame): {x:.1} / {y:.1} / {z:.1} % \
-             ({} points with a normal); ground pairs skipped: {}.",
-            stats.information_points, stats.ground_pairs_skipped
+             ({} points with a normal); ground pairs skipped: {}; sweep pairs standing \
+             (not in the attitude and ground-ring figures): {}.",
+            stats.information_points, stats.ground_pairs_skipped, stats.standing_pairs
         );
         if let Some(r) = &self.reference {
             let [x, y, z] = r.stats.information_share_pct;
             let _ = writeln!(
                 md,
-                "Reference: {x:.1} / {y:.1} / {z:.1} %; ground pairs skipped: {}.",
-                r.stats.ground_pairs_skipped
+                "Reference: {x:.1} / {y:.1} / {z:.1} %; ground pairs skipped: {}; standing: {}.",
+                r.stats.ground_pairs_skipped, r.stats.standing_pairs
             );
         }
         let reference = self.reference.as_ref().map(|r| &r.stats);

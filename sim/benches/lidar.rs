@@ -46,6 +46,7 @@ fn bench_scene() -> Scene {
             wave_vector: Vector2::new(0.03, 0.01),
             phase_rad: 0.2,
         }],
+        ..Ground::flat(0.0)
     };
     // a street: building boxes on both sides, poles and trees between
     let mut statics = Vec::new();

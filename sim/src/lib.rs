@@ -3,11 +3,13 @@
 //! exact ground truth. Knows nothing about estimation.
 
 pub mod detector;
+mod fast_trig;
 pub mod hdl64;
 pub mod imu;
 pub mod lidar;
 pub mod lidar_scan;
 pub mod record;
+pub mod roughness;
 pub mod scenario;
 pub mod scene;
 pub mod simulation;

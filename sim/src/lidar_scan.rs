@@ -7,10 +7,15 @@
 //! [`crate::hdl64`]). Each point carries the ground-truth instance id of what
 //! it hit (0 = static scene).
 //!
-//! Intensity = surface reflectivity x |cos(incidence)|, in [0, 1]. The
-//! reflectivities are rough Velodyne-like values: road 0.15, tree crown 0.2,
-//! tree trunk 0.25, building and wall 0.3, pole 0.5, guard rail and sign 0.8
-//! (retro-reflective), car and truck 0.5, cyclist 0.4, pedestrian 0.3.
+//! Intensity, in [0, 1], models the HDL-64E's calibrated reflectance as
+//! KITTI stores it: surface reflectivity x (0.8 + 0.2 |cos(incidence)|)
+//! (asphalt returns nearly as bright at grazing incidence as head-on) x a
+//! range falloff `1 / (1 + (r / 45 m)^4)` (returns beyond ~50 m are faint)
+//! x the laser's own gain (log-normal, sigma 0.25, fixed per sensor seed)
+//! x a per-return speckle (log-normal, sigma 0.35). Reflectivities: road
+//! 0.22, tree crown 0.3, tree trunk and building 0.3, wall 0.35, pole 0.4,
+//! guard rail 0.5, sign 0.9 (retro-reflective), car 0.3, truck 0.35,
+//! cyclist and pedestrian 0.3.
 //!
 //! Determinism: column `c` of frame `f` draws its noise from a ChaCha8 stream
 //! keyed by (seed, f) with stream number `c`, and columns are concatenated in
@@ -58,7 +63,16 @@ pub struct LidarSimulator {
     seed: u64,
     /// Unit directions in the LiDAR frame for azimuth 0, per beam: (cos el, sin el).
     elevation_cos_sin: [(f64, f64); NUM_LASERS],
+    /// Intensity gain of each beam's laser.
+    laser_gain: [f64; NUM_LASERS],
 }
+
+/// ChaCha stream (of the LiDAR seed) of the per-laser intensity gains; the
+/// columns' noise streams are keyed by frame and never use it.
+const LASER_GAIN_STREAM: u64 = u64::MAX;
+/// Log-normal sigma of a laser's intensity gain and of a return's speckle.
+const LASER_GAIN_SIGMA: f64 = 0.25;
+const SPECKLE_SIGMA: f64 = 0.35;
 
 /// Columns per rayon task: enough work to amortise scheduling.
 const COLUMNS_PER_TASK: usize = 16;
@@ -68,10 +82,17 @@ impl LidarSimulator {
         validate(&config)?;
         let table = elevation_table_rad();
         let elevation_cos_sin = table.map(|el| (el.cos(), el.sin()));
+        let mut gains = ChaCha8Rng::seed_from_u64(seed);
+        gains.set_stream(LASER_GAIN_STREAM);
+        let laser_gain = std::array::from_fn(|_| {
+            let n: f64 = gains.sample(StandardNormal);
+            (LASER_GAIN_SIGMA * n).exp()
+        });
         Ok(LidarSimulator {
             config,
             seed,
             elevation_cos_sin,
+            laser_gain,
         })
     }
 
@@ -166,9 +187,10 @@ impl LidarSimulator {
         for (beam, &(cos_el, sin_el)) in self.elevation_cos_sin.iter().enumerate() {
             let dir_lidar = Vector3::new(cos_el * cos_az, cos_el * sin_az, sin_el);
             let dir_world = Unit::new_unchecked(t_world_lidar.rotation * dir_lidar);
-            // two draws per beam, hit or not, so the stream layout is fixed
+            // three draws per beam, hit or not, so the stream layout is fixed
             let noise: f64 = rng.sample(StandardNormal);
             let dropout: f64 = rng.random();
+            let speckle: f64 = rng.sample(StandardNormal);
             let Some(hit) = snapshot.cast_ray(&origin_world, &dir_world, cfg.max_range_m) else {
                 continue;
             };
@@ -185,7 +207,11 @@ impl LidarSimulator {
                     x: p.x as f32,
                     y: p.y as f32,
                     z: p.z as f32,
-                    intensity: intensity(&hit, &dir_world) as f32,
+                    intensity: intensity(
+                        &hit,
+                        &dir_world,
+                        self.laser_gain[beam] * (SPECKLE_SIGMA * speckle).exp(),
+                    ) as f32,
                     ring: ring_of_beam(beam),
                     time_offset_s: tau_s as f32,
                 },
@@ -268,25 +294,30 @@ fn column_rng(seed: u64, frame_index: u64, column: usize) -> ChaCha8Rng {
 /// Diffuse reflectivity of a surface kind (see the module docs).
 pub fn reflectivity(surface: Surface) -> f64 {
     match surface {
-        Surface::Ground => 0.15,
+        Surface::Ground => 0.22,
         Surface::Static(kind) => match kind {
-            StaticKind::Building | StaticKind::Wall => 0.3,
-            StaticKind::GuardRail | StaticKind::Sign => 0.8,
-            StaticKind::Pole => 0.5,
-            StaticKind::TreeTrunk => 0.25,
-            StaticKind::TreeCrown => 0.2,
+            StaticKind::Building | StaticKind::TreeTrunk | StaticKind::TreeCrown => 0.3,
+            StaticKind::Wall => 0.35,
+            StaticKind::Pole => 0.4,
+            StaticKind::GuardRail => 0.5,
+            StaticKind::Sign => 0.9,
         },
         Surface::Agent(class) => match class {
-            ObjectClass::Car | ObjectClass::Truck => 0.5,
-            ObjectClass::Cyclist => 0.4,
-            ObjectClass::Pedestrian => 0.3,
+            ObjectClass::Truck => 0.35,
+            ObjectClass::Car | ObjectClass::Cyclist | ObjectClass::Pedestrian => 0.3,
         },
     }
 }
 
-fn intensity(hit: &RayHit, dir_world: &Unit<Vector3<f64>>) -> f64 {
+/// Range at which the intensity falloff halves a return, m.
+const INTENSITY_FALLOFF_RANGE_M: f64 = 45.0;
+
+/// The stored intensity of a hit (module docs); `gain` is the laser's gain
+/// times the return's speckle.
+fn intensity(hit: &RayHit, dir_world: &Unit<Vector3<f64>>, gain: f64) -> f64 {
     let cos_incidence = hit.normal_world.dot(dir_world).abs();
-    (reflectivity(hit.surface) * cos_incidence).clamp(0.0, 1.0)
+    let falloff = 1.0 / (1.0 + (hit.range_m / INTENSITY_FALLOFF_RANGE_M).powi(4));
+    (reflectivity(hit.surface) * (0.8 + 0.2 * cos_incidence) * falloff * gain).clamp(0.0, 1.0)
 }
 
 #[cfg(test)]
@@ -335,6 +366,7 @@ mod tests {
             .collect();
         assert!(expected.len() > 20 && expected.len() < 60);
         assert_eq!(sweep.scan.points.len(), 100 * expected.len());
+        let mut log_gains = Vec::new();
         for (p, &label) in sweep.scan.points.iter().zip(&sweep.labels) {
             let range = p.position().norm();
             assert!((4.5..=30.0).contains(&range), "{range}");
@@ -342,8 +374,19 @@ mod tests {
             assert_eq!(label, 0);
             // ground at the LiDAR height below, exactly (f32 storage)
             assert!((p.z as f64 + lidar_height_m).abs() < 1e-5);
-            assert!((p.intensity as f64 - 0.15 * (-p.z as f64 / range)).abs() < 1e-6);
+            // intensity: the surface model times a log-normal gain
+            let cos_incidence = -p.z as f64 / range;
+            let falloff = 1.0 / (1.0 + (range / INTENSITY_FALLOFF_RANGE_M).powi(4));
+            let model = reflectivity(Surface::Ground) * (0.8 + 0.2 * cos_incidence) * falloff;
+            assert!(p.intensity > 0.0 && p.intensity <= 1.0);
+            log_gains.push((p.intensity as f64 / model).ln());
         }
+        let n = log_gains.len() as f64;
+        let mean = log_gains.iter().sum::<f64>() / n;
+        let sd = (log_gains.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / n).sqrt();
+        // ~30 lasers' gains (sigma 0.25) and per-return speckle (0.35)
+        let want_sd = (LASER_GAIN_SIGMA.powi(2) + SPECKLE_SIGMA.powi(2)).sqrt();
+        assert!(mean.abs() < 0.15 && (sd - want_sd).abs() < 0.1, "{mean} {sd}");
     }
 
     #[test]

@@ -83,6 +83,18 @@ pub struct GroundParams {
     /// Each undulation's amplitude is capped so that its own grade stays below
     /// this (keeps roads driveable for short wavelengths), per cent.
     pub undulation_grade_max_percent: f64,
+    /// Road roughness: ISO 8608 displacement PSD at 0.1 cycles/m, m³
+    /// (class A 16e-6, B 64e-6, C 256e-6); 0 = a smooth road.
+    pub roughness_psd_m3: f64,
+    /// Wavelength band of the roughness, m (0.25..=64).
+    pub roughness_wavelength_min_m: f64,
+    pub roughness_wavelength_max_m: f64,
+    /// Camber: the road's centre line is this much above the terrain far
+    /// to its sides (a Gaussian ridge); 0 = none.
+    pub crown_height_m: f64,
+    /// Standard deviation of the crown's ridge, m: the steepest cross slope
+    /// (0.61 height / width) is this far from the centre line.
+    pub crown_width_m: f64,
 }
 
 impl Default for GroundParams {
@@ -96,6 +108,11 @@ impl Default for GroundParams {
             wavelength_min_m: 100.0,
             wavelength_max_m: 400.0,
             undulation_grade_max_percent: 2.0,
+            roughness_psd_m3: 64e-6,
+            roughness_wavelength_min_m: 0.3,
+            roughness_wavelength_max_m: 20.0,
+            crown_height_m: 0.25,
+            crown_width_m: 7.0,
         }
     }
 }
@@ -306,6 +323,15 @@ fn invalid(field: impl Into<String>, message: impl Into<String>) -> ScenarioErro
     }
 }
 
+/// The built-in urban streets: rougher than the default (highway) road,
+/// between ISO 8608 classes B and C.
+fn urban_ground() -> GroundParams {
+    GroundParams {
+        roughness_psd_m3: 128e-6,
+        ..GroundParams::default()
+    }
+}
+
 const BUILTIN_NAMES: &[&str] = &["highway", "urban", "highway-dense", "urban-parked"];
 
 impl ScenarioSpec {
@@ -330,6 +356,7 @@ impl ScenarioSpec {
                 ..base(Family::Highway, 1)
             }),
             "urban" => Some(ScenarioSpec {
+                ground: urban_ground(),
                 urban: Some(UrbanParams::default()),
                 ..base(Family::Urban, 2)
             }),
@@ -365,6 +392,7 @@ impl ScenarioSpec {
                     pole_spacing_m: 60.0,
                     ..UrbanParams::default()
                 }),
+                ground: urban_ground(),
                 ..base(Family::Urban, 1)
             }),
             _ => None,
@@ -597,7 +625,16 @@ fn validate_ground(g: &GroundParams) -> Result<(), ScenarioError> {
         g.undulation_grade_max_percent,
         0.0,
         8.0,
-    )
+    )?;
+    in_range("ground.roughness_psd_m3", g.roughness_psd_m3, 0.0, 0.01)?;
+    range_pair(
+        "ground",
+        ("roughness_wavelength_min_m", g.roughness_wavelength_min_m),
+        ("roughness_wavelength_max_m", g.roughness_wavelength_max_m),
+        (0.25, 64.0),
+    )?;
+    in_range("ground.crown_height_m", g.crown_height_m, 0.0, 2.0)?;
+    in_range("ground.crown_width_m", g.crown_width_m, 1.0, 100.0)
 }
 
 fn validate_ego(e: &EgoSpec, duration_s: f64) -> Result<(), ScenarioError> {

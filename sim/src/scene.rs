@@ -2,6 +2,7 @@
 //! parked agents, and the ego vehicle. Built by `scenario`, consumed by
 //! `world` (ray casting), `imu`, `detector` and `record`.
 
+use crate::roughness::Roughness;
 use crate::trajectory::Trajectory;
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
@@ -9,8 +10,10 @@ use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 /// Instance id of everything that is not an agent (ground, buildings, ...).
 pub const STATIC_INSTANCE_ID: u32 = 0;
 
-/// A smooth ground height field z = h(x, y): a plane plus a few gentle
-/// sinusoidal undulations, so pitch and z move along any drive.
+/// The ground height field z = h(x, y): the terrain (a plane plus a few
+/// gentle sinusoidal undulations, so pitch and z move along any drive) and
+/// the road's detail on it (an optional crown, i.e. camber, and an optional
+/// roughness texture).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ground {
     /// Height at the origin.
@@ -18,6 +21,8 @@ pub struct Ground {
     /// Constant slope (dz/dx, dz/dy).
     pub slope: Vector2<f64>,
     pub undulations: Vec<Undulation>,
+    pub crown: Option<Crown>,
+    pub roughness: Option<Roughness>,
 }
 
 /// One term `amplitude * sin(k . (x, y) + phase)`.
@@ -29,40 +34,122 @@ pub struct Undulation {
     pub phase_rad: f64,
 }
 
+/// A road crown: a ridge along a straight axis,
+/// `-height l² / (l² + width²)` at lateral distance `l`, so the carriageway
+/// falls away to both sides (camber) and the terrain far from the axis lies
+/// `height` below it. Never above 0; the steepest cross slope,
+/// `0.65 height / width`, is at `l = width / √3`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Crown {
+    /// A point of the axis.
+    pub axis_point: Vector2<f64>,
+    /// Unit normal of the axis in the plane (the lateral direction).
+    pub lateral: Vector2<f64>,
+    pub height_m: f64,
+    pub width_m: f64,
+}
+
+impl Crown {
+    /// Height offset and its gradient at (x, y).
+    pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, Vector2<f64>) {
+        let l = self.lateral.dot(&(Vector2::new(x, y) - self.axis_point));
+        let w2 = self.width_m * self.width_m;
+        let q = 1.0 / (l * l + w2);
+        (
+            -self.height_m * l * l * q,
+            self.lateral * (-2.0 * self.height_m * l * w2 * q * q),
+        )
+    }
+}
+
 impl Ground {
     pub fn flat(height_m: f64) -> Ground {
         Ground {
             base_height_m: height_m,
             slope: Vector2::zeros(),
             undulations: Vec::new(),
+            crown: None,
+            roughness: None,
         }
     }
 
     pub fn height(&self, x: f64, y: f64) -> f64 {
-        let p = Vector2::new(x, y);
-        self.base_height_m
-            + self.slope.dot(&p)
-            + self
-                .undulations
-                .iter()
-                .map(|u| u.amplitude_m * (u.wave_vector.dot(&p) + u.phase_rad).sin())
-                .sum::<f64>()
+        self.height_and_gradient(x, y).0
     }
 
     /// (dh/dx, dh/dy).
     pub fn gradient(&self, x: f64, y: f64) -> Vector2<f64> {
-        let p = Vector2::new(x, y);
-        self.slope
-            + self
-                .undulations
-                .iter()
-                .map(|u| {
-                    u.wave_vector * (u.amplitude_m * (u.wave_vector.dot(&p) + u.phase_rad).cos())
-                })
-                .sum::<Vector2<f64>>()
+        let (_, gx, gy) = self.height_and_gradient(x, y);
+        Vector2::new(gx, gy)
     }
 
-    /// Second derivatives [[h_xx, h_xy], [h_xy, h_yy]].
+    /// Height and gradient in one pass: terrain plus detail.
+    pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
+        let (h, gx, gy) = self.terrain_height_and_gradient(x, y);
+        let (dh, dx, dy) = self.detail_height_and_gradient(x, y);
+        (h + dh, gx + dx, gy + dy)
+    }
+
+    /// The large-scale terrain: plane and undulations (one sin_cos per
+    /// undulation).
+    pub fn terrain_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
+        let mut h = self.base_height_m + self.slope.x * x + self.slope.y * y;
+        let (mut gx, mut gy) = (self.slope.x, self.slope.y);
+        for u in &self.undulations {
+            let (sin, cos) =
+                crate::fast_trig::sin_cos(u.wave_vector.x * x + u.wave_vector.y * y + u.phase_rad);
+            h += u.amplitude_m * sin;
+            gx += u.amplitude_m * cos * u.wave_vector.x;
+            gy += u.amplitude_m * cos * u.wave_vector.y;
+        }
+        (h, gx, gy)
+    }
+
+    /// The road's detail on the terrain: crown and roughness texture.
+    pub fn detail_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
+        let (mut h, mut gx, mut gy) = (0.0, 0.0, 0.0);
+        if let Some(c) = &self.crown {
+            let (ch, cg) = c.height_and_gradient(x, y);
+            h += ch;
+            gx += cg.x;
+            gy += cg.y;
+        }
+        if let Some(r) = &self.roughness {
+            let (rh, rx, ry) = r.height_and_gradient(x, y);
+            h += rh;
+            gx += rx;
+            gy += ry;
+        }
+        (h, gx, gy)
+    }
+
+    /// Whether the ground has any detail (crown or texture).
+    pub fn has_detail(&self) -> bool {
+        self.crown.is_some() || self.roughness.is_some()
+    }
+
+    /// Upper bound of |detail|, m.
+    pub fn detail_bound_m(&self) -> f64 {
+        self.crown.map_or(0.0, |c| c.height_m.abs())
+            + self.roughness.as_ref().map_or(0.0, Roughness::bound_m)
+    }
+
+    /// Upper bound of |gradient of the detail|.
+    pub fn detail_slope_bound(&self) -> f64 {
+        // the crown's steepest cross slope: 3 sqrt(3) / 8 height / width
+        self.crown
+            .map_or(0.0, |c| 0.65 * c.height_m.abs() / c.width_m)
+            + self.roughness.as_ref().map_or(0.0, Roughness::slope_bound)
+    }
+
+    /// Height of everything but the roughness texture: terrain and crown.
+    pub fn untextured_height(&self, x: f64, y: f64) -> f64 {
+        let crown = self.crown.map_or(0.0, |c| c.height_and_gradient(x, y).0);
+        self.terrain_height_and_gradient(x, y).0 + crown
+    }
+
+    /// Second derivatives [[h_xx, h_xy], [h_xy, h_yy]] of the undulations
+    /// (the crown and the piecewise-bilinear roughness are left out).
     pub fn hessian(&self, x: f64, y: f64) -> nalgebra::Matrix2<f64> {
         let p = Vector2::new(x, y);
         self.undulations

@@ -29,10 +29,12 @@
 mod lane_path;
 mod lift;
 mod overlap;
+mod suspension;
 
 pub use lane_path::{LanePath, PathPiece};
 pub use lift::lift_to_ground;
 pub use overlap::{Body, Overlap, first_overlap};
+pub use suspension::{BodyAttitude, RideInput, Suspension, ride};
 
 use lane_path::wrap_angle;
 use limot_estimator::input::ObjectClass;
@@ -1033,7 +1035,7 @@ mod tests {
                 class: vs.class,
                 size_lwh_m: vs.size_lwh_m,
                 parked: false,
-                trajectory: lift_to_ground(tr, &ground, &vs.size_lwh_m),
+                trajectory: lift_to_ground(tr, &ground, &vs.size_lwh_m, None),
             })
             .collect();
         Scene {
@@ -1322,11 +1324,12 @@ mod tests {
                 wave_vector: Vector2::new(0.15, 0.1),
                 phase_rad: 0.3,
             }],
+            ..Ground::flat(0.0)
         };
         let size = s.vehicles[0].size_lwh_m;
         let track = &simulate(&s, RECORD_EVERY).unwrap()[0];
         let dense = &simulate(&s, 1).unwrap()[0];
-        let traj = lift_to_ground(track, &ground, &size);
+        let traj = lift_to_ground(track, &ground, &size, None);
         let mut worst_xy: f64 = 0.0;
         let mut worst_z: f64 = 0.0;
         let mut worst_yaw: f64 = 0.0;

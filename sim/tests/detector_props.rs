@@ -111,6 +111,7 @@ fn ground() -> Ground {
             wave_vector: Vector2::new(0.05, 0.02),
             phase_rad: 0.3,
         }],
+        ..Ground::flat(0.0)
     }
 }
 

@@ -133,6 +133,7 @@ fn ground_spec() -> impl Strategy<Value = Ground> {
                 wave_vector: Vector2::new(k.0, k.1),
                 phase_rad: 0.4,
             }],
+            ..Ground::flat(0.0)
         })
 }
 
@@ -275,6 +276,7 @@ fn busy_scene() -> Scene {
             wave_vector: Vector2::new(0.05, 0.0),
             phase_rad: 0.0,
         }],
+        ..Ground::flat(0.0)
     };
     let agents = (0..6)
         .map(|i| Agent {

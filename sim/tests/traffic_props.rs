@@ -5,7 +5,7 @@
 use limot_estimator::input::ObjectClass;
 use limot_sim::scene::{Agent, Ego, Ground, Scene};
 use limot_sim::traffic::{
-    DriverParams, LaneChange, LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec,
+    DriverParams, LaneChange, LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec,
     first_overlap, lift_to_ground, simulate_traffic,
 };
 use limot_sim::trajectory::Trajectory;
@@ -167,7 +167,12 @@ fn scene_of(spec: &TrafficSpec, ground: &Ground) -> Scene {
                 class: vs.class,
                 size_lwh_m: vs.size_lwh_m,
                 parked: false,
-                trajectory: lift_to_ground(track, ground, &vs.size_lwh_m),
+                trajectory: lift_to_ground(
+                    track,
+                    ground,
+                    &vs.size_lwh_m,
+                    Suspension::for_class(vs.class).as_ref(),
+                ),
             }
         })
         .collect();

@@ -63,6 +63,11 @@ pub struct RealismConfig {
     pub intensity_bins: usize,
     /// Range beyond which a point counts as far, m.
     pub far_range_m: f64,
+    /// A pair of consecutive sweeps counts for the attitude change and the
+    /// ground-ring displacement when the sensor moved at least this far
+    /// between them, m: a car standing at a light is not compared with a
+    /// moving one.
+    pub moving_min_m: f64,
 }
 
 impl Default for RealismConfig {
@@ -81,6 +86,7 @@ impl Default for RealismConfig {
             range_bins: 24,
             intensity_bins: 20,
             far_range_m: 40.0,
+            moving_min_m: 0.1,
         }
     }
 }
@@ -137,12 +143,17 @@ pub struct Histogram {
 pub struct RealismStats {
     pub sweeps: usize,
     pub points_per_sweep_mean: f64,
-    /// |Δroll| per consecutive sweep pair, deg.
+    /// |Δroll| per consecutive sweep pair while moving, deg.
     pub roll_change_deg: Spread,
-    /// |Δpitch| per consecutive sweep pair, deg.
+    /// |Δpitch| per consecutive sweep pair while moving, deg.
     pub pitch_change_deg: Spread,
-    /// Per sweep pair: median |Δrange| of the common near-ring ground cells, m.
+    /// Per sweep pair while moving: median |Δrange| of the common near-ring
+    /// ground cells, m.
     pub ground_ring_displacement_m: Spread,
+    /// Consecutive sweep pairs with the sensor standing (left out of the
+    /// three spreads above).
+    #[serde(default)]
+    pub standing_pairs: usize,
     /// Sweep pairs without enough common ground cells (not in the spread).
     pub ground_pairs_skipped: usize,
     /// Share of the information matrix's trace along x (driving direction),
@@ -408,6 +419,8 @@ pub struct RealismAccumulator {
     sweeps: usize,
     points: u64,
     previous_attitude: Option<(f64, f64)>,
+    previous_position: Option<Vector3<f64>>,
+    standing_pairs: usize,
     roll_changes_deg: Vec<f64>,
     pitch_changes_deg: Vec<f64>,
     previous_cells: Option<Vec<f32>>,
@@ -446,6 +459,7 @@ impl RealismAccumulator {
             config.normal_radius_m,
             config.range_bin_m,
             config.far_range_m,
+            config.moving_min_m,
         ];
         if !positive.iter().all(|v| v.is_finite() && *v > 0.0) {
             return Err(bad("lengths must be positive and finite"));
@@ -455,6 +469,8 @@ impl RealismAccumulator {
             sweeps: 0,
             points: 0,
             previous_attitude: None,
+            previous_position: None,
+            standing_pairs: 0,
             roll_changes_deg: Vec::new(),
             pitch_changes_deg: Vec::new(),
             previous_cells: None,
@@ -470,13 +486,15 @@ impl RealismAccumulator {
 
     /// Adds the next sweep: `points` in the sensor frame with rings,
     /// `r_level_lidar` the sensor attitude in a gravity-aligned world,
+    /// `p_world_lidar` the sensor position (any fixed world frame),
     /// `r_vehicle_lidar` the sensor's rotation in the vehicle frame (x
-    /// forward). An empty sweep or a non-finite point or attitude is an
-    /// error naming the sweep (0-based) and point.
+    /// forward). An empty sweep or a non-finite point, position or attitude
+    /// is an error naming the sweep (0-based) and point.
     pub fn add_sweep(
         &mut self,
         points: &[LidarPoint],
         r_level_lidar: &UnitQuaternion<f64>,
+        p_world_lidar: &Vector3<f64>,
         r_vehicle_lidar: &UnitQuaternion<f64>,
     ) -> Result<(), EvalError> {
         let sweep = self.sweeps;
@@ -502,6 +520,7 @@ impl RealismAccumulator {
         let qv = r_vehicle_lidar.quaternion();
         if ![q.i, q.j, q.k, q.w, qv.i, qv.j, qv.k, qv.w]
             .iter()
+            .chain(p_world_lidar.iter())
             .all(|v| v.is_finite())
         {
             return Err(EvalError::NotFinite {
@@ -511,9 +530,18 @@ impl RealismAccumulator {
             });
         }
 
-        // attitude change
+        // attitude change, while moving
+        let moving = self
+            .previous_position
+            .is_some_and(|p0| (p_world_lidar - p0).norm() >= self.config.moving_min_m);
+        if self.previous_position.is_some() && !moving {
+            self.standing_pairs += 1;
+        }
+        self.previous_position = Some(*p_world_lidar);
         let (roll, pitch) = roll_pitch_rad(r_level_lidar);
-        if let Some((roll0, pitch0)) = self.previous_attitude {
+        if let Some((roll0, pitch0)) = self.previous_attitude
+            && moving
+        {
             self.roll_changes_deg
                 .push(wrap_pi(roll - roll0).abs().to_degrees());
             self.pitch_changes_deg
@@ -537,6 +565,7 @@ impl RealismAccumulator {
         let plane = fit_ground_plane(points, &self.config);
         let cells = plane.map(|plane| self.ground_cells(points, &plane));
         match (&self.previous_cells, &cells) {
+            _ if sweep > 0 && !moving => {}
             (Some(before), Some(now)) => match self.cell_displacement(before, now) {
                 Some(d) => self.displacements_m.push(d),
                 None => self.pairs_skipped += 1,
@@ -618,10 +647,11 @@ impl RealismAccumulator {
     pub fn finish(self) -> Result<RealismStats, EvalError> {
         let too_few =
             |what: &'static str, got: usize, need: usize| EvalError::TooFew { what, got, need };
+        let moving_pairs = self.roll_changes_deg.len();
         let roll = Spread::of(&self.roll_changes_deg)
-            .ok_or_else(|| too_few("realism: sweeps", self.sweeps, 2))?;
+            .ok_or_else(|| too_few("realism: sweep pairs while moving", moving_pairs, 1))?;
         let pitch = Spread::of(&self.pitch_changes_deg)
-            .ok_or_else(|| too_few("realism: sweeps", self.sweeps, 2))?;
+            .ok_or_else(|| too_few("realism: sweep pairs while moving", moving_pairs, 1))?;
         let ground = Spread::of(&self.displacements_m)
             .ok_or_else(|| too_few("realism: sweep pairs with ground in the near rings", 0, 1))?;
         let trace = self.information.trace();
@@ -646,6 +676,7 @@ impl RealismAccumulator {
             pitch_change_deg: pitch,
             ground_ring_displacement_m: ground,
             ground_pairs_skipped: self.pairs_skipped,
+            standing_pairs: self.standing_pairs,
             information_share_pct: share,
             information_points: self.information_points,
             range_median_m: fine_median(&self.range_fine, RANGE_FINE_M),
@@ -766,18 +797,57 @@ mod tests {
     /// Roll, pitch (rad) and wall of a synthetic sweep.
     type SweepSpec = (f64, f64, Option<(char, f64)>);
 
+    /// The statistics of synthetic sweeps taken 0.5 m apart (the sweeps
+    /// themselves do not move: the statistics only need the positions to
+    /// tell moving from standing).
     fn stats_of(sweeps: &[SweepSpec]) -> RealismStats {
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
-        for &(roll, pitch, wall) in sweeps {
+        for (i, &(roll, pitch, wall)) in sweeps.iter().enumerate() {
             let attitude = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
             acc.add_sweep(
                 &sweep(roll, pitch, wall),
                 &attitude,
+                &Vector3::new(0.5 * i as f64, 0.0, 0.0),
                 &UnitQuaternion::identity(),
             )
             .unwrap();
         }
         acc.finish().unwrap()
+    }
+
+    #[test]
+    fn standing_pairs_are_left_out_of_the_motion_statistics() {
+        let step = 0.3f64.to_radians();
+        let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
+        // moving 1 m, then standing while the attitude swings (a car
+        // rocking at a light), then moving again with 0.1 deg changes
+        let frames = [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (1.0, step),
+            (1.0, 0.0),
+            (2.0, 0.0),
+            (3.0, 0.1f64.to_radians()),
+        ];
+        for &(x, pitch) in &frames {
+            let attitude = UnitQuaternion::from_euler_angles(0.0, pitch, 0.0);
+            acc.add_sweep(
+                &sweep(0.0, pitch, WALL),
+                &attitude,
+                &Vector3::new(x, 0.0, 0.0),
+                &UnitQuaternion::identity(),
+            )
+            .unwrap();
+        }
+        let s = acc.finish().unwrap();
+        assert_eq!(s.standing_pairs, 2);
+        assert_eq!(s.pitch_change_deg.n, 3);
+        assert!(
+            (s.pitch_change_deg.mean - 0.1 / 3.0).abs() < 1e-9,
+            "{:?}",
+            s.pitch_change_deg
+        );
+        assert_eq!(s.ground_ring_displacement_m.n, 3);
     }
 
     #[test]
@@ -840,7 +910,8 @@ mod tests {
         let yawed = UnitQuaternion::from_euler_angles(0.0, 0.0, PI / 2.0);
         for _ in 0..2 {
             let points = sweep(0.0, 0.0, Some(('y', 6.0)));
-            acc.add_sweep(&points, &UnitQuaternion::identity(), &yawed)
+            let moved = Vector3::new(acc.sweeps as f64, 0.0, 0.0);
+            acc.add_sweep(&points, &UnitQuaternion::identity(), &moved, &yawed)
                 .unwrap();
         }
         assert!(acc.finish().unwrap().information_share_pct[0] > 99.0);
@@ -863,17 +934,36 @@ mod tests {
     fn bad_sweeps_are_errors_naming_the_sweep() {
         let mut acc = RealismAccumulator::new(RealismConfig::default()).unwrap();
         let id = UnitQuaternion::identity();
-        let err = acc.add_sweep(&[], &id, &id).unwrap_err().to_string();
+        let origin = Vector3::zeros();
+        let err = acc
+            .add_sweep(&[], &id, &origin, &id)
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("sweep[0]") && err.contains("no points"),
             "{err}"
         );
         let mut points = sweep(0.0, 0.0, None);
         points[7].y = f32::NAN;
-        let err = acc.add_sweep(&points, &id, &id).unwrap_err().to_string();
+        let err = acc
+            .add_sweep(&points, &id, &origin, &id)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("point 7"), "{err}");
-        // one sweep is not a sequence
-        acc.add_sweep(&sweep(0.0, 0.0, None), &id, &id).unwrap();
+        let nan = Vector3::new(0.0, f64::NAN, 0.0);
+        let err = acc
+            .add_sweep(&sweep(0.0, 0.0, None), &id, &nan, &id)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("sweep[0]") && err.contains("attitude"),
+            "{err}"
+        );
+        // one sweep is not a sequence, nor are sweeps that never move
+        acc.add_sweep(&sweep(0.0, 0.0, None), &id, &origin, &id)
+            .unwrap();
+        acc.add_sweep(&sweep(0.0, 0.0, None), &id, &origin, &id)
+            .unwrap();
         assert!(acc.finish().is_err());
         let bad = RealismConfig {
             ground_tolerance_m: f64::NAN,

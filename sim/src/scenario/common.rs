@@ -2,15 +2,16 @@
 //! on it, the ego, and assembling traffic results into agents.
 
 use super::{EgoSpec, GroundParams, ScenarioError};
-use crate::scene::{Agent, Ego, Ground, Shape, StaticKind, StaticObject, Undulation};
+use crate::roughness::Roughness;
+use crate::scene::{Agent, Crown, Ego, Ground, Shape, StaticKind, StaticObject, Undulation};
 use crate::traffic::{
-    DriverParams, LanePath, PlanarSample, PlanarTrack, TrafficSpec, VehicleSpec, lift_to_ground,
-    simulate_traffic,
+    DriverParams, LanePath, PlanarSample, PlanarTrack, Suspension, TrafficSpec, VehicleSpec,
+    lift_to_ground, simulate_traffic,
 };
 use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector2, Vector3};
-use rand::RngExt;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::{PI, TAU};
 
@@ -24,8 +25,16 @@ pub(crate) fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
 
 /// A plane with a small slope in a random direction plus a few sinusoidal
 /// undulations; each undulation's amplitude is capped so its own grade
-/// (2 pi A / wavelength) stays below `undulation_grade_max_percent`.
-pub(crate) fn generate_ground(rng: &mut ChaCha8Rng, g: &GroundParams) -> Ground {
+/// (2 pi A / wavelength) stays below `undulation_grade_max_percent`. The
+/// road's crown runs along `road_axis` (a point and a heading), and the
+/// roughness texture comes from the scenario seed's own ChaCha stream, so
+/// it never shifts the generator's other draws.
+pub(crate) fn generate_ground(
+    rng: &mut ChaCha8Rng,
+    g: &GroundParams,
+    seed: u64,
+    road_axis: (Point2<f64>, f64),
+) -> Ground {
     let slope = uniform(rng, g.slope_min_percent, g.slope_max_percent) / 100.0;
     let slope_dir = uniform(rng, 0.0, TAU);
     let undulations = (0..g.undulations)
@@ -41,12 +50,37 @@ pub(crate) fn generate_ground(rng: &mut ChaCha8Rng, g: &GroundParams) -> Ground 
             }
         })
         .collect();
+    let crown = (g.crown_height_m > 0.0).then(|| {
+        let (point, heading) = road_axis;
+        Crown {
+            axis_point: point.coords,
+            lateral: Vector2::new(-heading.sin(), heading.cos()),
+            height_m: g.crown_height_m,
+            width_m: g.crown_width_m,
+        }
+    });
+    let roughness = (g.roughness_psd_m3 > 0.0).then(|| {
+        let mut stream = ChaCha8Rng::seed_from_u64(seed);
+        stream.set_stream(ROUGHNESS_STREAM);
+        Roughness::iso8608(
+            &mut stream,
+            g.roughness_psd_m3,
+            g.roughness_wavelength_min_m,
+            g.roughness_wavelength_max_m,
+        )
+    });
     Ground {
         base_height_m: 0.0,
         slope: Vector2::new(slope_dir.cos(), slope_dir.sin()) * slope,
         undulations,
+        crown,
+        roughness,
     }
 }
+
+/// ChaCha stream (of the scenario seed) of the road roughness texture; the
+/// generators' main stream is 0.
+const ROUGHNESS_STREAM: u64 = 0x0052_4f55_4748; // "ROUGH" in ASCII
 
 /// An upright static object whose base sits `sink_m` below the ground at
 /// (x, y) (so it never floats on a slope), rotated by `yaw` about z.
@@ -140,7 +174,13 @@ pub(crate) fn parked_agent(
         dt_s: duration_s.max(1e-3),
         samples: vec![sample, sample],
     };
-    let pose = lift_to_ground(&track, ground, &size_lwh_m).pose_at(0.0);
+    let pose = lift_to_ground(
+        &track,
+        ground,
+        &size_lwh_m,
+        Suspension::for_class(class).as_ref(),
+    )
+    .pose_at(0.0);
     Agent {
         id,
         class,
@@ -274,7 +314,12 @@ pub(crate) fn run_traffic(
     let mut agents = Vec::with_capacity(tracks.len());
     let mut ego_scene = None;
     for (vehicle, track) in traffic.vehicles.iter().zip(&tracks) {
-        let trajectory = lift_to_ground(track, ground, &vehicle.size_lwh_m);
+        let trajectory = lift_to_ground(
+            track,
+            ground,
+            &vehicle.size_lwh_m,
+            Suspension::for_class(vehicle.class).as_ref(),
+        );
         if vehicle.id == EGO_TRAFFIC_ID {
             ego_scene = Some(make_ego(&spec.ego, &trajectory));
         } else {
@@ -361,7 +406,12 @@ mod tests {
     fn ground_grades_stay_gentle() {
         let params = GroundParams::default();
         for seed in 0..20 {
-            let ground = generate_ground(&mut ChaCha8Rng::seed_from_u64(seed), &params);
+            let ground = generate_ground(
+                &mut ChaCha8Rng::seed_from_u64(seed),
+                &params,
+                seed,
+                (Point2::origin(), 0.0),
+            );
             let slope = ground.slope.norm();
             assert!((0.01..=0.02).contains(&slope), "slope {slope}");
             assert_eq!(ground.undulations.len(), 3);

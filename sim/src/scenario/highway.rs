@@ -48,7 +48,8 @@ const LANE_CHANGE_SPACING_S: f64 = 8.0;
 /// The whole highway scene for a validated spec.
 pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, ScenarioError> {
     let h = spec.highway_params();
-    let ground = generate_ground(rng, &spec.ground);
+    // the main street and the highway's initial straight run along +x through the origin
+    let ground = generate_ground(rng, &spec.ground, spec.seed, (Point2::origin(), 0.0));
     let ego_s = START_MARGIN_M + h.spawn_behind_m;
     let road_length = ego_s + h.spawn_ahead_m + h.speed_max_mps * spec.duration_s + END_MARGIN_M;
     let pieces = road_pieces(&h, road_length, rng);

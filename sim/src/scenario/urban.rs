@@ -28,7 +28,8 @@ use super::{
 };
 use crate::scene::{Agent, Ground, Scene, Shape, StaticKind, StaticObject};
 use crate::traffic::{
-    LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec, lift_to_ground, simulate_traffic,
+    LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec, lift_to_ground,
+    simulate_traffic,
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
@@ -212,7 +213,8 @@ impl Street {
 /// The whole urban scene for a validated spec.
 pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, ScenarioError> {
     let u = spec.urban_params();
-    let ground = generate_ground(rng, &spec.ground);
+    // the main street and the highway's initial straight run along +x through the origin
+    let ground = generate_ground(rng, &spec.ground, spec.seed, (Point2::origin(), 0.0));
     let ego_speed = spec.ego_speed_mps();
     let street = layout(spec, &u, ego_speed, rng).map_err(|e| traffic_error(spec, e))?;
 
@@ -280,7 +282,12 @@ fn simulate_agents(
             class: vehicle.class,
             size_lwh_m: vehicle.size_lwh_m,
             parked: false,
-            trajectory: lift_to_ground(track, ground, &vehicle.size_lwh_m),
+            trajectory: lift_to_ground(
+                track,
+                ground,
+                &vehicle.size_lwh_m,
+                Suspension::for_class(vehicle.class).as_ref(),
+            ),
         })
         .collect())
 }
@@ -983,7 +990,7 @@ mod tests {
         let half = 0.5 * u.cross_street_width_m;
         for seed in 0..10 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let ground = generate_ground(&mut rng, &spec.ground);
+            let ground = generate_ground(&mut rng, &spec.ground, seed, (Point2::origin(), 0.0));
             let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
             let mut statics = buildings(&street, &ground, &mut rng, &mut building_lot_rng(seed));
             statics.extend(furniture(&street, &ground, &mut rng));
@@ -1027,7 +1034,7 @@ mod tests {
         let (mut lots, mut built) = (0usize, [0usize; 3]);
         for seed in 0..40 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let ground = generate_ground(&mut rng, &spec.ground);
+            let ground = generate_ground(&mut rng, &spec.ground, seed, (Point2::origin(), 0.0));
             let mut street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
             // the same main stream for every fraction: the lots are the same
             let mut at = |fraction: f64| {

@@ -1,6 +1,8 @@
-//! Lifting a planar track onto the ground height field as a C2 trajectory.
+//! Lifting a planar track onto the ground height field as a C2 trajectory,
+//! with the ride dynamics of the vehicle's body.
 
-use super::PlanarTrack;
+use super::suspension::{self, BodyAttitude, RideInput, Suspension};
+use super::{PlanarSample, PlanarTrack};
 use crate::scene::Ground;
 use crate::trajectory::{Jet, Knot, Trajectory};
 use nalgebra::{Vector2, Vector3};
@@ -10,8 +12,14 @@ const TRACK_OVER_WIDTH: f64 = 0.85;
 /// Wheelbase as a fraction of the body length (same as the bicycle model).
 const WHEELBASE_OVER_LENGTH: f64 = 0.6;
 
-/// 3-D C2 trajectory of the box centre on the ground: z = ground height + centre height,
-/// pitch/roll from the ground under the wheelbase/track; knots every track.dt_s.
+/// 3-D C2 trajectory of the box centre over the ground; knots every
+/// `track.dt_s`. A body with a [`Suspension`] (cars, trucks) rides on it:
+/// the road under its four wheel contacts (wheelbase and track from the
+/// box size) and its accelerations drive heave, pitch and roll
+/// ([`suspension::ride`]). A body without one (cyclists, pedestrians) is
+/// carried rigidly by the untextured ground: its centre's height and the
+/// slopes under its wheelbase and track (no roughness texture: people and
+/// bicycles do not rattle with the asphalt).
 ///
 /// Every knot's rate and acceleration are finite differences of the sampled
 /// values themselves (x, y, yaw, z, pitch, roll), not the model's instantaneous
@@ -25,21 +33,11 @@ pub fn lift_to_ground(
     track: &PlanarTrack,
     ground: &Ground,
     size_lwh_m: &Vector3<f64>,
+    suspension: Option<&Suspension>,
 ) -> Trajectory {
     let half_wheelbase = 0.5 * WHEELBASE_OVER_LENGTH * size_lwh_m.x;
     let half_track = 0.5 * TRACK_OVER_WIDTH * size_lwh_m.y;
     let centre_height = 0.5 * size_lwh_m.z;
-    // pitch (nose down positive, R = Rz Ry Rx) and roll (left side up positive)
-    let attitude = |x: f64, y: f64, yaw: f64| -> (f64, f64) {
-        let (s, c) = yaw.sin_cos();
-        let (fwd, left) = (Vector2::new(c, s), Vector2::new(-s, c));
-        let p = Vector2::new(x, y);
-        let at = |q: Vector2<f64>| ground.height(q.x, q.y);
-        let pitch = (at(p - fwd * half_wheelbase) - at(p + fwd * half_wheelbase))
-            .atan2(2.0 * half_wheelbase);
-        let roll = (at(p + left * half_track) - at(p - left * half_track)).atan2(2.0 * half_track);
-        (pitch, roll)
-    };
     // a hand-made track with a bad step or no samples must not panic
     let dt_s = if track.dt_s.is_finite() && track.dt_s > 0.0 {
         track.dt_s
@@ -49,17 +47,57 @@ pub fn lift_to_ground(
     if track.samples.is_empty() {
         return Trajectory::new(track.t0_s, dt_s, vec![Knot::default()]);
     }
+    // the road under the four wheels: heave, pitch (rear above front
+    // positive, i.e. nose down for R = Rz Ry Rx) and roll (left side up)
+    let road = |s: &PlanarSample| -> RideInput {
+        let (sin, cos) = s.yaw.sin_cos();
+        let (fwd, left) = (Vector2::new(cos, sin), Vector2::new(-sin, cos));
+        let p = Vector2::new(s.x, s.y);
+        let at = |q: Vector2<f64>| match suspension {
+            Some(_) => ground.height(q.x, q.y),
+            None => ground.untextured_height(q.x, q.y),
+        };
+        let [fl, fr, rl, rr] = [
+            at(p + fwd * half_wheelbase + left * half_track),
+            at(p + fwd * half_wheelbase - left * half_track),
+            at(p - fwd * half_wheelbase + left * half_track),
+            at(p - fwd * half_wheelbase - left * half_track),
+        ];
+        // a sprung body rests on its four wheels; a rigid one stands where it is
+        let heave_m = match suspension {
+            Some(_) => 0.25 * (fl + fr + rl + rr),
+            None => at(p),
+        };
+        RideInput {
+            heave_m,
+            pitch_rad: (0.5 * (rl + rr - fl - fr)).atan2(2.0 * half_wheelbase),
+            roll_rad: (0.5 * (fl + rl - fr - rr)).atan2(2.0 * half_track),
+            longitudinal_mps2: cos * s.ax_mps2 + sin * s.ay_mps2,
+            lateral_mps2: -sin * s.ax_mps2 + cos * s.ay_mps2,
+        }
+    };
+    let inputs: Vec<RideInput> = track.samples.iter().map(road).collect();
+    let body: Vec<BodyAttitude> = match suspension {
+        Some(suspension) => suspension::ride(suspension, &inputs, dt_s),
+        None => inputs
+            .iter()
+            .map(|i| BodyAttitude {
+                heave_m: i.heave_m,
+                pitch_rad: i.pitch_rad,
+                roll_rad: i.roll_rad,
+            })
+            .collect(),
+    };
     let channels: [Vec<f64>; 6] = {
         let mut c: [Vec<f64>; 6] = Default::default();
-        for s in &track.samples {
-            let (pitch, roll) = attitude(s.x, s.y, s.yaw);
+        for (s, b) in track.samples.iter().zip(&body) {
             let values = [
                 s.x,
                 s.y,
-                ground.height(s.x, s.y) + centre_height,
+                b.heave_m + centre_height,
                 s.yaw,
-                pitch,
-                roll,
+                b.pitch_rad,
+                b.roll_rad,
             ];
             for (channel, value) in c.iter_mut().zip(values) {
                 channel.push(value);
