@@ -32,6 +32,7 @@ use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::scene::Scene;
 use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -192,53 +193,64 @@ pub fn export_dataset(dataset_dir: &Path, out: &Path) -> Result<PathBuf, ExportE
     create_dir(&velodyne_dir)?;
 
     let boxes_by_frame = dataset.box_truth()?;
+    // frames are independent: read, convert and write them in parallel,
+    // then gather in frame order (the files are the same as a serial run's)
+    let per_frame = (0..dataset.frame_count())
+        .into_par_iter()
+        .map(|index| {
+            let frame = dataset.frame(index)?;
+            let t_s = frame.scan.t_s;
+            let t_world_lidar = scene.ego.trajectory.pose_at(t_s);
+            let bin = velodyne_dir.join(format!("{index:06}.bin"));
+            write(&bin, encode_bin(&frame.scan.points))?;
+            let mut labels = Vec::new();
+            let points_on = points_per_instance(&frame.labels);
+            for b in boxes_by_frame.get(index).into_iter().flatten() {
+                let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
+                let center = t_lidar_box.translation.vector;
+                if center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
+                    continue;
+                }
+                let r = t_lidar_box.rotation.to_rotation_matrix();
+                let track = TrackBox {
+                    frame: index as u32,
+                    track_id: b.id,
+                    class: b.class,
+                    lidar_box: LidarBox {
+                        center_lidar: center,
+                        size_lwh: b.size_lwh_m,
+                        yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
+                    },
+                    score: 1.0,
+                };
+                if let Some(mut label) = track_to_label(&track, &calib, ImageSize::KITTI_DEFAULT) {
+                    label.score = None;
+                    labels.push(label);
+                }
+            }
+            let mut detections = Vec::new();
+            for d in &frame.detections {
+                let mut det = CameraDetection::from_detection(
+                    index as u32,
+                    &d.detection,
+                    &calib,
+                    ScoreMap::Clamp01,
+                );
+                if let Some(b) = image_box(&det.cam_box, &calib, ImageSize::KITTI_DEFAULT) {
+                    det.bbox_2d = b;
+                }
+                detections.push(det);
+            }
+            Ok((t_s, t_world_lidar, labels, detections))
+        })
+        .collect::<Result<Vec<_>, ExportError>>()?;
     let (mut times_s, mut poses, mut labels, mut detections) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for index in 0..dataset.frame_count() {
-        let frame = dataset.frame(index)?;
-        let t_s = frame.scan.t_s;
+    for (t_s, pose, frame_labels, frame_detections) in per_frame {
         times_s.push(t_s);
-        let t_world_lidar = scene.ego.trajectory.pose_at(t_s);
-        poses.push(t_world_lidar);
-        let bin = velodyne_dir.join(format!("{index:06}.bin"));
-        write(&bin, encode_bin(&frame.scan.points))?;
-
-        let points_on = points_per_instance(&frame.labels);
-        for b in boxes_by_frame.get(index).into_iter().flatten() {
-            let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
-            let center = t_lidar_box.translation.vector;
-            if center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
-                continue;
-            }
-            let r = t_lidar_box.rotation.to_rotation_matrix();
-            let track = TrackBox {
-                frame: index as u32,
-                track_id: b.id,
-                class: b.class,
-                lidar_box: LidarBox {
-                    center_lidar: center,
-                    size_lwh: b.size_lwh_m,
-                    yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
-                },
-                score: 1.0,
-            };
-            if let Some(mut label) = track_to_label(&track, &calib, ImageSize::KITTI_DEFAULT) {
-                label.score = None;
-                labels.push(label);
-            }
-        }
-        for d in &frame.detections {
-            let mut det = CameraDetection::from_detection(
-                index as u32,
-                &d.detection,
-                &calib,
-                ScoreMap::Clamp01,
-            );
-            if let Some(b) = image_box(&det.cam_box, &calib, ImageSize::KITTI_DEFAULT) {
-                det.bbox_2d = b;
-            }
-            detections.push(det);
-        }
+        poses.push(pose);
+        labels.extend(frame_labels);
+        detections.extend(frame_detections);
     }
     write(&out.join("calib/0000.txt"), calib.write())?;
     write(

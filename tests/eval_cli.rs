@@ -262,7 +262,9 @@ fn kitti_labels_as_results_track_perfectly() {
             s.iou_threshold
         );
         assert_eq!(m.mota, Some(1.0));
-        assert!(m.motp.unwrap() > 0.99999, "{:?}", m.motp);
+        // boxes pitch and roll on their suspensions and KITTI labels carry
+        // the heading only: the round trip keeps all but ~1e-4 of the overlap
+        assert!(m.motp.unwrap() > 0.999, "{:?}", m.motp);
     }
     assert!(!r.objects.is_empty());
     for o in &r.objects {

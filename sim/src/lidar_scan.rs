@@ -13,9 +13,9 @@
 //! range falloff `1 / (1 + (r / 45 m)^4)` (returns beyond ~50 m are faint)
 //! x the laser's own gain (log-normal, sigma 0.25, fixed per sensor seed)
 //! x a per-return speckle (log-normal, sigma 0.35). Reflectivities: road
-//! 0.22, tree crown 0.3, tree trunk and building 0.3, wall 0.35, pole 0.4,
-//! guard rail 0.5, sign 0.9 (retro-reflective), car 0.3, truck 0.35,
-//! cyclist and pedestrian 0.3.
+//! 0.22, tree crown and trunk, shrub, earth and building 0.3, wall, kerb
+//! and bridge concrete 0.35, pole and fence 0.4, guard rail 0.5, sign 0.9
+//! (retro-reflective), car 0.3, truck 0.35, cyclist and pedestrian 0.3.
 //!
 //! Determinism: column `c` of frame `f` draws its noise from a ChaCha8 stream
 //! keyed by (seed, f) with stream number `c`, and columns are concatenated in
@@ -297,7 +297,9 @@ pub fn reflectivity(surface: Surface) -> f64 {
         Surface::Ground => 0.22,
         Surface::Static(kind) => match kind {
             StaticKind::Building | StaticKind::TreeTrunk | StaticKind::TreeCrown => 0.3,
-            StaticKind::Wall => 0.35,
+            StaticKind::Shrub | StaticKind::Embankment => 0.3,
+            StaticKind::Wall | StaticKind::Kerb | StaticKind::Bridge => 0.35,
+            StaticKind::Fence => 0.4,
             StaticKind::Pole => 0.4,
             StaticKind::GuardRail => 0.5,
             StaticKind::Sign => 0.9,
@@ -386,7 +388,10 @@ mod tests {
         let sd = (log_gains.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / n).sqrt();
         // ~30 lasers' gains (sigma 0.25) and per-return speckle (0.35)
         let want_sd = (LASER_GAIN_SIGMA.powi(2) + SPECKLE_SIGMA.powi(2)).sqrt();
-        assert!(mean.abs() < 0.15 && (sd - want_sd).abs() < 0.1, "{mean} {sd}");
+        assert!(
+            mean.abs() < 0.15 && (sd - want_sd).abs() < 0.1,
+            "{mean} {sd}"
+        );
     }
 
     #[test]

@@ -10,6 +10,8 @@
 
 mod common;
 mod highway;
+mod roadside;
+mod streetscape;
 mod urban;
 
 use crate::detector::DetectorConfig;
@@ -108,7 +110,7 @@ impl Default for GroundParams {
             wavelength_min_m: 100.0,
             wavelength_max_m: 400.0,
             undulation_grade_max_percent: 2.0,
-            roughness_psd_m3: 64e-6,
+            roughness_psd_m3: 96e-6,
             roughness_wavelength_min_m: 0.3,
             roughness_wavelength_max_m: 20.0,
             crown_height_m: 0.25,
@@ -147,6 +149,21 @@ pub struct HighwayParams {
     pub guard_rail_segment_m: f64,
     /// Distance between light poles along the road.
     pub pole_spacing_m: f64,
+    /// Distance between the posts under the rails' beams; 0 = solid rails
+    /// down to the ground, no posts.
+    pub rail_post_spacing_m: f64,
+    /// Shares of the right roadside (in stretches of 80-300 m) with a noise
+    /// wall and with a cutting (an earth slope rising 2-6 m); the rest is
+    /// open verge. Their sum is at most 1.
+    pub noise_wall_fraction: f64,
+    pub cutting_fraction: f64,
+    /// Mean spacing of bushes and trees on the verges and in the median; 0 = none.
+    pub vegetation_spacing_m: f64,
+    /// Mean distance between overpasses, between sign gantries and between
+    /// roadside sign boards (distance and speed signs); 0 = none.
+    pub overpass_spacing_m: f64,
+    pub gantry_spacing_m: f64,
+    pub sign_spacing_m: f64,
 }
 
 impl Default for HighwayParams {
@@ -167,6 +184,13 @@ impl Default for HighwayParams {
             spawn_ahead_m: 600.0,
             guard_rail_segment_m: 12.0,
             pole_spacing_m: 60.0,
+            rail_post_spacing_m: 2.0,
+            noise_wall_fraction: 0.3,
+            cutting_fraction: 0.3,
+            vegetation_spacing_m: 8.0,
+            overpass_spacing_m: 800.0,
+            gantry_spacing_m: 1000.0,
+            sign_spacing_m: 200.0,
         }
     }
 }
@@ -713,6 +737,36 @@ fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
         50.0,
     )?;
     in_range("highway.pole_spacing_m", h.pole_spacing_m, 10.0, 10_000.0)?;
+    for (field, value) in [
+        ("highway.rail_post_spacing_m", h.rail_post_spacing_m),
+        ("highway.vegetation_spacing_m", h.vegetation_spacing_m),
+    ] {
+        if value != 0.0 {
+            in_range(field, value, 1.0, 1000.0)?;
+        }
+    }
+    for (field, value) in [
+        ("highway.overpass_spacing_m", h.overpass_spacing_m),
+        ("highway.gantry_spacing_m", h.gantry_spacing_m),
+        ("highway.sign_spacing_m", h.sign_spacing_m),
+    ] {
+        if value != 0.0 {
+            in_range(field, value, 100.0, 100_000.0)?;
+        }
+    }
+    in_range(
+        "highway.noise_wall_fraction",
+        h.noise_wall_fraction,
+        0.0,
+        1.0,
+    )?;
+    in_range("highway.cutting_fraction", h.cutting_fraction, 0.0, 1.0)?;
+    if h.noise_wall_fraction + h.cutting_fraction > 1.0 {
+        return Err(invalid(
+            "highway.cutting_fraction",
+            "noise_wall_fraction + cutting_fraction must be at most 1",
+        ));
+    }
     // impossible geometry: the vehicles must fit into the spawn zone with
     // safe gaps (the zone around the ego stays free in its lane)
     let capacity = highway_capacity(h);

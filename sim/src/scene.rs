@@ -188,6 +188,15 @@ pub enum StaticKind {
     TreeCrown,
     Wall,
     Sign,
+    /// Raised sidewalk slabs (their sides are the kerbs).
+    Kerb,
+    Fence,
+    /// Bushes and hedges.
+    Shrub,
+    /// Overpass decks, piers and gantry beams.
+    Bridge,
+    /// Earth slopes beside a road (cuttings and embankments).
+    Embankment,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -215,11 +215,39 @@ impl Simulation {
     ) -> Result<PathBuf, SimulationError> {
         let mut writer = DatasetWriter::begin(dir, &self.spec.to_toml())?;
         let total = self.frame_count();
-        for index in 0..total {
-            let frame = self.frame(index)?;
-            writer.write_frame(&frame.recorded, &frame.boxes)?;
-            on_frame(&frame, total);
-        }
+        // a writer thread encodes and writes frame k while the sensors
+        // simulate frame k + 1 (files and their order as in a serial run)
+        let (to_writer, frames) = std::sync::mpsc::sync_channel::<SimulatedFrame>(2);
+        let written = std::thread::scope(|scope| {
+            let writing = scope.spawn(move || -> Result<DatasetWriter, SimulationError> {
+                for frame in frames {
+                    writer.write_frame(&frame.recorded, &frame.boxes)?;
+                }
+                Ok(writer)
+            });
+            let mut simulated = Ok(());
+            for index in 0..total {
+                match self.frame(index) {
+                    Ok(frame) => {
+                        on_frame(&frame, total);
+                        if to_writer.send(frame).is_err() {
+                            // the writer stopped on an error: it reports it
+                            break;
+                        }
+                    }
+                    Err(e) => {
+                        simulated = Err(e);
+                        break;
+                    }
+                }
+            }
+            drop(to_writer);
+            let writer = writing
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            simulated.and(writer)
+        });
+        let writer = written?;
         let imu = self.imu_stream()?;
         let ego = self.ego_truth(&imu);
         let biases = Self::bias_truth(&imu);

@@ -32,7 +32,7 @@ mod overlap;
 mod suspension;
 
 pub use lane_path::{LanePath, PathPiece};
-pub use lift::lift_to_ground;
+pub use lift::{lift_onto, lift_to_ground};
 pub use overlap::{Body, Overlap, first_overlap};
 pub use suspension::{BodyAttitude, RideInput, Suspension, ride};
 

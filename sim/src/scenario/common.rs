@@ -6,7 +6,7 @@ use crate::roughness::Roughness;
 use crate::scene::{Agent, Crown, Ego, Ground, Shape, StaticKind, StaticObject, Undulation};
 use crate::traffic::{
     DriverParams, LanePath, PlanarSample, PlanarTrack, Suspension, TrafficSpec, VehicleSpec,
-    lift_to_ground, simulate_traffic,
+    lift_onto, lift_to_ground, simulate_traffic,
 };
 use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
@@ -108,16 +108,18 @@ pub(crate) fn upright_static(
     }
 }
 
-/// A cuboid of length `|p1 - p0|` from p0 to p1 standing on the ground,
-/// pitched to follow the ground between its ends (guard rails).
+/// A cuboid of length `|p1 - p0|` from p0 to p1 spanning heights
+/// `bottom_m..top_m` above the ground, pitched to follow the ground between
+/// its ends (guard rails).
 pub(crate) fn cuboid_between(
     ground: &Ground,
     kind: StaticKind,
     p0: Point2<f64>,
     p1: Point2<f64>,
     width_m: f64,
-    height_m: f64,
+    (bottom_m, top_m): (f64, f64),
 ) -> StaticObject {
+    let height_m = top_m - bottom_m;
     let d = p1 - p0;
     let length = d.norm();
     let yaw = d.y.atan2(d.x);
@@ -131,10 +133,95 @@ pub(crate) fn cuboid_between(
             half_extents_m: Vector3::new(0.5 * length, 0.5 * width_m, 0.5 * height_m),
         },
         t_world_object: Isometry3::from_parts(
-            Translation3::new(mid.x, mid.y, 0.5 * (z0 + z1) + 0.5 * height_m),
+            Translation3::new(mid.x, mid.y, 0.5 * (z0 + z1) + bottom_m + 0.5 * height_m),
             UnitQuaternion::from_euler_angles(0.0, pitch, yaw),
         ),
     }
+}
+
+/// A cuboid of `half_extents_m` lying on the ground at `xy`: yawed by
+/// `yaw_rad`, then tilted with the untextured ground's slope there, its
+/// bottom face `sink_m` below the ground (so the texture never shows a gap
+/// under it): kerbed sidewalks, embankment slabs, wall footings.
+pub(crate) fn box_on_ground(
+    ground: &Ground,
+    kind: StaticKind,
+    xy: Point2<f64>,
+    yaw_rad: f64,
+    half_extents_m: Vector3<f64>,
+    sink_m: f64,
+) -> StaticObject {
+    let (_, gx, gy) = ground.terrain_height_and_gradient(xy.x, xy.y);
+    let crown = ground.crown.map_or((0.0, Vector2::zeros()), |c| {
+        c.height_and_gradient(xy.x, xy.y)
+    });
+    let up = Vector3::new(-(gx + crown.1.x), -(gy + crown.1.y), 1.0).normalize();
+    let tilt = UnitQuaternion::rotation_between(&Vector3::z(), &up).unwrap_or_default();
+    let rotation = tilt * UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_rad);
+    let base = Vector3::new(xy.x, xy.y, ground.untextured_height(xy.x, xy.y) - sink_m);
+    StaticObject {
+        kind,
+        shape: Shape::Cuboid { half_extents_m },
+        t_world_object: Isometry3::from_parts(
+            Translation3::from(base + up * half_extents_m.z),
+            rotation,
+        ),
+    }
+}
+
+/// A tree: a trunk cylinder and a crown ball half a crown radius above its
+/// top, sized within `trunk_height_m`, `trunk_radius_m`, `crown_radius_m`.
+pub(crate) fn tree(
+    ground: &Ground,
+    at: Point2<f64>,
+    trunk_height_m: (f64, f64),
+    trunk_radius_m: (f64, f64),
+    crown_radius_m: (f64, f64),
+    rng: &mut ChaCha8Rng,
+) -> [StaticObject; 2] {
+    let trunk_height = uniform(rng, trunk_height_m.0, trunk_height_m.1);
+    let trunk_radius = uniform(rng, trunk_radius_m.0, trunk_radius_m.1);
+    let crown_radius = uniform(rng, crown_radius_m.0, crown_radius_m.1);
+    let trunk = upright_static(
+        ground,
+        StaticKind::TreeTrunk,
+        Shape::Cylinder {
+            radius_m: trunk_radius,
+            half_height_m: 0.5 * (trunk_height + 0.2),
+        },
+        at,
+        -0.2,
+        0.0,
+    );
+    let crown = upright_static(
+        ground,
+        StaticKind::TreeCrown,
+        Shape::Ball {
+            radius_m: crown_radius,
+        },
+        at,
+        trunk_height - 0.5 * crown_radius,
+        0.0,
+    );
+    [trunk, crown]
+}
+
+/// A bush: a ball of radius in `radius_m` sunk by a third of its radius.
+pub(crate) fn bush(
+    ground: &Ground,
+    at: Point2<f64>,
+    radius_m: (f64, f64),
+    rng: &mut ChaCha8Rng,
+) -> StaticObject {
+    let r = uniform(rng, radius_m.0, radius_m.1);
+    upright_static(
+        ground,
+        StaticKind::Shrub,
+        Shape::Ball { radius_m: r },
+        at,
+        -r / 3.0,
+        0.0,
+    )
 }
 
 /// A point beside a lane path: `lateral_m` to the left of arc length `s_m`.
@@ -304,19 +391,22 @@ pub(crate) fn make_ego(ego: &EgoSpec, box_trajectory: &Trajectory) -> Ego {
 }
 
 /// Runs the traffic simulation (the ego is the last vehicle) and lifts every
-/// track onto the ground: agents get ids 1..=N in `vehicles` order.
+/// track onto the ground raised by `raised(x, y)` (sidewalks): agents get
+/// ids 1..=N in `vehicles` order.
 pub(crate) fn run_traffic(
     spec: &super::ScenarioSpec,
     ground: &Ground,
+    raised: &dyn Fn(f64, f64) -> f64,
     traffic: &TrafficSpec,
 ) -> Result<(Vec<Agent>, Ego), ScenarioError> {
     let tracks = simulate_traffic(traffic).map_err(|e| super::traffic_error(spec, e))?;
     let mut agents = Vec::with_capacity(tracks.len());
     let mut ego_scene = None;
     for (vehicle, track) in traffic.vehicles.iter().zip(&tracks) {
-        let trajectory = lift_to_ground(
+        let trajectory = lift_onto(
             track,
             ground,
+            raised,
             &vehicle.size_lwh_m,
             Suspension::for_class(vehicle.class).as_ref(),
         );

@@ -7,6 +7,7 @@ use super::common::{
     beside, cuboid_between, draw_body, ego_vehicle, generate_ground, run_traffic, uniform,
     upright_static,
 };
+use super::roadside::{CrossSection, roadside};
 use super::{
     HIGHWAY_EGO_FREE_SLOTS, HighwayParams, ScenarioError, ScenarioSpec, highway_min_spacing_m,
     traffic_error,
@@ -30,6 +31,8 @@ const RIGHT_SHOULDER_M: f64 = 3.0;
 const LEFT_SHOULDER_M: f64 = 1.2;
 const RAIL_WIDTH_M: f64 = 0.3;
 const RAIL_HEIGHT_M: f64 = 0.75;
+/// Bottom of a rail's beam when it stands on posts, m.
+const RAIL_BEAM_BOTTOM_M: f64 = 0.45;
 /// Light poles stand this far outside the right rail.
 const POLE_OUTSIDE_RAIL_M: f64 = 1.5;
 const POLE_RADIUS_M: f64 = 0.12;
@@ -64,6 +67,17 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
 
     let mut statics = guard_rails(&h, &reference, &ground);
     statics.extend(poles_and_signs(&h, &reference, &ground, rng));
+    // the roadside where the ego's LiDAR can see it
+    let view = spec.lidar.max_range_m + 30.0;
+    let reach = ego_s + h.speed_max_mps.max(spec.ego_speed_mps()) * spec.duration_s;
+    statics.extend(roadside(
+        &h,
+        &reference,
+        &ground,
+        &cross_section(&h),
+        (ego_s - view, reach + view),
+        spec.seed,
+    ));
 
     let mut vehicles = place_vehicles(&h, spec.ego.lane, ego_s, rng);
     add_lane_changes(&h, spec.duration_s, &mut vehicles, rng);
@@ -79,7 +93,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         stop_lines: Vec::new(),
         duration_s: spec.duration_s,
     };
-    let (agents, ego) = run_traffic(spec, &ground, &traffic)?;
+    let (agents, ego) = run_traffic(spec, &ground, &|_, _| 0.0, &traffic)?;
     Ok(Scene {
         duration_s: spec.duration_s,
         ground,
@@ -127,7 +141,18 @@ fn lane_offset_m(h: &HighwayParams, i: usize) -> f64 {
     (i as f64 + 0.5 - 0.5 * h.lanes as f64) * h.lane_width_m
 }
 
-/// Guard rail segments along both edges, each pitched to follow the ground.
+/// Outer faces of the two rails.
+fn cross_section(h: &HighwayParams) -> CrossSection {
+    let half_road = 0.5 * h.lanes as f64 * h.lane_width_m;
+    CrossSection {
+        right_rail_m: -(half_road + RIGHT_SHOULDER_M + RAIL_WIDTH_M),
+        left_rail_m: half_road + LEFT_SHOULDER_M + RAIL_WIDTH_M,
+    }
+}
+
+/// Guard rail segments along both edges, each pitched to follow the ground:
+/// a beam on posts (the posts are roadside) or, without posts, solid down
+/// to the ground.
 fn guard_rails(
     h: &HighwayParams,
     reference: &LanePath,
@@ -144,13 +169,18 @@ fn guard_rails(
         for k in 0..segments {
             let s0 = k as f64 * h.guard_rail_segment_m;
             let s1 = s0 + h.guard_rail_segment_m;
+            let base = if h.rail_post_spacing_m > 0.0 {
+                RAIL_BEAM_BOTTOM_M
+            } else {
+                0.0
+            };
             rails.push(cuboid_between(
                 ground,
                 StaticKind::GuardRail,
                 beside(reference, s0, offset),
                 beside(reference, s1, offset),
                 RAIL_WIDTH_M,
-                RAIL_HEIGHT_M,
+                (base, RAIL_HEIGHT_M),
             ));
         }
     }

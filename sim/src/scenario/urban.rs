@@ -20,8 +20,10 @@
 //! pedestrians walk in two lines further out, one per walking direction.
 
 use super::common::{
-    draw_body, ego_vehicle, generate_ground, parked_agent, run_traffic, uniform, upright_static,
+    draw_body, ego_vehicle, generate_ground, parked_agent, run_traffic, tree, uniform,
+    upright_static,
 };
+use super::streetscape::{StreetLayout, streetscape};
 use super::{
     ScenarioError, ScenarioSpec, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
     URBAN_PEDESTRIAN_SPACING_M, UrbanParams, traffic_error, urban_spawn_length_m,
@@ -221,6 +223,15 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let mut lots = building_lot_rng(spec.seed);
     let mut statics = buildings(&street, &ground, rng, &mut lots);
     statics.extend(furniture(&street, &ground, rng));
+    let layout = StreetLayout {
+        kerb_m: street.kerb_m(),
+        sidewalk_width_m: u.sidewalk_width_m,
+        crossings: &street.crossings,
+        cross_half_width_m: 0.5 * u.cross_street_width_m,
+        view: (street.view_lo, street.view_hi),
+    };
+    let detail = streetscape(&layout, &ground, &statics, spec.seed);
+    statics.extend(detail);
 
     let mut vehicles = moving_agents(&street, spec.ego.lane, rng);
     let ego_lane = spec.ego.lane;
@@ -245,7 +256,8 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         duration_s: spec.duration_s,
     };
     // ids: main street 1..=N, cross streets N+1..=M, parked cars from M+1
-    let (mut agents, ego) = run_traffic(spec, &ground, &traffic)?;
+    // pedestrians walk on the raised sidewalks
+    let (mut agents, ego) = run_traffic(spec, &ground, &|x, y| layout.raised_m(x, y), &traffic)?;
     for traffic in &cross_specs {
         agents.extend(simulate_agents(spec, &ground, traffic)?);
     }
@@ -880,41 +892,19 @@ fn furniture(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<Stat
                 .iter()
                 .all(|&p| (p - x).abs() >= TREE_POLE_CLEARANCE_M);
             if clear && !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
-                out.extend(tree(ground, street.at(x, side, from_axis), rng));
+                out.extend(tree(
+                    ground,
+                    street.at(x, side, from_axis),
+                    TRUNK_HEIGHT_M,
+                    TRUNK_RADIUS_M,
+                    CROWN_RADIUS_M,
+                    rng,
+                ));
             }
             x += u.tree_spacing_m * uniform(rng, 0.7, 1.3);
         }
     }
     out
-}
-
-/// A trunk cylinder and a crown ball half a crown radius above its top.
-fn tree(ground: &Ground, at: Point2<f64>, rng: &mut ChaCha8Rng) -> [StaticObject; 2] {
-    let trunk_height = uniform(rng, TRUNK_HEIGHT_M.0, TRUNK_HEIGHT_M.1);
-    let trunk_radius = uniform(rng, TRUNK_RADIUS_M.0, TRUNK_RADIUS_M.1);
-    let crown_radius = uniform(rng, CROWN_RADIUS_M.0, CROWN_RADIUS_M.1);
-    let trunk = upright_static(
-        ground,
-        StaticKind::TreeTrunk,
-        Shape::Cylinder {
-            radius_m: trunk_radius,
-            half_height_m: 0.5 * (trunk_height + 0.2),
-        },
-        at,
-        -0.2,
-        0.0,
-    );
-    let crown = upright_static(
-        ground,
-        StaticKind::TreeCrown,
-        Shape::Ball {
-            radius_m: crown_radius,
-        },
-        at,
-        trunk_height - 0.5 * crown_radius,
-        0.0,
-    );
-    [trunk, crown]
 }
 
 #[cfg(test)]

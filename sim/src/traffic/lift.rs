@@ -35,6 +35,18 @@ pub fn lift_to_ground(
     size_lwh_m: &Vector3<f64>,
     suspension: Option<&Suspension>,
 ) -> Trajectory {
+    lift_onto(track, ground, &|_, _| 0.0, size_lwh_m, suspension)
+}
+
+/// [`lift_to_ground`] onto the ground raised by `raised(x, y)` (m), e.g.
+/// by the sidewalks a pedestrian walks on.
+pub fn lift_onto(
+    track: &PlanarTrack,
+    ground: &Ground,
+    raised: &dyn Fn(f64, f64) -> f64,
+    size_lwh_m: &Vector3<f64>,
+    suspension: Option<&Suspension>,
+) -> Trajectory {
     let half_wheelbase = 0.5 * WHEELBASE_OVER_LENGTH * size_lwh_m.x;
     let half_track = 0.5 * TRACK_OVER_WIDTH * size_lwh_m.y;
     let centre_height = 0.5 * size_lwh_m.z;
@@ -53,9 +65,12 @@ pub fn lift_to_ground(
         let (sin, cos) = s.yaw.sin_cos();
         let (fwd, left) = (Vector2::new(cos, sin), Vector2::new(-sin, cos));
         let p = Vector2::new(s.x, s.y);
-        let at = |q: Vector2<f64>| match suspension {
-            Some(_) => ground.height(q.x, q.y),
-            None => ground.untextured_height(q.x, q.y),
+        let at = |q: Vector2<f64>| {
+            raised(q.x, q.y)
+                + match suspension {
+                    Some(_) => ground.height(q.x, q.y),
+                    None => ground.untextured_height(q.x, q.y),
+                }
         };
         let [fl, fr, rl, rr] = [
             at(p + fwd * half_wheelbase + left * half_track),

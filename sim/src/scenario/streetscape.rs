@@ -1,0 +1,624 @@
+//! The urban street's detail: raised sidewalks with kerbs, facade detail on
+//! the buildings (pilasters, window sills, balconies, shop awnings, door
+//! canopies and steps, cornices), front-garden fences and hedges, and street
+//! furniture (traffic signs, bollards, bins, benches, bus shelters). All
+//! seeded from the scenario seed's own ChaCha stream, so the street's
+//! layout, buildings and traffic stay what they are.
+//!
+//! The street runs along x; `side` -1 is y < 0 (the ego's side), +1 the
+//! other; lateral distances are |y|.
+
+use super::common::{box_on_ground, uniform, upright_static};
+use crate::scene::{Ground, Shape, StaticKind, StaticObject};
+use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// ChaCha stream (of the scenario seed) of the street's detail.
+const STREETSCAPE_STREAM: u64 = 0x0053_5452_4545; // "STREE" in ASCII
+/// Height of the sidewalks above the street, m.
+pub(crate) const KERB_HEIGHT_M: f64 = 0.12;
+/// Sidewalk slabs are cut into pieces of at most this length (they follow
+/// the ground's slope piece by piece), m.
+const SLAB_LENGTH_M: f64 = 8.0;
+/// A walker's height offset falls from the kerb height to 0 over this much
+/// before a sidewalk ends at a cross street (a dropped kerb), m.
+const DROPPED_KERB_M: f64 = 0.3;
+/// Storey height and the facade bays' width range, m.
+const STOREY_M: f64 = 3.0;
+const BAY_M: (f64, f64) = (3.5, 5.0);
+/// Street furniture stands this far from the kerb (centre line), m: inside
+/// the furniture strip, clear of the walkers' lines.
+const FURNITURE_LINE_M: f64 = 1.1;
+/// Mean spacing of bins and benches (each side), bus shelters (alternating
+/// sides), m.
+const BIN_SPACING_M: f64 = 45.0;
+const BENCH_SPACING_M: f64 = 70.0;
+const SHELTER_SPACING_M: f64 = 250.0;
+/// Furniture keeps this far (along x) from poles and trunks, m.
+const FURNITURE_CLEARANCE_M: f64 = 1.5;
+
+/// What the street detail needs to know of the street.
+pub(crate) struct StreetLayout<'a> {
+    /// |y| of the kerbs and the sidewalks' width.
+    pub kerb_m: f64,
+    pub sidewalk_width_m: f64,
+    /// Cross street centres and half width.
+    pub crossings: &'a [f64],
+    pub cross_half_width_m: f64,
+    /// x range where the LiDAR can see the street.
+    pub view: (f64, f64),
+}
+
+impl StreetLayout<'_> {
+    /// The stretches of sidewalk between cross streets inside the view.
+    fn blocks(&self) -> Vec<(f64, f64)> {
+        self.crossings
+            .windows(2)
+            .map(|w| {
+                (
+                    (w[0] + self.cross_half_width_m).max(self.view.0),
+                    (w[1] - self.cross_half_width_m).min(self.view.1),
+                )
+            })
+            .filter(|(a, b)| b - a > 1.0)
+            .collect()
+    }
+
+    /// How far the ground is raised at (x, y): the kerb height on a
+    /// sidewalk, falling to 0 over a dropped kerb before a cross street.
+    pub fn raised_m(&self, x: f64, y: f64) -> f64 {
+        let lateral = y.abs();
+        if lateral < self.kerb_m || lateral > self.kerb_m + self.sidewalk_width_m {
+            return 0.0;
+        }
+        let to_cross = self
+            .crossings
+            .iter()
+            .map(|&c| (x - c).abs() - self.cross_half_width_m)
+            .fold(f64::INFINITY, f64::min);
+        KERB_HEIGHT_M * (to_cross / DROPPED_KERB_M).clamp(0.0, 1.0)
+    }
+}
+
+/// The street's detail. `statics` are the street's buildings, poles and
+/// trees so far (facades get detail; furniture keeps clear of poles).
+pub(crate) fn streetscape(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    statics: &[StaticObject],
+    seed: u64,
+) -> Vec<StaticObject> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(STREETSCAPE_STREAM);
+    let mut out = sidewalks(street, ground);
+    for building in statics.iter().filter(|s| s.kind == StaticKind::Building) {
+        facade(building, &mut rng, &mut out);
+        front_garden(street, ground, building, &mut rng, &mut out);
+    }
+    furniture(street, ground, statics, &mut rng, &mut out);
+    out
+}
+
+/// Sidewalk slabs on both sides of every block, `KERB_HEIGHT_M` above the
+/// street (their street-side faces are the kerbs).
+fn sidewalks(street: &StreetLayout<'_>, ground: &Ground) -> Vec<StaticObject> {
+    let mut out = Vec::new();
+    let sink = 0.1;
+    for side in [-1.0, 1.0] {
+        let y = side * (street.kerb_m + 0.5 * street.sidewalk_width_m);
+        for (x0, x1) in street.blocks() {
+            let n = ((x1 - x0) / SLAB_LENGTH_M).ceil().max(1.0);
+            let length = (x1 - x0) / n;
+            for k in 0..n as usize {
+                let x = x0 + (k as f64 + 0.5) * length;
+                out.push(box_on_ground(
+                    ground,
+                    StaticKind::Kerb,
+                    Point2::new(x, y),
+                    0.0,
+                    Vector3::new(
+                        0.5 * length,
+                        0.5 * street.sidewalk_width_m,
+                        0.5 * (KERB_HEIGHT_M + sink),
+                    ),
+                    sink,
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// An axis-aligned (yaw 0) box centred at `centre` (world).
+fn boxed(kind: StaticKind, centre: Vector3<f64>, size: Vector3<f64>) -> StaticObject {
+    StaticObject {
+        kind,
+        shape: Shape::Cuboid {
+            half_extents_m: size * 0.5,
+        },
+        t_world_object: Isometry3::from_parts(
+            Translation3::from(centre),
+            UnitQuaternion::identity(),
+        ),
+    }
+}
+
+/// The street face of an axis-aligned building.
+struct StreetFace {
+    x0: f64,
+    x1: f64,
+    /// The face's y and the sign of y pointing out of it (to the street).
+    y: f64,
+    out_y: f64,
+    /// The building's base (sunk below the ground) and top.
+    base_z: f64,
+    top_z: f64,
+}
+
+fn street_face(building: &StaticObject) -> Option<StreetFace> {
+    let Shape::Cuboid { half_extents_m: h } = building.shape else {
+        return None;
+    };
+    let c = building.t_world_object.translation.vector;
+    let out_y = -c.y.signum();
+    Some(StreetFace {
+        x0: c.x - h.x,
+        x1: c.x + h.x,
+        y: c.y + out_y * h.y,
+        out_y,
+        base_z: c.z - h.z,
+        top_z: c.z + h.z,
+    })
+}
+
+/// Storeys and bays on a building's street face: pilasters, window sills,
+/// balconies, a shop front or a door, a cornice. Each building draws a
+/// style; protrusions stay within a metre of the face (the setback is at
+/// least that).
+fn facade(building: &StaticObject, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+    let Some(StreetFace {
+        x0,
+        x1,
+        y: face_y,
+        out_y,
+        base_z,
+        top_z,
+    }) = street_face(building)
+    else {
+        return;
+    };
+    // the building's foot is sunk below the ground; its street level is
+    // about where its lowest corner meets the ground
+    let street_z = base_z + 0.5;
+    let storeys = ((top_z - street_z) / STOREY_M).floor() as usize;
+    let bays = ((x1 - x0) / uniform(rng, BAY_M.0, BAY_M.1))
+        .floor()
+        .max(1.0) as usize;
+    let bay = (x1 - x0) / bays as f64;
+    let pilasters = rng.random_bool(0.6);
+    let sills = rng.random_bool(0.5);
+    let balconies = rng.random_bool(0.35);
+    let shops = rng.random_bool(0.4);
+    let cornice = rng.random_bool(0.5);
+    // a box of `depth` from `from` to `from + depth` out of the face, centred at (x, z)
+    let mut protrude_from =
+        |kind, from: f64, x: f64, z: f64, (width, depth, height): (f64, f64, f64)| {
+            out.push(boxed(
+                kind,
+                Vector3::new(x, face_y + out_y * (from + 0.5 * depth), z),
+                Vector3::new(width, depth, height),
+            ))
+        };
+    if pilasters {
+        for k in 0..=bays {
+            let x = (x0 + k as f64 * bay).clamp(x0 + 0.2, x1 - 0.2);
+            protrude_from(
+                StaticKind::Building,
+                0.0,
+                x,
+                0.5 * (street_z + top_z),
+                (0.4, 0.25, top_z - street_z),
+            );
+        }
+    }
+    for storey in 1..storeys {
+        let floor_z = street_z + storey as f64 * STOREY_M;
+        for b in 0..bays {
+            let x = x0 + (b as f64 + 0.5) * bay;
+            if sills {
+                protrude_from(
+                    StaticKind::Building,
+                    0.0,
+                    x,
+                    floor_z + 0.9,
+                    (1.4, 0.15, 0.1),
+                );
+            }
+            if balconies && (b + storey) % 2 == 0 {
+                let width = 0.7 * bay;
+                protrude_from(
+                    StaticKind::Building,
+                    0.0,
+                    x,
+                    floor_z + 0.08,
+                    (width, 1.1, 0.16),
+                );
+                // the parapet at the balcony's front edge
+                protrude_from(
+                    StaticKind::Fence,
+                    1.02,
+                    x,
+                    floor_z + 0.6,
+                    (width, 0.08, 0.9),
+                );
+            }
+        }
+    }
+    // street level: a shop front's awnings, or a door with canopy and step
+    if shops {
+        for b in 0..bays {
+            let x = x0 + (b as f64 + 0.5) * bay;
+            protrude_from(
+                StaticKind::Wall,
+                0.0,
+                x,
+                street_z + 2.8,
+                (bay - 0.4, 1.0, 0.12),
+            );
+        }
+    } else {
+        let x = x0 + (rng.random_range(0..bays) as f64 + 0.5) * bay;
+        protrude_from(
+            StaticKind::Building,
+            0.0,
+            x,
+            street_z + 2.5,
+            (1.8, 0.9, 0.15),
+        );
+        protrude_from(StaticKind::Kerb, 0.0, x, street_z + 0.05, (2.0, 0.6, 0.3));
+    }
+    if cornice {
+        protrude_from(
+            StaticKind::Building,
+            0.0,
+            0.5 * (x0 + x1),
+            top_z - 0.2,
+            (x1 - x0, 0.4, 0.35),
+        );
+    }
+}
+
+/// A fence or a hedge along the back of the sidewalk in front of a
+/// building set back from it, with a gap for the gate.
+fn front_garden(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    building: &StaticObject,
+    rng: &mut ChaCha8Rng,
+    out: &mut Vec<StaticObject>,
+) {
+    let Some(StreetFace {
+        x0, x1, y: face_y, ..
+    }) = street_face(building)
+    else {
+        return;
+    };
+    let back = street.kerb_m + street.sidewalk_width_m;
+    let setback = face_y.abs() - back;
+    if setback < 1.2 || !rng.random_bool(0.6) {
+        return;
+    }
+    let side = face_y.signum();
+    let y = side * (back + 0.35);
+    let gate = uniform(rng, x0 + 1.5, (x1 - 1.5).max(x0 + 1.5));
+    let hedge = rng.random_bool(0.5);
+    let height = if hedge {
+        uniform(rng, 0.9, 1.5)
+    } else {
+        uniform(rng, 0.9, 1.2)
+    };
+    for (a, b) in [(x0 + 0.3, gate - 0.6), (gate + 0.6, x1 - 0.3)] {
+        if b - a < 0.5 {
+            continue;
+        }
+        let mid = Point2::new(0.5 * (a + b), y);
+        if hedge {
+            out.push(upright_static(
+                ground,
+                StaticKind::Shrub,
+                Shape::Cuboid {
+                    half_extents_m: Vector3::new(0.5 * (b - a), 0.3, 0.5 * height + 0.1),
+                },
+                mid,
+                -0.2,
+                0.0,
+            ));
+        } else {
+            // posts every 2 m and a top rail; the panels between are open
+            let posts = ((b - a) / 2.0).ceil() as usize;
+            for k in 0..=posts {
+                let x = a + (b - a) * k as f64 / posts as f64;
+                out.push(upright_static(
+                    ground,
+                    StaticKind::Fence,
+                    Shape::Cuboid {
+                        half_extents_m: Vector3::new(0.05, 0.05, 0.5 * height + 0.1),
+                    },
+                    Point2::new(x, y),
+                    -0.2,
+                    0.0,
+                ));
+            }
+            for rail_z in [0.35, height - 0.1] {
+                out.push(upright_static(
+                    ground,
+                    StaticKind::Fence,
+                    Shape::Cuboid {
+                        half_extents_m: Vector3::new(0.5 * (b - a), 0.03, 0.05),
+                    },
+                    mid,
+                    rail_z - 0.05,
+                    0.0,
+                ));
+            }
+        }
+    }
+}
+
+/// Signs before every crossing, bollards at the corners, bins, benches and
+/// bus shelters along the furniture line, clear of poles and trunks.
+fn furniture(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    statics: &[StaticObject],
+    rng: &mut ChaCha8Rng,
+    out: &mut Vec<StaticObject>,
+) {
+    let raised = KERB_HEIGHT_M;
+    for side in [-1.0, 1.0] {
+        let line = side * (street.kerb_m + FURNITURE_LINE_M);
+        let occupied: Vec<f64> = statics
+            .iter()
+            .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
+            .map(|s| s.t_world_object.translation.vector)
+            .filter(|p| p.y * side > 0.0)
+            .map(|p| p.x)
+            .collect();
+        let clear = |x: f64, half: f64| {
+            occupied
+                .iter()
+                .all(|&p| (p - x).abs() > half + FURNITURE_CLEARANCE_M)
+        };
+        for (x0, x1) in street.blocks() {
+            // traffic signs facing the traffic before the crossing ahead of
+            // it (the traffic on this side drives along -side... +x on the
+            // right), bollards at both corners
+            let (sign_x, facing) = if side < 0.0 {
+                (x1 - 3.0, 0.0)
+            } else {
+                (x0 + 3.0, std::f64::consts::PI)
+            };
+            if (street.view.0..street.view.1).contains(&sign_x) && clear(sign_x, 0.4) {
+                traffic_sign(ground, Point2::new(sign_x, line), facing, raised, out);
+            }
+            for corner in [x0 + 0.6, x1 - 0.6] {
+                for k in 0..3 {
+                    let y = side * (street.kerb_m + 0.3 + 0.8 * k as f64);
+                    out.push(upright_static(
+                        ground,
+                        StaticKind::Pole,
+                        Shape::Cylinder {
+                            radius_m: 0.08,
+                            half_height_m: 0.5,
+                        },
+                        Point2::new(corner, y),
+                        raised - 0.1,
+                        0.0,
+                    ));
+                }
+            }
+            let mut x = x0 + uniform(rng, 5.0, BIN_SPACING_M);
+            while x < x1 - 5.0 {
+                if clear(x, 0.3) {
+                    out.push(upright_static(
+                        ground,
+                        StaticKind::Wall,
+                        Shape::Cylinder {
+                            radius_m: 0.3,
+                            half_height_m: 0.5,
+                        },
+                        Point2::new(x, line),
+                        raised,
+                        0.0,
+                    ));
+                }
+                x += BIN_SPACING_M * uniform(rng, 0.6, 1.4);
+            }
+            let mut x = x0 + uniform(rng, 5.0, BENCH_SPACING_M);
+            while x < x1 - 5.0 {
+                if clear(x, 1.0) {
+                    bench(ground, Point2::new(x, line), side, raised, out);
+                }
+                x += BENCH_SPACING_M * uniform(rng, 0.6, 1.4);
+            }
+        }
+    }
+    // bus shelters, alternating sides
+    let mut x = street.view.0 + uniform(rng, 0.0, SHELTER_SPACING_M);
+    let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    while x < street.view.1 {
+        let near_crossing = street
+            .crossings
+            .iter()
+            .any(|&c| (x - c).abs() < street.cross_half_width_m + 4.0);
+        let free = statics
+            .iter()
+            .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
+            .map(|s| s.t_world_object.translation.vector)
+            .all(|p| p.y * side < 0.0 || (p.x - x).abs() > 2.5);
+        if !near_crossing && free {
+            shelter(
+                ground,
+                Point2::new(x, side * (street.kerb_m + 0.75)),
+                side,
+                raised,
+                out,
+            );
+        }
+        x += SHELTER_SPACING_M * uniform(rng, 0.7, 1.3);
+        side = -side;
+    }
+}
+
+/// A sign board on a thin pole, the board's face towards `facing_rad`.
+fn traffic_sign(
+    ground: &Ground,
+    at: Point2<f64>,
+    facing_rad: f64,
+    raised: f64,
+    out: &mut Vec<StaticObject>,
+) {
+    out.push(upright_static(
+        ground,
+        StaticKind::Pole,
+        Shape::Cylinder {
+            radius_m: 0.04,
+            half_height_m: 1.4,
+        },
+        at,
+        raised - 0.1,
+        0.0,
+    ));
+    out.push(upright_static(
+        ground,
+        StaticKind::Sign,
+        Shape::Cuboid {
+            half_extents_m: Vector3::new(0.03, 0.35, 0.35),
+        },
+        at + nalgebra::Vector2::new(facing_rad.cos(), facing_rad.sin()) * 0.06,
+        raised + 1.9,
+        facing_rad,
+    ));
+}
+
+/// A bench along the street: seat and back rest, facing the street.
+fn bench(ground: &Ground, at: Point2<f64>, side: f64, raised: f64, out: &mut Vec<StaticObject>) {
+    let seat = Shape::Cuboid {
+        half_extents_m: Vector3::new(0.9, 0.25, 0.05),
+    };
+    out.push(upright_static(
+        ground,
+        StaticKind::Fence,
+        seat,
+        at,
+        raised + 0.4,
+        0.0,
+    ));
+    let back = Shape::Cuboid {
+        half_extents_m: Vector3::new(0.9, 0.03, 0.25),
+    };
+    let behind = at + nalgebra::Vector2::new(0.0, side * 0.25);
+    out.push(upright_static(
+        ground,
+        StaticKind::Fence,
+        back,
+        behind,
+        raised + 0.5,
+        0.0,
+    ));
+}
+
+/// A bus shelter: roof, back panel and two side panels, open to the street.
+fn shelter(ground: &Ground, at: Point2<f64>, side: f64, raised: f64, out: &mut Vec<StaticObject>) {
+    let (length, depth, height) = (3.6, 1.4, 2.4);
+    let z = ground.untextured_height(at.x, at.y) + raised;
+    let place = |dx: f64, dy: f64, dz: f64, size: Vector3<f64>| {
+        boxed(
+            StaticKind::Wall,
+            Vector3::new(at.x + dx, at.y + side * dy, z + dz),
+            size,
+        )
+    };
+    out.push(place(0.0, 0.0, height, Vector3::new(length, depth, 0.1)));
+    out.push(place(
+        0.0,
+        0.5 * depth,
+        0.5 * height + 0.1,
+        Vector3::new(length, 0.05, height - 0.2),
+    ));
+    for end in [-0.5 * length, 0.5 * length] {
+        out.push(place(
+            end,
+            0.15,
+            0.5 * height + 0.1,
+            Vector3::new(0.05, depth - 0.3, height - 0.2),
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layout(crossings: &[f64]) -> StreetLayout<'_> {
+        StreetLayout {
+            kerb_m: 10.2,
+            sidewalk_width_m: 4.0,
+            crossings,
+            cross_half_width_m: 7.0,
+            view: (-150.0, 400.0),
+        }
+    }
+
+    #[test]
+    fn walkers_are_raised_on_sidewalks_only() {
+        let crossings = [-200.0, 60.0, 170.0];
+        let street = layout(&crossings);
+        assert_eq!(street.raised_m(0.0, -12.0), KERB_HEIGHT_M);
+        assert_eq!(street.raised_m(0.0, 13.9), KERB_HEIGHT_M);
+        assert_eq!(street.raised_m(0.0, 9.0), 0.0);
+        assert_eq!(street.raised_m(0.0, 15.0), 0.0);
+        // a dropped kerb at the cross street's edge, none on it
+        assert_eq!(street.raised_m(60.0 - 7.0, 12.0), 0.0);
+        assert!((street.raised_m(60.0 - 7.15, 12.0) - 0.5 * KERB_HEIGHT_M).abs() < 1e-9);
+        assert_eq!(street.raised_m(60.0, 12.0), 0.0);
+    }
+
+    #[test]
+    fn sidewalk_slabs_cover_the_blocks_at_kerb_height_and_leave_the_street_free() {
+        let crossings = [-200.0, 60.0, 170.0, 280.0, 390.0];
+        let street = layout(&crossings);
+        let ground = Ground::flat(0.0);
+        let building = boxed(
+            StaticKind::Building,
+            Vector3::new(100.0, -(10.2 + 4.0 + 2.0 + 6.0), 8.0),
+            Vector3::new(20.0, 12.0, 18.0),
+        );
+        let statics = streetscape(&street, &ground, std::slice::from_ref(&building), 3);
+        let slabs: Vec<&StaticObject> = statics
+            .iter()
+            .filter(|s| s.kind == StaticKind::Kerb)
+            .collect();
+        assert!(slabs.len() > 100);
+        for s in &statics {
+            let Shape::Cuboid { half_extents_m: h } = s.shape else {
+                continue;
+            };
+            let c = s.t_world_object.translation.vector;
+            // nothing on the carriageway
+            let lateral = c.y.abs() - h.y;
+            assert!(lateral >= 10.2 - 1e-6, "{:?} at {c}", s.kind);
+            if s.kind == StaticKind::Kerb && h.y > 1.0 {
+                assert!((c.z + h.z - KERB_HEIGHT_M).abs() < 1e-9);
+            }
+        }
+        // the facade got detail, none of it more than a metre out
+        let detail = statics
+            .iter()
+            .filter(|s| s.kind == StaticKind::Building)
+            .count();
+        assert!(detail > 0 || statics.iter().any(|s| s.kind == StaticKind::Wall));
+        assert_eq!(statics, streetscape(&street, &ground, &[building], 3));
+    }
+}
