@@ -60,7 +60,7 @@ fn simulated_dataset_gives_finite_plausible_figures() {
         stats.roll_change_deg.n + stats.standing_pairs,
         SIM_FRAMES - 1
     );
-    assert!(stats.roll_change_deg.n >= 15, "{stats:?}");
+    assert!(stats.roll_change_deg.n >= 10, "{stats:?}");
     assert!(
         stats.roll_change_deg.p95 < 1.0 && stats.pitch_change_deg.p95 < 1.0,
         "{stats:?}"

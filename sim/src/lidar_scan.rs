@@ -13,7 +13,7 @@
 //! range falloff `1 / (1 + (r / 45 m)^4)` (returns beyond ~50 m are faint)
 //! x the laser's own gain (log-normal, sigma 0.25, fixed per sensor seed)
 //! x a per-return speckle (log-normal, sigma 0.35). Reflectivities: road
-//! 0.22, tree crown and trunk, shrub, earth and building 0.3, wall, kerb
+//! 0.22, tree crown and trunk, shrub, earth, building and facade 0.3, wall, kerb
 //! and bridge concrete 0.35, pole and fence 0.4, guard rail 0.5, sign 0.9
 //! (retro-reflective), car 0.3, truck 0.35, cyclist and pedestrian 0.3.
 //!
@@ -296,7 +296,8 @@ pub fn reflectivity(surface: Surface) -> f64 {
     match surface {
         Surface::Ground => 0.22,
         Surface::Static(kind) => match kind {
-            StaticKind::Building | StaticKind::TreeTrunk | StaticKind::TreeCrown => 0.3,
+            StaticKind::Building | StaticKind::Facade => 0.3,
+            StaticKind::TreeTrunk | StaticKind::TreeCrown => 0.3,
             StaticKind::Shrub | StaticKind::Embankment => 0.3,
             StaticKind::Wall | StaticKind::Kerb | StaticKind::Bridge => 0.35,
             StaticKind::Fence => 0.4,

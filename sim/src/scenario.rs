@@ -152,6 +152,8 @@ pub struct HighwayParams {
     /// Distance between the posts under the rails' beams; 0 = solid rails
     /// down to the ground, no posts.
     pub rail_post_spacing_m: f64,
+    /// Distance between the reflector posts on the right shoulder's edge; 0 = none.
+    pub delineator_spacing_m: f64,
     /// Shares of the right roadside (in stretches of 80-300 m) with a noise
     /// wall and with a cutting (an earth slope rising 2-6 m); the rest is
     /// open verge. Their sum is at most 1.
@@ -159,6 +161,9 @@ pub struct HighwayParams {
     pub cutting_fraction: f64,
     /// Mean spacing of bushes and trees on the verges and in the median; 0 = none.
     pub vegetation_spacing_m: f64,
+    /// Distance between the posts of the right-of-way fence beyond open
+    /// verges; 0 = no fence.
+    pub fence_post_spacing_m: f64,
     /// Mean distance between overpasses, between sign gantries and between
     /// roadside sign boards (distance and speed signs); 0 = none.
     pub overpass_spacing_m: f64,
@@ -185,9 +190,11 @@ impl Default for HighwayParams {
             guard_rail_segment_m: 12.0,
             pole_spacing_m: 60.0,
             rail_post_spacing_m: 2.0,
+            delineator_spacing_m: 50.0,
             noise_wall_fraction: 0.3,
             cutting_fraction: 0.3,
             vegetation_spacing_m: 8.0,
+            fence_post_spacing_m: 3.0,
             overpass_spacing_m: 800.0,
             gantry_spacing_m: 1000.0,
             sign_spacing_m: 200.0,
@@ -401,6 +408,18 @@ impl ScenarioSpec {
                     truck_speed_max_mps: 13.0,
                     spawn_behind_m: 150.0,
                     spawn_ahead_m: 250.0,
+                    // a bare roadside, so that pacing traffic is much of
+                    // what the LiDAR sees: concrete barriers (no posts),
+                    // empty verges, only the light poles and their signs
+                    rail_post_spacing_m: 0.0,
+                    delineator_spacing_m: 0.0,
+                    noise_wall_fraction: 0.0,
+                    cutting_fraction: 0.0,
+                    vegetation_spacing_m: 0.0,
+                    fence_post_spacing_m: 0.0,
+                    overpass_spacing_m: 0.0,
+                    gantry_spacing_m: 0.0,
+                    sign_spacing_m: 0.0,
                     ..HighwayParams::default()
                 }),
                 ..base(Family::Highway, 1)
@@ -739,7 +758,9 @@ fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
     in_range("highway.pole_spacing_m", h.pole_spacing_m, 10.0, 10_000.0)?;
     for (field, value) in [
         ("highway.rail_post_spacing_m", h.rail_post_spacing_m),
+        ("highway.delineator_spacing_m", h.delineator_spacing_m),
         ("highway.vegetation_spacing_m", h.vegetation_spacing_m),
+        ("highway.fence_post_spacing_m", h.fence_post_spacing_m),
     ] {
         if value != 0.0 {
             in_range(field, value, 1.0, 1000.0)?;

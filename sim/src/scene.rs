@@ -190,6 +190,9 @@ pub enum StaticKind {
     Sign,
     /// Raised sidewalk slabs (their sides are the kerbs).
     Kerb,
+    /// Detail on a building's street face: pilasters, sills, balconies,
+    /// awnings, canopies, steps, cornices.
+    Facade,
     Fence,
     /// Bushes and hedges.
     Shrub,

@@ -23,8 +23,6 @@ use rand_chacha::ChaCha8Rng;
 const ROADSIDE_STREAM: u64 = 0x0052_4f41_4453; // "ROADS" in ASCII
 /// Rail posts: a sigma post's cross-section (along, across) and height, m.
 const RAIL_POST_SIZE_M: (f64, f64, f64) = (0.12, 0.15, 0.75);
-/// Delineator posts on the right shoulder edge: spacing and size, m.
-const DELINEATOR_SPACING_M: f64 = 50.0;
 /// The verge: from the light poles to this far beyond the rail, m.
 const VERGE_WIDTH_M: f64 = 4.5;
 /// Lengths of the roadside stretches (wall, cutting or open verge), m.
@@ -34,15 +32,21 @@ const NOISE_WALL_HEIGHT_M: (f64, f64) = (3.0, 4.5);
 const NOISE_WALL_THICKNESS_M: f64 = 0.25;
 const NOISE_WALL_POST_SPACING_M: f64 = 4.0;
 const NOISE_WALL_POST_DEPTH_M: f64 = 0.35;
+/// Every other panel stands this much farther back.
+const NOISE_WALL_STAGGER_M: f64 = 0.4;
+/// The right-of-way fence along open verges: distance beyond the verge
+/// and post height, m.
+const FENCE_OFFSET_M: f64 = 15.0;
+const FENCE_HEIGHT_M: f64 = 1.6;
 /// Cuttings: rise, slope (rise over run) and segment length, m.
 const CUTTING_RISE_M: (f64, f64) = (2.0, 6.0);
 const CUTTING_GRADE: (f64, f64) = (0.35, 0.6);
 const SEGMENT_M: f64 = 20.0;
 /// Vegetation on open verges and cutting tops, and bushes in the median.
 const BUSH_RADIUS_M: (f64, f64) = (0.5, 1.4);
-const TREE_TRUNK_HEIGHT_M: (f64, f64) = (2.0, 4.0);
+const TREE_TRUNK_HEIGHT_M: (f64, f64) = (3.2, 5.0);
 const TREE_TRUNK_RADIUS_M: (f64, f64) = (0.1, 0.25);
-const TREE_CROWN_RADIUS_M: (f64, f64) = (1.5, 3.0);
+const TREE_CROWN_RADIUS_M: (f64, f64) = (1.5, 2.2);
 /// Overpasses: clearance over the road, deck thickness and width (along the
 /// road), span beyond the rails, m.
 const OVERPASS_CLEARANCE_M: f64 = 5.2;
@@ -76,7 +80,9 @@ pub(crate) fn roadside(
     if h.rail_post_spacing_m > 0.0 {
         rail_posts(h, reference, ground, section, (s_lo, s_hi), &mut out);
     }
-    delineators(reference, ground, section, (s_lo, s_hi), &mut out);
+    if h.delineator_spacing_m > 0.0 {
+        delineators(h, reference, ground, section, (s_lo, s_hi), &mut out);
+    }
     right_stretches(
         h,
         reference,
@@ -173,19 +179,21 @@ fn rail_posts(
     }
 }
 
-/// Reflector posts on the right shoulder's edge, every 50 m.
+/// Reflector posts on the right shoulder's edge.
 fn delineators(
+    h: &HighwayParams,
     reference: &LanePath,
     ground: &Ground,
     section: &CrossSection,
     (s_lo, s_hi): (f64, f64),
     out: &mut Vec<StaticObject>,
 ) {
-    let mut s = (s_lo / DELINEATOR_SPACING_M).ceil() * DELINEATOR_SPACING_M + 25.0;
+    let spacing = h.delineator_spacing_m;
+    let mut s = (s_lo / spacing).ceil() * spacing + 0.5 * spacing;
     while s < s_hi {
         out.push(upright_static(
             ground,
-            StaticKind::Sign,
+            StaticKind::Pole,
             Shape::Cylinder {
                 radius_m: 0.06,
                 half_height_m: 0.6,
@@ -194,7 +202,7 @@ fn delineators(
             -0.1,
             0.0,
         ));
-        s += DELINEATOR_SPACING_M;
+        s += spacing;
     }
 }
 
@@ -232,31 +240,39 @@ fn right_stretches(
         match kind {
             Stretch::NoiseWall => {
                 let height = uniform(rng, NOISE_WALL_HEIGHT_M.0, NOISE_WALL_HEIGHT_M.1);
-                let lateral = verge_end - 0.5 * NOISE_WALL_THICKNESS_M;
-                segments(s, length, |s0, len| {
+                // panels between H-section posts, staggered back and forth
+                // and stepped in height, as walls built of precast elements are
+                let panels = (length / NOISE_WALL_POST_SPACING_M).floor().max(1.0) as usize;
+                let panel = length / panels as f64;
+                for k in 0..panels {
+                    let stagger = if k % 2 == 0 {
+                        0.0
+                    } else {
+                        NOISE_WALL_STAGGER_M
+                    };
+                    let step = uniform(rng, -0.3, 0.3);
                     out.push(roadside_box(
                         reference,
                         ground,
                         StaticKind::Wall,
-                        s0 + 0.5 * len,
-                        lateral,
-                        (len, NOISE_WALL_THICKNESS_M, height + 0.5),
+                        s + (k as f64 + 0.5) * panel,
+                        verge_end - stagger - 0.5 * NOISE_WALL_THICKNESS_M,
+                        (panel, NOISE_WALL_THICKNESS_M, height + step + 0.5),
                         -0.5,
                     ));
-                });
-                // H-section posts on the road side of the panels
-                let mut p = s + 0.5 * NOISE_WALL_POST_SPACING_M;
-                while p < s + length {
                     out.push(roadside_box(
                         reference,
                         ground,
                         StaticKind::Wall,
-                        p,
-                        verge_end + 0.5 * NOISE_WALL_POST_DEPTH_M,
-                        (0.3, NOISE_WALL_POST_DEPTH_M, height + 0.7),
+                        s + k as f64 * panel,
+                        verge_end + 0.5 * NOISE_WALL_POST_DEPTH_M - 0.5 * NOISE_WALL_STAGGER_M,
+                        (
+                            0.3,
+                            NOISE_WALL_POST_DEPTH_M + NOISE_WALL_STAGGER_M,
+                            height + 0.7,
+                        ),
                         -0.5,
                     ));
-                    p += NOISE_WALL_POST_SPACING_M;
                 }
             }
             Stretch::Cutting => {
@@ -285,6 +301,24 @@ fn right_stretches(
                     rng,
                     out,
                 );
+                // scrub growing on the slope itself
+                if h.vegetation_spacing_m > 0.0 {
+                    let mut p = s + uniform(rng, 0.0, h.vegetation_spacing_m);
+                    while p < s + length {
+                        let up = uniform(rng, 0.15, 0.85);
+                        let at = beside(reference, p, verge_end - up * run);
+                        let radius = uniform(rng, BUSH_RADIUS_M.0, BUSH_RADIUS_M.1);
+                        out.push(upright_static(
+                            ground,
+                            StaticKind::Shrub,
+                            Shape::Ball { radius_m: radius },
+                            at,
+                            up * rise - 0.4 * radius,
+                            0.0,
+                        ));
+                        p += h.vegetation_spacing_m * uniform(rng, 0.3, 1.0);
+                    }
+                }
             }
             Stretch::OpenVerge => {
                 vegetation(
@@ -297,6 +331,24 @@ fn right_stretches(
                     rng,
                     out,
                 );
+                // the right-of-way fence at the boundary: posts and a top
+                // wire (the mesh between is too fine for the LiDAR)
+                if h.fence_post_spacing_m > 0.0 {
+                    let lateral = verge_end - FENCE_OFFSET_M;
+                    let mut p = s + uniform(rng, 0.0, h.fence_post_spacing_m);
+                    while p < s + length {
+                        out.push(roadside_box(
+                            reference,
+                            ground,
+                            StaticKind::Fence,
+                            p,
+                            lateral,
+                            (0.1, 0.1, FENCE_HEIGHT_M + 0.3),
+                            -0.3,
+                        ));
+                        p += h.fence_post_spacing_m;
+                    }
+                }
             }
         }
         s += length;

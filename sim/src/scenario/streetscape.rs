@@ -21,9 +21,15 @@ pub(crate) const KERB_HEIGHT_M: f64 = 0.12;
 /// Sidewalk slabs are cut into pieces of at most this length (they follow
 /// the ground's slope piece by piece), m.
 const SLAB_LENGTH_M: f64 = 8.0;
-/// A walker's height offset falls from the kerb height to 0 over this much
-/// before a sidewalk ends at a cross street (a dropped kerb), m.
-const DROPPED_KERB_M: f64 = 0.3;
+/// The sidewalk slabs end this far before a cross street (the dropped
+/// kerb's apron), and a walker's height offset ramps from 0 at the cross
+/// street to the full kerb height over the apron less half a walker's
+/// length, so no walker's body meets a slab's end, m.
+const APRON_M: f64 = 1.0;
+const WALKER_HALF_LENGTH_M: f64 = 0.35;
+/// Walkers' soles clear the slabs' flat tops by this much over the
+/// ground's curvature under an 8 m slab, m.
+const SOLE_CLEARANCE_M: f64 = 0.03;
 /// Storey height and the facade bays' width range, m.
 const STOREY_M: f64 = 3.0;
 const BAY_M: (f64, f64) = (3.5, 5.0);
@@ -51,22 +57,28 @@ pub(crate) struct StreetLayout<'a> {
 }
 
 impl StreetLayout<'_> {
-    /// The stretches of sidewalk between cross streets inside the view.
+    /// The stretches of sidewalk between cross streets inside the view
+    /// (for slabs: less the aprons).
     fn blocks(&self) -> Vec<(f64, f64)> {
+        self.blocks_inset(0.0)
+    }
+
+    fn blocks_inset(&self, inset_m: f64) -> Vec<(f64, f64)> {
         self.crossings
             .windows(2)
             .map(|w| {
                 (
-                    (w[0] + self.cross_half_width_m).max(self.view.0),
-                    (w[1] - self.cross_half_width_m).min(self.view.1),
+                    (w[0] + self.cross_half_width_m + inset_m).max(self.view.0),
+                    (w[1] - self.cross_half_width_m - inset_m).min(self.view.1),
                 )
             })
             .filter(|(a, b)| b - a > 1.0)
             .collect()
     }
 
-    /// How far the ground is raised at (x, y): the kerb height on a
-    /// sidewalk, falling to 0 over a dropped kerb before a cross street.
+    /// How far a walker is raised at (x, y): the kerb height (and a sole's
+    /// clearance) on a sidewalk, falling to 0 over a dropped kerb before a
+    /// cross street.
     pub fn raised_m(&self, x: f64, y: f64) -> f64 {
         let lateral = y.abs();
         if lateral < self.kerb_m || lateral > self.kerb_m + self.sidewalk_width_m {
@@ -77,7 +89,8 @@ impl StreetLayout<'_> {
             .iter()
             .map(|&c| (x - c).abs() - self.cross_half_width_m)
             .fold(f64::INFINITY, f64::min);
-        KERB_HEIGHT_M * (to_cross / DROPPED_KERB_M).clamp(0.0, 1.0)
+        let ramp = APRON_M - WALKER_HALF_LENGTH_M;
+        (KERB_HEIGHT_M + SOLE_CLEARANCE_M) * (to_cross / ramp).clamp(0.0, 1.0)
     }
 }
 
@@ -92,12 +105,30 @@ pub(crate) fn streetscape(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(STREETSCAPE_STREAM);
     let mut out = sidewalks(street, ground);
-    for building in statics.iter().filter(|s| s.kind == StaticKind::Building) {
-        facade(building, &mut rng, &mut out);
-        front_garden(street, ground, building, &mut rng, &mut out);
-    }
     furniture(street, ground, statics, &mut rng, &mut out);
+    for building in statics.iter().filter(|s| s.kind == StaticKind::Building) {
+        // each building's detail from its own stream (keyed by where it
+        // stands): a building's absence changes nothing else
+        let mut own = building_rng(seed, building);
+        facade(street, building, ground, &mut own, &mut out);
+        front_garden(street, ground, building, &mut own, &mut out);
+    }
     out
+}
+
+/// The stream of one building's detail: the scenario seed mixed with the
+/// bits of the building's position, on the streetscape's stream number.
+fn building_rng(seed: u64, building: &StaticObject) -> ChaCha8Rng {
+    let c = building.t_world_object.translation.vector;
+    let mut key = seed;
+    for v in [c.x, c.y] {
+        key = (key ^ v.to_bits())
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(29);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(key);
+    rng.set_stream(STREETSCAPE_STREAM);
+    rng
 }
 
 /// Sidewalk slabs on both sides of every block, `KERB_HEIGHT_M` above the
@@ -107,7 +138,7 @@ fn sidewalks(street: &StreetLayout<'_>, ground: &Ground) -> Vec<StaticObject> {
     let sink = 0.1;
     for side in [-1.0, 1.0] {
         let y = side * (street.kerb_m + 0.5 * street.sidewalk_width_m);
-        for (x0, x1) in street.blocks() {
+        for (x0, x1) in street.blocks_inset(APRON_M) {
             let n = ((x1 - x0) / SLAB_LENGTH_M).ceil().max(1.0);
             let length = (x1 - x0) / n;
             for k in 0..n as usize {
@@ -151,8 +182,7 @@ struct StreetFace {
     /// The face's y and the sign of y pointing out of it (to the street).
     y: f64,
     out_y: f64,
-    /// The building's base (sunk below the ground) and top.
-    base_z: f64,
+    /// The building's top.
     top_z: f64,
 }
 
@@ -167,30 +197,38 @@ fn street_face(building: &StaticObject) -> Option<StreetFace> {
         x1: c.x + h.x,
         y: c.y + out_y * h.y,
         out_y,
-        base_z: c.z - h.z,
         top_z: c.z + h.z,
     })
 }
 
 /// Storeys and bays on a building's street face: pilasters, window sills,
 /// balconies, a shop front or a door, a cornice. Each building draws a
-/// style; protrusions stay within a metre of the face (the setback is at
-/// least that).
-fn facade(building: &StaticObject, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+/// style; protrusions stay within its setback from the sidewalk.
+fn facade(
+    street: &StreetLayout<'_>,
+    building: &StaticObject,
+    ground: &Ground,
+    rng: &mut ChaCha8Rng,
+    out: &mut Vec<StaticObject>,
+) {
     let Some(StreetFace {
         x0,
         x1,
         y: face_y,
         out_y,
-        base_z,
         top_z,
+        ..
     }) = street_face(building)
     else {
         return;
     };
-    // the building's foot is sunk below the ground; its street level is
-    // about where its lowest corner meets the ground
-    let street_z = base_z + 0.5;
+    // storeys count from the ground at the face's middle; what stands on
+    // the ground (pilasters, the door's step) starts from the ground under it
+    let ground_at = |x: f64| ground.untextured_height(x, face_y);
+    // nothing reaches over the sidewalk
+    let setback = face_y.abs() - (street.kerb_m + street.sidewalk_width_m);
+    let reach = |depth: f64| depth.min(setback - 0.1).max(0.05);
+    let street_z = ground_at(0.5 * (x0 + x1));
     let storeys = ((top_z - street_z) / STOREY_M).floor() as usize;
     let bays = ((x1 - x0) / uniform(rng, BAY_M.0, BAY_M.1))
         .floor()
@@ -213,12 +251,13 @@ fn facade(building: &StaticObject, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObj
     if pilasters {
         for k in 0..=bays {
             let x = (x0 + k as f64 * bay).clamp(x0 + 0.2, x1 - 0.2);
+            let foot = ground_at(x) - 0.2;
             protrude_from(
-                StaticKind::Building,
+                StaticKind::Facade,
                 0.0,
                 x,
-                0.5 * (street_z + top_z),
-                (0.4, 0.25, top_z - street_z),
+                0.5 * (foot + top_z),
+                (0.4, 0.25, top_z - foot),
             );
         }
     }
@@ -227,27 +266,22 @@ fn facade(building: &StaticObject, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObj
         for b in 0..bays {
             let x = x0 + (b as f64 + 0.5) * bay;
             if sills {
-                protrude_from(
-                    StaticKind::Building,
-                    0.0,
-                    x,
-                    floor_z + 0.9,
-                    (1.4, 0.15, 0.1),
-                );
+                protrude_from(StaticKind::Facade, 0.0, x, floor_z + 0.9, (1.4, 0.15, 0.1));
             }
             if balconies && (b + storey) % 2 == 0 {
                 let width = 0.7 * bay;
+                let depth = reach(1.1);
                 protrude_from(
-                    StaticKind::Building,
+                    StaticKind::Facade,
                     0.0,
                     x,
                     floor_z + 0.08,
-                    (width, 1.1, 0.16),
+                    (width, depth, 0.16),
                 );
                 // the parapet at the balcony's front edge
                 protrude_from(
-                    StaticKind::Fence,
-                    1.02,
+                    StaticKind::Facade,
+                    depth - 0.08,
                     x,
                     floor_z + 0.6,
                     (width, 0.08, 0.9),
@@ -260,27 +294,34 @@ fn facade(building: &StaticObject, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObj
         for b in 0..bays {
             let x = x0 + (b as f64 + 0.5) * bay;
             protrude_from(
-                StaticKind::Wall,
+                StaticKind::Facade,
                 0.0,
                 x,
-                street_z + 2.8,
-                (bay - 0.4, 1.0, 0.12),
+                ground_at(x) + 2.8,
+                (bay - 0.4, reach(1.0), 0.12),
             );
         }
     } else {
         let x = x0 + (rng.random_range(0..bays) as f64 + 0.5) * bay;
+        let door_z = ground_at(x);
         protrude_from(
-            StaticKind::Building,
+            StaticKind::Facade,
             0.0,
             x,
-            street_z + 2.5,
-            (1.8, 0.9, 0.15),
+            door_z + 2.5,
+            (1.8, reach(0.9), 0.15),
         );
-        protrude_from(StaticKind::Kerb, 0.0, x, street_z + 0.05, (2.0, 0.6, 0.3));
+        protrude_from(
+            StaticKind::Facade,
+            0.0,
+            x,
+            door_z + 0.02,
+            (2.0, reach(0.6), 0.3),
+        );
     }
     if cornice {
         protrude_from(
-            StaticKind::Building,
+            StaticKind::Facade,
             0.0,
             0.5 * (x0 + x1),
             top_z - 0.2,
@@ -403,7 +444,8 @@ fn furniture(
                 traffic_sign(ground, Point2::new(sign_x, line), facing, raised, out);
             }
             for corner in [x0 + 0.6, x1 - 0.6] {
-                for k in 0..3 {
+                // clear of the walkers' lines (1.8 m and 3 m from the kerb)
+                for k in 0..2 {
                     let y = side * (street.kerb_m + 0.3 + 0.8 * k as f64);
                     out.push(upright_static(
                         ground,
@@ -429,7 +471,7 @@ fn furniture(
                             half_height_m: 0.5,
                         },
                         Point2::new(x, line),
-                        raised,
+                        raised - 0.1,
                         0.0,
                     ));
                 }
@@ -575,13 +617,16 @@ mod tests {
     fn walkers_are_raised_on_sidewalks_only() {
         let crossings = [-200.0, 60.0, 170.0];
         let street = layout(&crossings);
-        assert_eq!(street.raised_m(0.0, -12.0), KERB_HEIGHT_M);
-        assert_eq!(street.raised_m(0.0, 13.9), KERB_HEIGHT_M);
+        let raised = KERB_HEIGHT_M + SOLE_CLEARANCE_M;
+        assert_eq!(street.raised_m(0.0, -12.0), raised);
+        assert_eq!(street.raised_m(0.0, 13.9), raised);
         assert_eq!(street.raised_m(0.0, 9.0), 0.0);
         assert_eq!(street.raised_m(0.0, 15.0), 0.0);
         // a dropped kerb at the cross street's edge, none on it
         assert_eq!(street.raised_m(60.0 - 7.0, 12.0), 0.0);
-        assert!((street.raised_m(60.0 - 7.15, 12.0) - 0.5 * KERB_HEIGHT_M).abs() < 1e-9);
+        let ramp = APRON_M - WALKER_HALF_LENGTH_M;
+        assert!((street.raised_m(60.0 - 7.0 - 0.5 * ramp, 12.0) - 0.5 * raised).abs() < 1e-9);
+        assert!((street.raised_m(60.0 - 7.0 - ramp, 12.0) - raised).abs() < 1e-9);
         assert_eq!(street.raised_m(60.0, 12.0), 0.0);
     }
 
@@ -614,11 +659,7 @@ mod tests {
             }
         }
         // the facade got detail, none of it more than a metre out
-        let detail = statics
-            .iter()
-            .filter(|s| s.kind == StaticKind::Building)
-            .count();
-        assert!(detail > 0 || statics.iter().any(|s| s.kind == StaticKind::Wall));
+        assert!(statics.iter().any(|s| s.kind == StaticKind::Facade));
         assert_eq!(statics, streetscape(&street, &ground, &[building], 3));
     }
 }
