@@ -1,6 +1,6 @@
 //! Rolling-LiDAR throughput: rays/s and scans/s with 1 and 2 rayon threads on
 //! a scene with an undulating ground, 50 static boxes (plus poles and trees)
-//! and 30 moving agents. A plain timing main:
+//! and 30 moving agents, and on the built-in urban and highway worlds. A plain timing main:
 //! `cargo bench -p limot-sim --bench lidar`.
 
 use limot_estimator::input::ObjectClass;
@@ -128,6 +128,34 @@ fn bench_scene() -> Scene {
     }
 }
 
+/// Scans/s of the built-in scenarios' own worlds (rough crowned ground,
+/// roadside and streetscape), sweeps 10..30 of a 5 s drive.
+fn bench_builtin(name: &str, pool: &rayon::ThreadPool) -> Result<(), Box<dyn std::error::Error>> {
+    let mut spec = limot_sim::scenario::ScenarioSpec::builtin(name).ok_or("no such scenario")?;
+    spec.duration_s = 5.0;
+    let scene = spec.build()?;
+    let world = World::new(&scene);
+    let lidar = LidarSimulator::new(spec.lidar.clone(), 7)?;
+    let rays_per_scan = (lidar.config().azimuth_steps * NUM_LASERS) as f64;
+    pool.install(|| lidar.scan(&scene, &world, 9, 0.9));
+    let start = Instant::now();
+    let mut points = 0usize;
+    for frame in 10..30 {
+        let sweep = pool.install(|| lidar.scan(&scene, &world, frame, frame as f64 * 0.1));
+        points += sweep.scan.points.len();
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    println!(
+        "  {name} ({} statics, {} agents): {:.1} scans/s, {:.2} M rays/s, {:.0} points/scan",
+        scene.statics.len(),
+        scene.agents.len(),
+        20.0 / seconds,
+        rays_per_scan * 20.0 / seconds / 1e6,
+        points as f64 / 20.0
+    );
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scene = bench_scene();
     let world = World::new(&scene);
@@ -168,6 +196,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             points as f64 / scans as f64,
             agent_points as f64 / scans as f64,
         );
+        for name in ["urban", "highway"] {
+            bench_builtin(name, &pool)?;
+        }
     }
     Ok(())
 }

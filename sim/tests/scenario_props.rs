@@ -261,6 +261,8 @@ fn check_common(spec: &ScenarioSpec, scene: &Scene) {
             StaticKind::Sign => assert!(bottom > 1.0, "{s:?}"),
             // slopes are tilted slabs (roadside unit tests check them)
             StaticKind::Embankment => {}
+            // bushes also grow on the slopes of cuttings
+            StaticKind::Shrub => assert!(bottom > -1.0, "{s:?} bottom {bottom}"),
             // buildings reach 0.5 m below their lowest footprint corner
             StaticKind::Building => {
                 let Shape::Cuboid { half_extents_m: e } = s.shape else {
