@@ -59,6 +59,20 @@ pub enum ImuError {
 }
 
 impl ImuConfig {
+    /// The default IMU without noise and without biases: it reports the
+    /// motion exactly.
+    pub fn noise_free() -> ImuConfig {
+        ImuConfig {
+            accel_noise_density: 0.0,
+            gyro_noise_density: 0.0,
+            accel_bias_random_walk: 0.0,
+            gyro_bias_random_walk: 0.0,
+            accel_bias_initial_sigma: 0.0,
+            gyro_bias_initial_sigma: 0.0,
+            ..ImuConfig::default()
+        }
+    }
+
     /// Rejects rates that are not positive and noise figures that are
     /// negative or not finite.
     pub fn validate(&self) -> Result<(), ImuError> {

@@ -243,6 +243,9 @@ pub struct UrbanParams {
     /// decides independently. Below 1 the parked cars become the main
     /// structure along the street. 1 = a building on every lot.
     pub building_fraction: f64,
+    /// Street furniture on the sidewalks: traffic signs, bollards, bins,
+    /// benches and bus shelters (the sidewalks and their kerbs are always there).
+    pub street_furniture: bool,
 }
 
 impl Default for UrbanParams {
@@ -272,6 +275,7 @@ impl Default for UrbanParams {
             tree_spacing_m: 15.0,
             pole_spacing_m: 30.0,
             building_fraction: 1.0,
+            street_furniture: true,
         }
     }
 }
@@ -424,12 +428,14 @@ impl ScenarioSpec {
                 }),
                 ..base(Family::Highway, 1)
             }),
-            // A street without buildings, every parking place taken and few
-            // trees and poles: parked cars are the main structure, so dropping
-            // every detected box (allfilt) throws most of the map away.
+            // A street without buildings, every parking place taken, few
+            // trees and poles and no street furniture: parked cars are the
+            // main structure, so dropping every detected box (allfilt)
+            // throws most of the map away.
             "urban-parked" => Some(ScenarioSpec {
                 urban: Some(UrbanParams {
                     building_fraction: 0.0,
+                    street_furniture: false,
                     parking_occupancy: 1.0,
                     tree_spacing_m: 60.0,
                     pole_spacing_m: 60.0,

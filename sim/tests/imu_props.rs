@@ -191,15 +191,7 @@ fn rk4(s: &NavState, imu: &[ImuSample; 3], gravity: f64) -> NavState {
 }
 
 fn noise_free() -> ImuConfig {
-    ImuConfig {
-        accel_noise_density: 0.0,
-        gyro_noise_density: 0.0,
-        accel_bias_random_walk: 0.0,
-        gyro_bias_random_walk: 0.0,
-        accel_bias_initial_sigma: 0.0,
-        gyro_bias_initial_sigma: 0.0,
-        ..ImuConfig::default()
-    }
+    ImuConfig::noise_free()
 }
 
 /// Worst position (m) and rotation (rad) error of dead reckoning over the

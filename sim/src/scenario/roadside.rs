@@ -38,9 +38,10 @@ const NOISE_WALL_STAGGER_M: f64 = 0.4;
 /// and post height, m.
 const FENCE_OFFSET_M: f64 = 15.0;
 const FENCE_HEIGHT_M: f64 = 1.6;
-/// Cuttings: rise, slope (rise over run) and segment length, m.
+/// Cuttings: rise, slope (rise over run: 1:1.7 to 1:1, firm cut slopes) and
+/// segment length, m.
 const CUTTING_RISE_M: (f64, f64) = (2.0, 6.0);
-const CUTTING_GRADE: (f64, f64) = (0.35, 0.6);
+const CUTTING_GRADE: (f64, f64) = (0.6, 1.0);
 const SEGMENT_M: f64 = 20.0;
 /// Vegetation on open verges and cutting tops, and bushes in the median.
 const BUSH_RADIUS_M: (f64, f64) = (0.5, 1.4);
@@ -101,28 +102,53 @@ pub(crate) fn roadside(
         &mut rng,
         &mut out,
     );
-    if h.overpass_spacing_m > 0.0 {
-        let mut s = s_lo + uniform(&mut rng, 0.3, 1.0) * h.overpass_spacing_m;
-        while s < s_hi {
-            overpass(reference, ground, section, s, &mut out);
-            s += h.overpass_spacing_m * uniform(&mut rng, 0.7, 1.3);
-        }
-    }
-    if h.sign_spacing_m > 0.0 {
-        let mut s = s_lo + uniform(&mut rng, 0.0, 1.0) * h.sign_spacing_m;
-        while s < s_hi {
-            sign_board(reference, ground, section, s, &mut rng, &mut out);
-            s += h.sign_spacing_m * uniform(&mut rng, 0.6, 1.4);
-        }
-    }
-    if h.gantry_spacing_m > 0.0 {
-        let mut s = s_lo + uniform(&mut rng, 0.2, 1.0) * h.gantry_spacing_m;
-        while s < s_hi {
-            gantry(reference, ground, section, s, &mut rng, &mut out);
-            s += h.gantry_spacing_m * uniform(&mut rng, 0.7, 1.3);
-        }
-    }
+    let span = (s_lo, s_hi);
+    at_intervals(
+        &mut rng,
+        span,
+        h.overpass_spacing_m,
+        (0.3, 1.0),
+        (0.7, 1.3),
+        |s, _| overpass(reference, ground, section, s, &mut out),
+    );
+    at_intervals(
+        &mut rng,
+        span,
+        h.sign_spacing_m,
+        (0.0, 1.0),
+        (0.6, 1.4),
+        |s, rng| sign_board(reference, ground, section, s, rng, &mut out),
+    );
+    at_intervals(
+        &mut rng,
+        span,
+        h.gantry_spacing_m,
+        (0.2, 1.0),
+        (0.7, 1.3),
+        |s, rng| gantry(reference, ground, section, s, rng, &mut out),
+    );
     out
+}
+
+/// Calls `place(s, rng)` at arc lengths over `span`: the first a drawn
+/// fraction `first` of `spacing` in, each next a drawn multiple `step` of it
+/// further; nothing when `spacing` is 0.
+fn at_intervals(
+    rng: &mut ChaCha8Rng,
+    (s_lo, s_hi): (f64, f64),
+    spacing: f64,
+    first: (f64, f64),
+    step: (f64, f64),
+    mut place: impl FnMut(f64, &mut ChaCha8Rng),
+) {
+    if spacing <= 0.0 {
+        return;
+    }
+    let mut s = s_lo + uniform(rng, first.0, first.1) * spacing;
+    while s < s_hi {
+        place(s, rng);
+        s += spacing * uniform(rng, step.0, step.1);
+    }
 }
 
 /// An upright cuboid beside the centre line, yawed with the road.
@@ -475,7 +501,7 @@ fn slope_slab(
 
 /// A road bridge across the highway at `s`: a deck at `OVERPASS_CLEARANCE_M`
 /// over the road spanning both rails and beyond, on two pier walls outside
-/// the rails and sloped abutments at both ends.
+/// the rails and 1:1 abutment slopes at both ends.
 fn overpass(
     reference: &LanePath,
     ground: &Ground,
@@ -515,8 +541,9 @@ fn overpass(
             -0.5,
         ));
     }
-    // the approach embankments under both ends of the deck
-    let run = OVERPASS_SPAN_BEYOND_RAIL_M - 3.0;
+    // the abutments under both ends of the deck: 1:1 slopes from 3 m
+    // beyond the rails up to the deck
+    let run = OVERPASS_CLEARANCE_M;
     for (foot, side) in [
         (section.right_rail_m - 3.0, -1.0),
         (section.left_rail_m + 3.0, 1.0),

@@ -54,6 +54,9 @@ pub(crate) struct StreetLayout<'a> {
     pub cross_half_width_m: f64,
     /// x range where the LiDAR can see the street.
     pub view: (f64, f64),
+    /// Whether the sidewalks carry furniture (signs, bollards, bins,
+    /// benches, shelters).
+    pub furniture: bool,
 }
 
 impl StreetLayout<'_> {
@@ -105,7 +108,9 @@ pub(crate) fn streetscape(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(STREETSCAPE_STREAM);
     let mut out = sidewalks(street, ground);
-    furniture(street, ground, statics, &mut rng, &mut out);
+    if street.furniture {
+        furniture(street, ground, statics, &mut rng, &mut out);
+    }
     for building in statics.iter().filter(|s| s.kind == StaticKind::Building) {
         // each building's detail from its own stream (keyed by where it
         // stands): a building's absence changes nothing else
@@ -610,6 +615,7 @@ mod tests {
             crossings,
             cross_half_width_m: 7.0,
             view: (-150.0, 400.0),
+            furniture: true,
         }
     }
 

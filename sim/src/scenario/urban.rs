@@ -229,6 +229,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         crossings: &street.crossings,
         cross_half_width_m: 0.5 * u.cross_street_width_m,
         view: (street.view_lo, street.view_hi),
+        furniture: u.street_furniture,
     };
     let detail = streetscape(&layout, &ground, &statics, spec.seed);
     statics.extend(detail);
