@@ -7,7 +7,8 @@
 //! Layout of OUT:
 //!
 //! ```text
-//! data/<family>_s<seed>/            the simulated dataset (reused when its scenario.toml matches)
+//! data/<family>_s<seed>/            the simulated dataset (reused when its scenario.toml and the
+//!                                    simulator's code fingerprint match)
 //! runs/<family>_s<seed>/<variant>/  poses_tum.txt, tracks.csv, ... and kitti_results/0000.txt
 //! results.json                      SuiteResults (paths inside are relative to OUT)
 //! results-shard-K-of-N.json         instead, when only shard K of N ran (`--shard K/N`)
@@ -472,13 +473,26 @@ fn ensure_dataset(
 ) -> std::result::Result<bool, Box<dyn std::error::Error>> {
     let wanted = spec.to_toml();
     let existing = fs::read_to_string(dir.join("scenario.toml")).ok();
-    if dir.join("meta.toml").is_file() && existing.as_deref() == Some(wanted.as_str()) {
+    let written_by = fs::read_to_string(dir.join(DATASET_CODE_FILE)).ok();
+    if dir.join("meta.toml").is_file()
+        && existing.as_deref() == Some(wanted.as_str())
+        && written_by.as_deref() == Some(DATASET_CODE)
+    {
         return Ok(false);
     }
     prepare_output_dir(dir, true)?;
     simulate(spec, dir, false, progress)?;
+    fs::write(dir.join(DATASET_CODE_FILE), DATASET_CODE)
+        .map_err(|e| format!("{}: {e}", dir.join(DATASET_CODE_FILE).display()))?;
     Ok(true)
 }
+
+/// A fingerprint of the code that writes datasets (build.rs): a dataset is
+/// reused only when both its scenario and this match, so a simulator change
+/// re-simulates it.
+const DATASET_CODE: &str = env!("LIMOT_DATASET_CODE");
+/// Where the suite records which code wrote a dataset it simulated.
+const DATASET_CODE_FILE: &str = ".limot-dataset-code";
 
 /// Ids of the moving ground-truth objects of a dataset.
 fn moving_objects(dataset: &Dataset) -> std::result::Result<Vec<u64>, Box<dyn std::error::Error>> {

@@ -214,7 +214,7 @@ fn a_corrupt_dataset_fails_its_runs_without_aborting_the_suite() {
 }
 
 #[test]
-fn datasets_are_reused_only_for_the_same_scenario() {
+fn datasets_are_reused_only_for_the_same_scenario_and_simulator() {
     let out = scratch("reuse");
     let meta = out.join("data").join("urban_s1").join("meta.toml");
     let short = spec(out.clone(), 1.0, vec![Variant::Lio]);
@@ -223,6 +223,17 @@ fn datasets_are_reused_only_for_the_same_scenario() {
     let written = fs::metadata(&meta).unwrap().modified().unwrap();
     run_suite(&short, false).unwrap();
     assert_eq!(fs::metadata(&meta).unwrap().modified().unwrap(), written);
+    // the same scenario written by other simulator code: re-simulated
+    let code = out
+        .join("data")
+        .join("urban_s1")
+        .join(".limot-dataset-code");
+    let current = fs::read_to_string(&code).unwrap();
+    assert!(!current.trim().is_empty());
+    fs::write(&code, "an older simulator").unwrap();
+    run_suite(&short, false).unwrap();
+    assert_eq!(fs::read_to_string(&code).unwrap(), current);
+    assert_ne!(fs::metadata(&meta).unwrap().modified().unwrap(), written);
     let longer = run_suite(&spec(out.clone(), 1.5, vec![Variant::Lio]), false).unwrap();
     assert_eq!(longer.sequences[0].frames, 15, "re-simulated for 1.5 s");
 }
