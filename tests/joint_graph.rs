@@ -304,9 +304,9 @@ fn limot_objects_beat_the_tracker_on_the_urban_streets() {
         duration_s: 20.0,
     };
     let c = compare(&drive, None, false);
-    // Measured (seed 2, the scenario's, 20 s): detections 0.253 m, dynafilt
-    // 0.176 m, limot 0.153 m; median speed error dynafilt 0.61 m/s, limot
-    // 0.31 m/s (constant-speed objects 0.55 vs 0.19 m/s); ego 0.007 m both.
+    // Measured (seed 2, the scenario's, 20 s): detections 0.250 m, dynafilt
+    // 0.172 m, limot 0.153 m; median speed error dynafilt 0.59 m/s, limot
+    // 0.29 m/s (constant-speed objects 0.54 vs 0.18 m/s); ego 0.011 m both.
     assert_limot_objects_beat_the_tracker(&c, 500);
     assert!(c.ate_limot_m <= 1.1 * c.ate_dynafilt_m);
 }
@@ -326,32 +326,30 @@ fn limot_objects_beat_the_tracker_on(test: &str, scenario: &str, seed: u64) {
 
 #[test]
 fn limot_objects_beat_the_tracker_on_urban_seed_1() {
-    // Measured: detections 0.235 m, dynafilt 0.163 m, limot 0.126 m.
+    // Measured: detections 0.234 m, dynafilt 0.164 m, limot 0.132 m.
     limot_objects_beat_the_tracker_on("urban-s1", "urban", 1);
 }
 
 #[test]
 fn limot_objects_beat_the_tracker_on_urban_seed_3() {
-    // Measured: detections 0.249 m, dynafilt 0.174 m, limot 0.144 m.
+    // Measured: detections 0.242 m, dynafilt 0.172 m, limot 0.142 m.
     limot_objects_beat_the_tracker_on("urban-s3", "urban", 3);
 }
 
 #[test]
 fn limot_objects_beat_the_tracker_on_the_parked_street() {
-    // Measured: detections 0.255 m, dynafilt 0.167 m, limot 0.158 m.
+    // Measured: detections 0.254 m, dynafilt 0.165 m, limot 0.151 m.
     limot_objects_beat_the_tracker_on("parked", "urban-parked", 1);
 }
 
 #[test]
 fn fully_joint_graph_runs_and_beats_the_detections() {
     // The paper's form: moving objects' observations correct the ego too.
-    // Measured (seed 1, 20 s): objects 0.161 m, speed 0.24 m/s, as good as
-    // the default; ego ATE_T 0.76 m vs dynafilt 0.28 m and lio 1.72 m: the
+    // Measured (seed 1, 20 s): objects 0.164 m, speed 0.22 m/s, as good as
+    // the default; ego ATE_T 0.46 m vs dynafilt 0.14 m and lio 1.91 m: the
     // congested traffic's departures from constant velocity (every car
     // ahead speeds up at once) pull the ego along the road, the more the
-    // stiffer the chains. Why the default conditions them. Over 3 seeds of
-    // this scenario the fully joint ego was 0.24-0.76 m, the default's
-    // 0.26-0.30 m.
+    // stiffer the chains. Why the default conditions them.
     let mut config = EstimatorConfig::default();
     config.objects.dynamic_objects_inform_ego = true;
     let drive = Drive {
