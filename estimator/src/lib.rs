@@ -3,6 +3,7 @@
 //! Everything a source (simulator or KITTI reader) delivers is described by
 //! [`input`]; the estimator never knows which source fed it.
 
+pub mod eigen3;
 pub mod filter;
 pub mod graph;
 pub mod imu;

@@ -34,6 +34,7 @@ use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SymmetricEigen, Vector3, 
 use thiserror::Error;
 
 use super::local_map::{LocalMap, MapCloud, Neighbour};
+use crate::eigen3::symmetric_eigen3;
 use crate::graph::RobustKernel;
 use crate::lie::{self, skew};
 
@@ -319,18 +320,13 @@ pub fn fit_line(neigh: &[Neighbour], ratio: f64) -> Option<MapFeature> {
         return None;
     }
     let (mean, cov) = mean_and_covariance(neigh);
-    let eig = SymmetricEigen::new(cov);
-    let ev = eig.eigenvalues;
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| ev[b].total_cmp(&ev[a]));
-    let (i_max, i_mid) = (order[0], order[1]);
+    // eigenvalues ascending
+    let (ev, vectors) = symmetric_eigen3(&cov);
     // NaN eigenvalues compare false and reject the fit too.
-    if ev[i_max].partial_cmp(&(ratio * ev[i_mid])) != Some(std::cmp::Ordering::Greater)
-        || ev[i_max] <= 0.0
-    {
+    if ev[2].partial_cmp(&(ratio * ev[1])) != Some(std::cmp::Ordering::Greater) || ev[2] <= 0.0 {
         return None;
     }
-    let dir = eig.eigenvectors.column(i_max).normalize();
+    let dir = vectors.column(2).normalize();
     Some(MapFeature::Line {
         point_world: mean,
         direction_world: dir,
@@ -344,10 +340,8 @@ pub fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapFeature>
         return None;
     }
     let (mean, cov) = mean_and_covariance(neigh);
-    let eig = SymmetricEigen::new(cov);
-    let ev = eig.eigenvalues;
-    let i_min = (0..3).min_by(|&a, &b| ev[a].total_cmp(&ev[b]))?;
-    let normal = eig.eigenvectors.column(i_min).normalize();
+    // eigenvalues ascending: the normal is the first eigenvector
+    let normal = symmetric_eigen3(&cov).1.column(0).normalize();
     if !normal.iter().all(|v| v.is_finite()) {
         return None;
     }
