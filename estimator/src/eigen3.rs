@@ -20,17 +20,8 @@ use nalgebra::{Matrix3, Vector3};
 /// (only its lower triangle is read). Non-finite input gives non-finite
 /// output, never a panic.
 pub fn symmetric_eigen3(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
-    let sym = Matrix3::new(
-        m[(0, 0)],
-        m[(1, 0)],
-        m[(2, 0)],
-        m[(1, 0)],
-        m[(1, 1)],
-        m[(2, 1)],
-        m[(2, 0)],
-        m[(2, 1)],
-        m[(2, 2)],
-    );
+    let mut sym = *m;
+    sym.fill_upper_triangle_with_lower_triangle();
     let shift = sym.trace() / 3.0;
     let scaled = sym - Matrix3::identity() * shift;
     let scale = match scaled.amax() {
