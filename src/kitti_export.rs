@@ -29,7 +29,7 @@ use crate::kitti::velodyne::encode_bin;
 use crate::kitti::{KittiError, detections::LidarBox};
 use limot_sim::imu::ImuSimulator;
 use limot_sim::record::{Dataset, RecordError, points_per_instance};
-use limot_sim::scenario::{ScenarioError, ScenarioSpec};
+use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;
 use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -47,8 +47,6 @@ const LABEL_RANGE_M: f64 = 80.0;
 pub enum ExportError {
     #[error(transparent)]
     Record(#[from] RecordError),
-    #[error(transparent)]
-    Scenario(#[from] ScenarioError),
     #[error(transparent)]
     Kitti(#[from] KittiError),
     #[error("{}: {source}", path.display())]
@@ -179,12 +177,17 @@ fn oxts_records(scene: &Scene, spec: &ScenarioSpec, times_s: &[f64]) -> Vec<Oxts
         .collect()
 }
 
-/// Writes the KITTI-style copy of the dataset in `dataset_dir` into `out`.
-pub fn export_dataset(dataset_dir: &Path, out: &Path) -> Result<PathBuf, ExportError> {
+/// Writes the KITTI-style copy of the dataset in `dataset_dir` into `out`;
+/// `spec` is the scenario the dataset was simulated from and `scene` its
+/// built scene (the caller has it: building it again, traffic included,
+/// would be a good part of the export's time).
+pub fn export_dataset(
+    dataset_dir: &Path,
+    spec: &ScenarioSpec,
+    scene: &Scene,
+    out: &Path,
+) -> Result<PathBuf, ExportError> {
     let dataset = Dataset::open(dataset_dir)?;
-    let spec_path = dataset_dir.join("scenario.toml");
-    let spec = ScenarioSpec::load(&spec_path)?;
-    let scene = spec.build()?;
     let calib = synthetic_calib(&dataset.meta.t_lidar_imu());
     let velodyne_dir = out.join("velodyne").join("0000");
     for sub in ["oxts", "calib", "label_02", "detections", "poses"] {
@@ -255,7 +258,7 @@ pub fn export_dataset(dataset_dir: &Path, out: &Path) -> Result<PathBuf, ExportE
     write(&out.join("calib/0000.txt"), calib.write())?;
     write(
         &out.join("oxts/0000.txt"),
-        write_oxts(&oxts_records(&scene, &spec, &times_s)),
+        write_oxts(&oxts_records(scene, spec, &times_s)),
     )?;
     write(&out.join("label_02/0000.txt"), write_labels(&labels))?;
     write(

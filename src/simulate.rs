@@ -142,6 +142,8 @@ pub fn simulate(
     let kitti_dir = if kitti {
         Some(kitti_export::export_dataset(
             &dataset_dir,
+            sim.spec(),
+            sim.scene(),
             &dataset_dir.join("kitti"),
         )?)
     } else {
