@@ -673,9 +673,10 @@ proptest! {
                     prop_assert!((n.dist_sq_m2 - b).abs() < 1e-9);
                     prop_assert!(((n.point_world - q).norm_squared() - n.dist_sq_m2).abs() < 1e-9);
                 }
-                // Radius-bounded queries: the grid (r ≤ 2 m = one cell) and
-                // the tree fallback (larger r) equal brute force too.
-                for radius in [0.3, 1.0, 2.5] {
+                // Radius-bounded queries: the grid (r ≤ 2 m = one cell, up
+                // to 3x3x3 cells) and the tree fallback (larger r) equal
+                // brute force too.
+                for radius in [0.3, 1.0, 2.0, 2.5] {
                     cloud.nearest_k_within(&q, NonZeroUsize::new(k).unwrap(), radius, &mut out);
                     let within: Vec<f64> = brute.iter().copied().filter(|&d| d <= radius * radius).collect();
                     prop_assert_eq!(out.len(), within.len(), "radius {}", radius);

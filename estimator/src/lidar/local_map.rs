@@ -210,7 +210,13 @@ impl NeighbourGrid {
             };
             d * d
         };
+        // The cells the ball touches (at most 3 per axis for a radius up to
+        // one cell), visited nearest first: once `k` points are found, the
+        // k-th distance bounds the search and the farther cells are skipped
+        // without a lookup.
         let (xs, ys, zs) = (span(q.x), span(q.y), span(q.z));
+        let mut near = [(0.0, (0i64, 0i64, 0i64)); 27];
+        let mut count = 0;
         for ix in xs.0..=xs.1 {
             let gx = gap_sq(q.x, ix);
             for iy in ys.0..=ys.1 {
@@ -219,44 +225,56 @@ impl NeighbourGrid {
                     continue;
                 }
                 for iz in zs.0..=zs.1 {
-                    // Cells the query ball misses are skipped before the
-                    // hash lookup.
-                    if gxy + gap_sq(q.z, iz) > r_sq {
+                    let g = gxy + gap_sq(q.z, iz);
+                    if g > r_sq || count == near.len() {
                         continue;
                     }
-                    let Some(&(start, len)) = self.cells.get(&pack_cell((ix, iy, iz))) else {
-                        continue;
-                    };
-                    let cell = &self.points_world[start as usize..(start + len) as usize];
-                    for p in cell {
-                        let d_sq = (p - q).norm_squared();
-                        // One well-predicted test per candidate: `bound` is
-                        // r² until the list is full, then the k-th distance
-                        // (random cell order made the two-test version
-                        // mispredict ~30 % slower).
-                        if d_sq > bound {
-                            continue;
-                        }
-                        // Insertion into the sorted top-k list (ties with
-                        // the k-th change nothing and are skipped).
-                        let pos = out.partition_point(|n| n.dist_sq_m2 <= d_sq);
-                        if pos >= k {
-                            continue;
-                        }
-                        if out.len() == k {
-                            out.pop();
-                        }
-                        out.insert(
-                            pos,
-                            Neighbour {
-                                point_world: *p,
-                                dist_sq_m2: d_sq,
-                            },
-                        );
-                        if out.len() == k {
-                            bound = out[k - 1].dist_sq_m2;
-                        }
+                    // insertion keeps equal gaps in loop order
+                    let mut at = count;
+                    while at > 0 && near[at - 1].0 > g {
+                        near[at] = near[at - 1];
+                        at -= 1;
                     }
+                    near[at] = (g, (ix, iy, iz));
+                    count += 1;
+                }
+            }
+        }
+        for &(gap, cell) in &near[..count] {
+            if gap > bound {
+                break;
+            }
+            let Some(&(start, len)) = self.cells.get(&pack_cell(cell)) else {
+                continue;
+            };
+            let cell = &self.points_world[start as usize..(start + len) as usize];
+            for p in cell {
+                let d_sq = (p - q).norm_squared();
+                // One well-predicted test per candidate: `bound` is r²
+                // until the list is full, then the k-th distance (random
+                // cell order made the two-test version mispredict ~30 %
+                // slower).
+                if d_sq > bound {
+                    continue;
+                }
+                // Insertion into the sorted top-k list (ties with the k-th
+                // change nothing and are skipped).
+                let pos = out.partition_point(|n| n.dist_sq_m2 <= d_sq);
+                if pos >= k {
+                    continue;
+                }
+                if out.len() == k {
+                    out.pop();
+                }
+                out.insert(
+                    pos,
+                    Neighbour {
+                        point_world: *p,
+                        dist_sq_m2: d_sq,
+                    },
+                );
+                if out.len() == k {
+                    bound = out[k - 1].dist_sq_m2;
                 }
             }
         }

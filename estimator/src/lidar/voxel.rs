@@ -91,40 +91,65 @@ pub type VoxelMap<V> = HashMap<VoxelKey, V, BuildHasherDefault<VoxelKeyHasher>>;
 ///
 /// Non-finite input points are dropped. A voxel size that is not a positive
 /// finite number means "no downsampling": the finite points are returned
-/// unchanged (in input order).
+/// unchanged (in input order). Allocates its scratch; keep a
+/// [`VoxelDownsampler`] for repeated use.
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    let finite = |p: &&Vector3<f64>| p.x.is_finite() && p.y.is_finite() && p.z.is_finite();
-    if !(voxel_m.is_finite() && voxel_m > 0.0) {
-        return points.iter().filter(finite).copied().collect();
-    }
-    // Index of each voxel's accumulator in `sums` (first-occurrence order).
-    let mut index: VoxelMap<u32> = VoxelMap::default();
-    index.reserve(points.len() / 4 + 16);
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::with_capacity(points.len() / 4 + 16);
-    // Scan-ordered input (points along a ring) mostly repeats the previous
-    // voxel: remembering it skips most hash lookups.
-    let mut last: Option<(VoxelKey, u32)> = None;
-    for p in points.iter().filter(finite) {
-        let key = voxel_key(p, voxel_m);
-        let slot = match last {
-            Some((k, slot)) if k == key => slot,
-            _ => {
-                let next = sums.len() as u32;
-                let slot = *index.entry(key).or_insert(next);
-                if slot == next {
-                    sums.push((Vector3::zeros(), 0));
+    VoxelDownsampler::default().downsample(points.iter().copied(), voxel_m)
+}
+
+/// [`voxel_downsample`] with its hash map and accumulators kept between
+/// calls, so that downsampling every sweep does not allocate (and fault in)
+/// them again once warmed up. Same output as [`voxel_downsample`], bit for
+/// bit.
+#[derive(Debug, Clone, Default)]
+pub struct VoxelDownsampler {
+    /// Index of each voxel's accumulator in `sums` (first-occurrence order).
+    index: VoxelMap<u32>,
+    sums: Vec<(Vector3<f64>, u32)>,
+}
+
+impl VoxelDownsampler {
+    /// See [`voxel_downsample`]; `points` in the order that decides the
+    /// output's.
+    pub fn downsample(
+        &mut self,
+        points: impl IntoIterator<Item = Vector3<f64>>,
+        voxel_m: f64,
+    ) -> Vec<Vector3<f64>> {
+        let points = points
+            .into_iter()
+            .filter(|p| p.x.is_finite() && p.y.is_finite() && p.z.is_finite());
+        if !(voxel_m.is_finite() && voxel_m > 0.0) {
+            return points.collect();
+        }
+        self.index.clear();
+        self.sums.clear();
+        // Scan-ordered input (points along a ring) mostly repeats the
+        // previous voxel: remembering it skips most hash lookups.
+        let mut last: Option<(VoxelKey, u32)> = None;
+        for p in points {
+            let key = voxel_key(&p, voxel_m);
+            let slot = match last {
+                Some((k, slot)) if k == key => slot,
+                _ => {
+                    let next = self.sums.len() as u32;
+                    let slot = *self.index.entry(key).or_insert(next);
+                    if slot == next {
+                        self.sums.push((Vector3::zeros(), 0));
+                    }
+                    last = Some((key, slot));
+                    slot
                 }
-                last = Some((key, slot));
-                slot
-            }
-        };
-        let acc = &mut sums[slot as usize];
-        acc.0 += p;
-        acc.1 += 1;
+            };
+            let acc = &mut self.sums[slot as usize];
+            acc.0 += p;
+            acc.1 += 1;
+        }
+        self.sums
+            .iter()
+            .map(|(sum, n)| sum / f64::from(*n))
+            .collect()
     }
-    sums.into_iter()
-        .map(|(sum, n)| sum / f64::from(n))
-        .collect()
 }
 
 #[cfg(test)]
@@ -175,5 +200,18 @@ mod tests {
         assert_eq!(voxel_downsample(&pts, 0.0).len(), 2);
         assert_eq!(voxel_downsample(&pts, f64::NAN).len(), 2);
         assert!(voxel_downsample(&[], 0.5).is_empty());
+    }
+
+    #[test]
+    fn a_reused_downsampler_forgets_the_previous_call() {
+        let a: Vec<Vector3<f64>> = (0..500)
+            .map(|i| Vector3::new(0.013 * i as f64, (0.7 * i as f64).sin(), -0.002 * i as f64))
+            .collect();
+        let b: Vec<Vector3<f64>> = a.iter().rev().map(|p| p * 1.5).collect();
+        let mut reused = VoxelDownsampler::default();
+        for (points, voxel_m) in [(&a, 0.1), (&b, 0.1), (&a, 0.25), (&b, 0.0), (&a, 0.1)] {
+            let out = reused.downsample(points.iter().copied(), voxel_m);
+            assert_eq!(out, voxel_downsample(points, voxel_m));
+        }
     }
 }

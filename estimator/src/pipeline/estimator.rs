@@ -25,11 +25,11 @@ use crate::graph::{FactorError, Key, NoiseModel, Variable};
 use crate::imu::ImuBias;
 use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
 use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint, LidarScan};
-use crate::lidar::deskew::{DeskewError, SweepMotion, deskew};
-use crate::lidar::features::{ScanFeatures, extract_features};
+use crate::lidar::deskew::{DeskewError, Deskewer, SweepMotion};
+use crate::lidar::features::{FeatureExtractor, ScanFeatures};
 use crate::lidar::local_map::{LocalMap, LocalMapError};
 use crate::lidar::scan_matching::{ScanMatchResult, match_scan};
-use crate::lidar::voxel::voxel_downsample;
+use crate::lidar::voxel::VoxelDownsampler;
 use crate::lie;
 use crate::tracking::track::{Lifecycle, Motion, Track};
 use crate::tracking::tracker::{TrackOutput, Tracker, TrackerError, WorldDetection};
@@ -186,7 +186,12 @@ pub struct Estimator {
     /// LiDAR-only estimates of the sweeps before the inertial
     /// initialisation, LiDAR-only world.
     bootstrap_estimates: Vec<FrameEstimate>,
+    // Per-sweep scratch, kept so that a sweep does not allocate its buffers
+    // (about a dozen of the scan's size) again.
+    deskewer: Deskewer,
     deskewed: Vec<Vector3<f64>>,
+    feature_extractor: FeatureExtractor,
+    downsampler: VoxelDownsampler,
     /// The valid detections of the frame being processed.
     frame_detections: Vec<Detection>,
     tracker: Tracker,
@@ -211,6 +216,7 @@ impl Estimator {
         let tracker = Tracker::new(config.tracker.clone()).map_err(EstimatorError::Tracker)?;
         let map = LocalMap::new(config.local_map);
         let objects = ObjectGraph::new(config.objects.clone());
+        let feature_extractor = FeatureExtractor::new(config.features.clone());
         Ok(Estimator {
             gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
             t_lidar_imu: extrinsics.t_lidar_imu,
@@ -228,7 +234,10 @@ impl Estimator {
             bootstrap_mids: Vec::new(),
             bootstrap_usable_from: 0,
             bootstrap_estimates: Vec::new(),
+            deskewer: Deskewer::new(),
             deskewed: Vec::new(),
+            feature_extractor,
+            downsampler: VoxelDownsampler::default(),
             frame_detections: Vec::new(),
             tracker,
             objects,
@@ -985,11 +994,12 @@ impl Estimator {
     ) -> SweepFeatures {
         let clock = Instant::now();
         self.deskewed.clear();
-        deskew(scan, motion, t_ref_s, &mut self.deskewed);
+        self.deskewer
+            .deskew(scan, motion, t_ref_s, &mut self.deskewed);
         timings.deskew = clock.elapsed();
 
         let clock = Instant::now();
-        let mut features = extract_features(&self.deskewed, scan, &self.config.features);
+        let mut features = self.feature_extractor.extract(&self.deskewed, scan);
         timings.features = clock.elapsed();
 
         let all_indices = if self.config.record_feature_indices {
@@ -1009,19 +1019,14 @@ impl Estimator {
         timings.filter = clock.elapsed();
 
         let clock = Instant::now();
-        let edge: Vec<Vector3<f64>> = features
-            .edge_indices
-            .iter()
-            .map(|&i| self.deskewed[i])
-            .collect();
-        let planar: Vec<Vector3<f64>> = features
-            .planar_indices
-            .iter()
-            .map(|&i| self.deskewed[i])
-            .collect();
+        let deskewed = &self.deskewed;
+        let edge = features.edge_indices.iter().map(|&i| deskewed[i]);
+        let planar = features.planar_indices.iter().map(|&i| deskewed[i]);
         let result = SweepFeatures {
-            edge_lidar: voxel_downsample(&edge, self.config.edge_voxel_m),
-            planar_lidar: voxel_downsample(&planar, self.config.planar_voxel_m),
+            edge_lidar: self.downsampler.downsample(edge, self.config.edge_voxel_m),
+            planar_lidar: self
+                .downsampler
+                .downsample(planar, self.config.planar_voxel_m),
             removed,
             all_indices,
         };
