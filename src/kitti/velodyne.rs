@@ -92,8 +92,17 @@ pub fn raise_scan_elevation(scan: &mut LidarScan, angle_rad: f64) {
 /// Time after the sweep start at which the laser pointed at `p_lidar`
 /// (see the module docs), in [0, 0.1] s.
 pub fn sweep_time_offset_s(p_lidar: &Vector3<f64>) -> f64 {
-    let az = p_lidar.y.atan2(p_lidar.x);
-    (PI - az) / TAU * SWEEP_DURATION_S
+    time_offset_at_azimuth_s(azimuth_rad(p_lidar))
+}
+
+/// Azimuth of `p_lidar`, rad in [-pi, pi] (x forward, y left).
+fn azimuth_rad(p_lidar: &Vector3<f64>) -> f64 {
+    p_lidar.y.atan2(p_lidar.x)
+}
+
+/// [`sweep_time_offset_s`] of a point at azimuth `az_rad` ([`azimuth_rad`]).
+fn time_offset_at_azimuth_s(az_rad: f64) -> f64 {
+    (PI - az_rad) / TAU * SWEEP_DURATION_S
 }
 
 /// Median elevation (degrees, seen from the sensor origin) of each KITTI
@@ -126,11 +135,17 @@ pub fn ring_from_elevation(p_lidar: &Vector3<f64>) -> u16 {
 /// Scan-line index of every point from KITTI's point order (see the module
 /// docs); returns the per-point line and the number of lines.
 pub fn scan_lines(positions: &[Vector3<f64>]) -> (Vec<u16>, usize) {
-    let mut lines = Vec::with_capacity(positions.len());
+    let azimuths: Vec<f64> = positions.iter().map(azimuth_rad).collect();
+    scan_lines_of_azimuths(&azimuths)
+}
+
+/// [`scan_lines`] from the points' azimuths ([`azimuth_rad`]).
+fn scan_lines_of_azimuths(azimuths_rad: &[f64]) -> (Vec<u16>, usize) {
+    let mut lines = Vec::with_capacity(azimuths_rad.len());
     let mut line: usize = 0;
     let mut previous_az: Option<f64> = None;
-    for p in positions {
-        let az = p.y.atan2(p.x).rem_euclid(TAU);
+    for az in azimuths_rad {
+        let az = az.rem_euclid(TAU);
         if let Some(prev) = previous_az
             && az < prev - PI
         {
@@ -139,13 +154,22 @@ pub fn scan_lines(positions: &[Vector3<f64>]) -> (Vec<u16>, usize) {
         previous_az = Some(az);
         lines.push(line.min(u16::MAX as usize) as u16);
     }
-    let count = if positions.is_empty() { 0 } else { line + 1 };
+    let count = if azimuths_rad.is_empty() { 0 } else { line + 1 };
     (lines, count)
 }
 
 /// Rings for the points (see the module docs).
 pub fn estimate_rings(positions: &[Vector3<f64>]) -> (Vec<u16>, RingSource) {
-    let (lines, count) = scan_lines(positions);
+    let azimuths: Vec<f64> = positions.iter().map(azimuth_rad).collect();
+    estimate_rings_at_azimuths(positions, &azimuths)
+}
+
+/// [`estimate_rings`] with the points' azimuths ([`azimuth_rad`]) given.
+fn estimate_rings_at_azimuths(
+    positions: &[Vector3<f64>],
+    azimuths_rad: &[f64],
+) -> (Vec<u16>, RingSource) {
+    let (lines, count) = scan_lines_of_azimuths(azimuths_rad);
     if count == HDL64_NUM_RINGS as usize {
         let rings = lines.iter().map(|l| HDL64_NUM_RINGS - 1 - l).collect();
         (rings, RingSource::ScanLines)
@@ -193,18 +217,20 @@ pub fn parse_bin(bytes: &[u8], path: &Path, t_s: f64) -> Result<VelodyneScan> {
         .iter()
         .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
         .collect();
-    let (rings, ring_source) = estimate_rings(&positions);
+    // one atan2 per point serves both the scan lines and the sweep time
+    let azimuths: Vec<f64> = positions.iter().map(azimuth_rad).collect();
+    let (rings, ring_source) = estimate_rings_at_azimuths(&positions, &azimuths);
     let points = raw
         .iter()
-        .zip(&positions)
+        .zip(&azimuths)
         .zip(&rings)
-        .map(|((v, p), ring)| LidarPoint {
+        .map(|((v, &az), ring)| LidarPoint {
             x: v[0],
             y: v[1],
             z: v[2],
             intensity: v[3],
             ring: *ring,
-            time_offset_s: sweep_time_offset_s(p) as f32,
+            time_offset_s: time_offset_at_azimuth_s(az) as f32,
         })
         .collect();
     Ok(VelodyneScan {
