@@ -94,7 +94,7 @@ pub type VoxelMap<V> = HashMap<VoxelKey, V, BuildHasherDefault<VoxelKeyHasher>>;
 /// unchanged (in input order). Allocates its scratch; keep a
 /// [`VoxelDownsampler`] for repeated use.
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    VoxelDownsampler::default().downsample(points.iter().copied(), voxel_m)
+    VoxelDownsampler::default().downsample(points, voxel_m)
 }
 
 /// [`voxel_downsample`] with its hash map and accumulators kept between
@@ -109,26 +109,19 @@ pub struct VoxelDownsampler {
 }
 
 impl VoxelDownsampler {
-    /// See [`voxel_downsample`]; `points` in the order that decides the
-    /// output's.
-    pub fn downsample(
-        &mut self,
-        points: impl IntoIterator<Item = Vector3<f64>>,
-        voxel_m: f64,
-    ) -> Vec<Vector3<f64>> {
-        let points = points
-            .into_iter()
-            .filter(|p| p.x.is_finite() && p.y.is_finite() && p.z.is_finite());
+    /// See [`voxel_downsample`].
+    pub fn downsample(&mut self, points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
+        let finite = |p: &&Vector3<f64>| p.x.is_finite() && p.y.is_finite() && p.z.is_finite();
         if !(voxel_m.is_finite() && voxel_m > 0.0) {
-            return points.collect();
+            return points.iter().filter(finite).copied().collect();
         }
         self.index.clear();
         self.sums.clear();
         // Scan-ordered input (points along a ring) mostly repeats the
         // previous voxel: remembering it skips most hash lookups.
         let mut last: Option<(VoxelKey, u32)> = None;
-        for p in points {
-            let key = voxel_key(&p, voxel_m);
+        for p in points.iter().filter(finite) {
+            let key = voxel_key(p, voxel_m);
             let slot = match last {
                 Some((k, slot)) if k == key => slot,
                 _ => {
@@ -210,7 +203,7 @@ mod tests {
         let b: Vec<Vector3<f64>> = a.iter().rev().map(|p| p * 1.5).collect();
         let mut reused = VoxelDownsampler::default();
         for (points, voxel_m) in [(&a, 0.1), (&b, 0.1), (&a, 0.25), (&b, 0.0), (&a, 0.1)] {
-            let out = reused.downsample(points.iter().copied(), voxel_m);
+            let out = reused.downsample(points, voxel_m);
             assert_eq!(out, voxel_downsample(points, voxel_m));
         }
     }

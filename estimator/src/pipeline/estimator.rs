@@ -192,6 +192,8 @@ pub struct Estimator {
     deskewed: Vec<Vector3<f64>>,
     feature_extractor: FeatureExtractor,
     downsampler: VoxelDownsampler,
+    /// One feature class's de-skewed points, gathered for the downsampler.
+    gathered: Vec<Vector3<f64>>,
     /// The valid detections of the frame being processed.
     frame_detections: Vec<Detection>,
     tracker: Tracker,
@@ -238,6 +240,7 @@ impl Estimator {
             deskewed: Vec::new(),
             feature_extractor,
             downsampler: VoxelDownsampler::default(),
+            gathered: Vec::new(),
             frame_detections: Vec::new(),
             tracker,
             objects,
@@ -1020,13 +1023,21 @@ impl Estimator {
 
         let clock = Instant::now();
         let deskewed = &self.deskewed;
-        let edge = features.edge_indices.iter().map(|&i| deskewed[i]);
-        let planar = features.planar_indices.iter().map(|&i| deskewed[i]);
+        self.gathered.clear();
+        self.gathered
+            .extend(features.edge_indices.iter().map(|&i| deskewed[i]));
+        let edge_lidar = self
+            .downsampler
+            .downsample(&self.gathered, self.config.edge_voxel_m);
+        self.gathered.clear();
+        self.gathered
+            .extend(features.planar_indices.iter().map(|&i| deskewed[i]));
+        let planar_lidar = self
+            .downsampler
+            .downsample(&self.gathered, self.config.planar_voxel_m);
         let result = SweepFeatures {
-            edge_lidar: self.downsampler.downsample(edge, self.config.edge_voxel_m),
-            planar_lidar: self
-                .downsampler
-                .downsample(planar, self.config.planar_voxel_m),
+            edge_lidar,
+            planar_lidar,
             removed,
             all_indices,
         };
