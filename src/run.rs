@@ -339,30 +339,47 @@ pub fn run(
     let mut next_imu = 0;
     let mut estimates = Vec::with_capacity(frames);
     let mut frames_before_init = 0;
-    for index in first..end {
-        let frame = source.frame(index)?;
-        if index == first {
-            // IMU history for the initialisation, not the whole past.
-            let from_s = frame.scan.t_s - 0.6;
-            while next_imu < samples.len() && samples[next_imu].t_s < from_s {
+    // A reader thread decodes frame k + 1 (KITTI .bin parsing, ring and
+    // time recovery) while the estimator works on frame k; frames arrive in
+    // order, so the run is the same as a serial one.
+    std::thread::scope(|scope| -> Result<(), RunError> {
+        let (to_estimator, frames_read) = std::sync::mpsc::sync_channel(2);
+        scope.spawn(move || {
+            for index in first..end {
+                let frame = source.frame(index);
+                let failed = frame.is_err();
+                if to_estimator.send((index, frame)).is_err() || failed {
+                    // the estimator stopped, or it will report this error
+                    break;
+                }
+            }
+        });
+        for (index, frame) in frames_read {
+            let frame = frame?;
+            if index == first {
+                // IMU history for the initialisation, not the whole past.
+                let from_s = frame.scan.t_s - 0.6;
+                while next_imu < samples.len() && samples[next_imu].t_s < from_s {
+                    next_imu += 1;
+                }
+            }
+            // Everything the IMU measured up to the end of this sweep.
+            let sweep_end_s = frame.scan.t_s + frame.scan.sweep_duration_s;
+            while next_imu < samples.len() && samples[next_imu].t_s <= sweep_end_s + 1e-9 {
+                estimator
+                    .push_imu(samples[next_imu])
+                    .map_err(estimator_error)?;
                 next_imu += 1;
             }
+            let completed = estimator.push_frame(&frame).map_err(estimator_error)?;
+            if estimates.is_empty() && completed.len() > 1 {
+                frames_before_init = completed.len() - 1;
+            }
+            estimates.extend(completed);
+            bar.inc(1);
         }
-        // Everything the IMU measured up to the end of this sweep.
-        let sweep_end_s = frame.scan.t_s + frame.scan.sweep_duration_s;
-        while next_imu < samples.len() && samples[next_imu].t_s <= sweep_end_s + 1e-9 {
-            estimator
-                .push_imu(samples[next_imu])
-                .map_err(estimator_error)?;
-            next_imu += 1;
-        }
-        let completed = estimator.push_frame(&frame).map_err(estimator_error)?;
-        if estimates.is_empty() && completed.len() > 1 {
-            frames_before_init = completed.len() - 1;
-        }
-        estimates.extend(completed);
-        bar.inc(1);
-    }
+        Ok(())
+    })?;
     bar.finish_and_clear();
     if estimates.is_empty() {
         return Err(RunError::NoEstimate {
