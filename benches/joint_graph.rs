@@ -28,44 +28,14 @@ use nalgebra::{DMatrix, Isometry3, Matrix6, Translation3, UnitQuaternion, Vector
 use std::f64::consts::PI;
 use std::time::{Duration, Instant};
 
+use limot_test_support::SplitMix64 as Rng;
+
 const FRAME_PERIOD_S: f64 = 0.1;
 const SWEEP_DURATION_S: f64 = 0.1;
 const IMU_RATE_HZ: f64 = 200.0;
 const WARMUP_FRAMES: usize = 10;
 const MEASURED_FRAMES: usize = 100;
 const GRAVITY_MPS2: f64 = 9.80511;
-
-/// SplitMix64 with Box–Muller: deterministic noise without a dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
-
-    fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
-        Vector3::new(self.normal(), self.normal(), self.normal()) * sigma
-    }
-}
 
 /// Ego truth: constant world acceleration and yaw rate, so the IMU
 /// specific force and rate are known in closed form at any time.

@@ -8,32 +8,23 @@ use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
 
-/// Small deterministic generator (splitmix64) with Box–Muller normals, so the
-/// statistical tests do not depend on the proptest seed.
-struct Rng(u64);
+use limot_test_support::SplitMix64 as Rng;
 
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    fn normal(&mut self) -> f64 {
+/// Box–Muller normals with the radius drawn from (0, 1], exactly as the Python
+/// script that regenerated the evo reference pair draws them.
+trait OpenNormal {
+    fn open_normal(&mut self) -> f64;
+    fn open_normal3(&mut self, sigma: f64) -> Vector3<f64>;
+}
+
+impl OpenNormal for Rng {
+    fn open_normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // (0, 1]
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
-    fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
-        Vector3::new(self.normal(), self.normal(), self.normal()) * sigma
+    fn open_normal3(&mut self, sigma: f64) -> Vector3<f64> {
+        Vector3::new(self.open_normal(), self.open_normal(), self.open_normal()) * sigma
     }
 }
 
@@ -224,8 +215,8 @@ fn ate_of_gaussian_noise_matches_sigma() {
             .iter()
             .map(|(t, p)| {
                 let noisy = Isometry3::from_parts(
-                    Translation3::from(p.translation.vector + rng.normal3(sigma_m)),
-                    p.rotation * UnitQuaternion::from_scaled_axis(rng.normal3(sigma_rad)),
+                    Translation3::from(p.translation.vector + rng.open_normal3(sigma_m)),
+                    p.rotation * UnitQuaternion::from_scaled_axis(rng.open_normal3(sigma_rad)),
                 );
                 (*t, noisy)
             })
@@ -331,8 +322,8 @@ fn evo_reference_pair() -> (Trajectory, Trajectory) {
     let est: Vec<_> = truth
         .iter()
         .map(|(t, p)| {
-            let position = p.translation.vector + rng.normal3(0.2);
-            let rotation = p.rotation * UnitQuaternion::from_scaled_axis(rng.normal3(0.01));
+            let position = p.translation.vector + rng.open_normal3(0.2);
+            let rotation = p.rotation * UnitQuaternion::from_scaled_axis(rng.open_normal3(0.01));
             (
                 *t,
                 Isometry3::from_parts(Translation3::from(position), rotation),

@@ -25,30 +25,10 @@ use limot::kitti::seqmap::read_seqmap;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use limot_test_support::SplitMix64;
+
 const SEED: u64 = 0x6b69_7474_695f_6d6f;
 const SEQUENCES: [u32; 2] = [1, 6];
-
-/// SplitMix64: tiny, fixed forever, so the perturbed files never change.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-}
 
 /// Two decimals, as result files usually carry.
 fn round2(x: f64) -> f64 {

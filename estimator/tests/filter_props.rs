@@ -9,6 +9,8 @@ use proptest::prelude::*;
 use std::f64::consts::PI;
 use std::time::Instant;
 
+use limot_test_support::SplitMix64 as Rng;
+
 /// Brute force: the inflated footprint's four world corners form a convex
 /// polygon; the point is inside when it is left of (or on) every edge walked
 /// counter-clockwise, and within the inflated height range.
@@ -116,26 +118,6 @@ proptest! {
 // ---------------------------------------------------------------------------
 // Synthetic rolling-shutter sweep
 // ---------------------------------------------------------------------------
-
-/// SplitMix64 + Box-Muller: deterministic noise without extra dependencies.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
-}
 
 /// Ray parameter where the ray `o + s*d` (world) enters box `b`, if it does.
 fn ray_box(b: &OrientedBox, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {

@@ -19,38 +19,19 @@ use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector
 use proptest::prelude::*;
 use std::time::Instant;
 
-// ---------------------------------------------------------------------------
-// Helpers
-// ---------------------------------------------------------------------------
+use limot_test_support::SplitMix64 as Rng;
 
-/// SplitMix64: a tiny deterministic generator so each proptest case is one seed.
-struct Rng(u64);
+/// Samples drawn from the shared test generator: Lie-group elements and a bounded normal.
+trait LieSamples {
+    /// Approximately normal (sum of twelve uniforms, bounded at ±6), unit variance.
+    fn irwin_hall_normal(&mut self) -> f64;
+    fn vector6(&mut self, scale_rho: f64, scale_phi: f64) -> Vector6<f64>;
+    fn pose(&mut self) -> Isometry3<f64>;
+}
 
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
-    }
-    /// Approximately normal (sum of uniforms), unit variance.
-    fn normal(&mut self) -> f64 {
-        (0..12).map(|_| self.uniform(0.0, 1.0)).sum::<f64>() - 6.0
-    }
-    fn index(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-    fn vector3(&mut self, scale: f64) -> Vector3<f64> {
-        Vector3::new(
-            self.uniform(-scale, scale),
-            self.uniform(-scale, scale),
-            self.uniform(-scale, scale),
-        )
+impl LieSamples for Rng {
+    fn irwin_hall_normal(&mut self) -> f64 {
+        (0..12).map(|_| self.uniform()).sum::<f64>() - 6.0
     }
     fn vector6(&mut self, scale_rho: f64, scale_phi: f64) -> Vector6<f64> {
         lie::xi_from_parts(&self.vector3(scale_rho), &self.vector3(scale_phi))
@@ -59,6 +40,10 @@ impl Rng {
         lie::se3_exp(&self.vector6(5.0, 3.0))
     }
 }
+
+// ---------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------
 
 fn vector_of(value: &Variable) -> DVector<f64> {
     match value {
@@ -214,8 +199,8 @@ proptest! {
         }
         factors.push(Box::new(LinearFactor {
             keys: vec![Key::EgoVelocity(1), Key::EgoBias(1)],
-            a: vec![DMatrix::identity(3, 3), DMatrix::from_fn(3, 6, |_, _| rng.uniform(-1.0, 1.0))],
-            b: DVector::from_fn(3, |_, _| rng.uniform(-1.0, 1.0)),
+            a: vec![DMatrix::identity(3, 3), DMatrix::from_fn(3, 6, |_, _| rng.range(-1.0, 1.0))],
+            b: DVector::from_fn(3, |_, _| rng.range(-1.0, 1.0)),
             noise: NoiseModel::diagonal_sigmas(&[0.5; 3]),
         }));
         let touching: Vec<&dyn Factor> = factors.iter().map(|f| f.as_ref()).collect();
@@ -266,10 +251,10 @@ fn linear_problem(seed: u64, max_span: u64) -> LinearProblem {
     let truth: Vec<Vector3<f64>> = (0..num_states).map(|_| rng.vector3(5.0)).collect();
     let mut factors_at: Vec<Vec<LinearFactor>> = (0..num_states).map(|_| Vec::new()).collect();
     let noisy = |rng: &mut Rng, v: DVector<f64>, sigmas: &[f64]| {
-        DVector::from_fn(v.len(), |i, _| v[i] + sigmas[i] * rng.normal())
+        DVector::from_fn(v.len(), |i, _| v[i] + sigmas[i] * rng.irwin_hall_normal())
     };
     // Prior on the first state.
-    let sigmas: Vec<f64> = (0..3).map(|_| rng.uniform(0.2, 2.0)).collect();
+    let sigmas: Vec<f64> = (0..3).map(|_| rng.range(0.2, 2.0)).collect();
     let b = noisy(
         &mut rng,
         DVector::from_column_slice(truth[0].as_slice()),
@@ -283,7 +268,7 @@ fn linear_problem(seed: u64, max_span: u64) -> LinearProblem {
     });
     for k in 1..num_states {
         // Between-type factor on the difference.
-        let sigmas: Vec<f64> = (0..3).map(|_| rng.uniform(0.1, 1.0)).collect();
+        let sigmas: Vec<f64> = (0..3).map(|_| rng.range(0.1, 1.0)).collect();
         let diff = truth[k as usize] - truth[k as usize - 1];
         let b = noisy(
             &mut rng,
@@ -310,7 +295,7 @@ fn linear_problem(seed: u64, max_span: u64) -> LinearProblem {
             let rows = 1 + rng.index(3);
             let a: Vec<DMatrix<f64>> = keys
                 .iter()
-                .map(|_| DMatrix::from_fn(rows, 3, |_, _| rng.uniform(-1.5, 1.5)))
+                .map(|_| DMatrix::from_fn(rows, 3, |_, _| rng.range(-1.5, 1.5)))
                 .collect();
             let mut exact = DVector::zeros(rows);
             for (key, a) in keys.iter().zip(&a) {
@@ -319,7 +304,7 @@ fn linear_problem(seed: u64, max_span: u64) -> LinearProblem {
                 };
                 exact += a * DVector::from_column_slice(truth[*j as usize].as_slice());
             }
-            let sigmas: Vec<f64> = (0..rows).map(|_| rng.uniform(0.3, 3.0)).collect();
+            let sigmas: Vec<f64> = (0..rows).map(|_| rng.range(0.3, 3.0)).collect();
             let b = noisy(&mut rng, exact, &sigmas);
             factors_at[k as usize].push(LinearFactor {
                 keys,
@@ -438,7 +423,7 @@ fn pose_loop(seed: u64, n: u64) -> PoseGraph {
     edges.push((0, n / 2));
     for (a, b) in edges {
         let t_ab = lie::between(truth.pose(&Key::EgoPose(a)), truth.pose(&Key::EgoPose(b)));
-        let noise_xi = Vector6::from_fn(|i, _| sigmas[i] * rng.normal());
+        let noise_xi = Vector6::from_fn(|i, _| sigmas[i] * rng.irwin_hall_normal());
         factors.push(Box::new(BetweenFactor::new(
             Key::EgoPose(a),
             Key::EgoPose(b),
@@ -781,7 +766,7 @@ fn two_chains(frames: u64, coupled: bool, noise: f64) -> (Vec<Vec<LinearFactor>>
         }
     }
     let value = |key: Key| vector_of(truth.get(&key).unwrap());
-    let mut measure = |exact: DVector<f64>| exact.map(|v| v + noise * rng.uniform(-1.0, 1.0));
+    let mut measure = |exact: DVector<f64>| exact.map(|v| v + noise * rng.range(-1.0, 1.0));
     let mut at: Vec<Vec<LinearFactor>> = (0..frames).map(|_| Vec::new()).collect();
     for chain in [ego as fn(u64) -> Key, object] {
         at[0].push(LinearFactor {
@@ -1164,7 +1149,7 @@ fn ego_chain(
         let mut here: Vec<Box<dyn Factor>> = Vec::new();
         let measure = |rng: &mut Rng, a: u64, b: u64| -> Box<dyn Factor> {
             let t_ab = lie::between(truth.pose(&Key::EgoPose(a)), truth.pose(&Key::EgoPose(b)));
-            let xi = Vector6::from_fn(|i, _| noise_scale * sigmas[i] * rng.normal());
+            let xi = Vector6::from_fn(|i, _| noise_scale * sigmas[i] * rng.irwin_hall_normal());
             Box::new(BetweenFactor::new(
                 Key::EgoPose(a),
                 Key::EgoPose(b),
@@ -1196,7 +1181,7 @@ fn ego_chain(
             let v_prev = *truth.vector3(&Key::EgoVelocity(k - 1));
             let mut dv = difference_factor(Key::EgoVelocity(k - 1), Key::EgoVelocity(k), 3, 0.1);
             dv.b = DVector::from_fn(3, |i, _| {
-                v[i] - v_prev[i] + noise_scale * 0.1 * rng.normal()
+                v[i] - v_prev[i] + noise_scale * 0.1 * rng.irwin_hall_normal()
             });
             here.push(Box::new(dv));
             here.push(Box::new(difference_factor(

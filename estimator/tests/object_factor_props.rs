@@ -12,38 +12,16 @@ use limot_estimator::lie;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
 use proptest::prelude::*;
 
-// ---------------------------------------------------------------------------
-// Helpers
-// ---------------------------------------------------------------------------
+use limot_test_support::SplitMix64 as Rng;
 
-/// SplitMix64: a tiny deterministic generator so each proptest case is one seed.
-struct Rng(u64);
+/// Lie-group samples drawn from the shared test generator.
+trait LieSamples {
+    fn twist(&mut self, scale_rho: f64, scale_phi: f64) -> Vector6<f64>;
+    fn normal_twist(&mut self, sigma_rho: f64, sigma_phi: f64) -> Vector6<f64>;
+    fn large_pose(&mut self) -> Isometry3<f64>;
+}
 
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
-    }
-    /// Standard normal (Box–Muller).
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform(f64::MIN_POSITIVE, 1.0);
-        let u2 = self.uniform(0.0, 1.0);
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-    fn vector3(&mut self, scale: f64) -> Vector3<f64> {
-        Vector3::new(
-            self.uniform(-scale, scale),
-            self.uniform(-scale, scale),
-            self.uniform(-scale, scale),
-        )
-    }
+impl LieSamples for Rng {
     fn twist(&mut self, scale_rho: f64, scale_phi: f64) -> Vector6<f64> {
         lie::xi_from_parts(&self.vector3(scale_rho), &self.vector3(scale_phi))
     }
@@ -67,13 +45,17 @@ impl Rng {
                 break v / n;
             }
         };
-        let angle = self.uniform(0.0, 3.1);
+        let angle = self.range(0.0, 3.1);
         Isometry3::from_parts(
             Translation3::from(self.vector3(100.0)),
             lie::so3_exp_quat(&(axis * angle)),
         )
     }
 }
+
+// ---------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------
 
 fn pose(x: f64, y: f64, z: f64, roll: f64, pitch: f64, yaw: f64) -> Isometry3<f64> {
     Isometry3::from_parts(
@@ -231,12 +213,12 @@ fn build_window(rng: &mut Rng, sampling: Sampling) -> Window {
     let mut truth = Values::new();
     // Ego: ~10 m/s along a gentle curve from a random start.
     let t_world_imu0 = pose(
-        rng.uniform(-100.0, 100.0),
-        rng.uniform(-100.0, 100.0),
-        rng.uniform(-2.0, 2.0),
-        rng.uniform(-0.05, 0.05),
-        rng.uniform(-0.05, 0.05),
-        rng.uniform(-3.1, 3.1),
+        rng.range(-100.0, 100.0),
+        rng.range(-100.0, 100.0),
+        rng.range(-2.0, 2.0),
+        rng.range(-0.05, 0.05),
+        rng.range(-0.05, 0.05),
+        rng.range(-3.1, 3.1),
     );
     let ego_step = lie::se3_exp(&Vector6::new(10.0 * DT_S, 0.0, 0.0, 0.0, 0.0, 0.02));
     let mut t_world_imu = t_world_imu0;
@@ -250,7 +232,7 @@ fn build_window(rng: &mut Rng, sampling: Sampling) -> Window {
     // rate), so r_moti and r_smoo vanish at the truth, unless `FullModel`.
     for id in 0..MOVING {
         let yaw_rate_radps = if id == 0 { 0.2 } else { 0.0 };
-        let speed_mps = rng.uniform(3.0, 15.0);
+        let speed_mps = rng.range(3.0, 15.0);
         let mut motion = lie::se3_exp(&Vector6::new(
             speed_mps * DT_S,
             0.0,
@@ -261,12 +243,12 @@ fn build_window(rng: &mut Rng, sampling: Sampling) -> Window {
         ));
         let mut t_world_object = t_world_imu0
             * pose(
-                rng.uniform(10.0, 40.0),
-                rng.uniform(-15.0, 15.0),
-                rng.uniform(-0.5, 0.5),
+                rng.range(10.0, 40.0),
+                rng.range(-15.0, 15.0),
+                rng.range(-0.5, 0.5),
                 0.0,
                 0.0,
-                rng.uniform(-3.1, 3.1),
+                rng.range(-3.1, 3.1),
             );
         for k in 0..FRAMES {
             truth.insert(
@@ -285,7 +267,7 @@ fn build_window(rng: &mut Rng, sampling: Sampling) -> Window {
             }
         }
     }
-    let t_world_static = t_world_imu0 * pose(25.0, 6.0, 0.2, 0.0, 0.0, rng.uniform(-3.1, 3.1));
+    let t_world_static = t_world_imu0 * pose(25.0, 6.0, 0.2, 0.0, 0.0, rng.range(-3.1, 3.1));
     truth.insert(
         Key::StaticObjectPose { id: STATIC_ID },
         Variable::Pose(t_world_static),

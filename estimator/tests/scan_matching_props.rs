@@ -16,35 +16,11 @@ use limot_estimator::lie::{numerical_jacobian, oplus, xi_phi, xi_rho};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use proptest::prelude::*;
 
+use limot_test_support::SplitMix64 as Rng;
+
 // ---------------------------------------------------------------------------
 // Deterministic random numbers (no extra dev-dependency)
 // ---------------------------------------------------------------------------
-
-/// SplitMix64: small, fast, good enough for sampling test geometry.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    /// Standard normal (Box–Muller).
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
 
 // ---------------------------------------------------------------------------
 // Synthetic worlds made of rectangles (planes) and vertical segments (edges)

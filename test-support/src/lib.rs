@@ -1,0 +1,68 @@
+//! Dev-only helpers shared by the workspace's tests and benchmarks.
+//!
+//! Nothing here is part of limot's API; the crate exists so that tests do not
+//! each carry their own copy of the same generator.
+#![warn(missing_docs)]
+
+use nalgebra::Vector3;
+
+/// SplitMix64 (Steele, Lea and Flood 2014): a tiny deterministic generator,
+/// fixed forever, so a test's seed always gives the same data.
+///
+/// ```
+/// use limot_test_support::SplitMix64;
+/// let mut a = SplitMix64(7);
+/// let mut b = SplitMix64(7);
+/// assert_eq!(a.next_u64(), b.next_u64());
+/// let u = a.uniform();
+/// assert!((0.0..1.0).contains(&u));
+/// ```
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1), on the grid of 2⁻⁵³.
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in [lo, hi).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+
+    /// Uniform index in 0..n (n > 0; the modulo bias is negligible for test sizes).
+    pub fn index(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+
+    /// Standard normal by Box–Muller (the radius draw is kept away from 0).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// Three independent normals scaled by `sigma`.
+    pub fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
+        Vector3::new(self.normal(), self.normal(), self.normal()) * sigma
+    }
+
+    /// Uniform in the cube [-scale, scale)³.
+    pub fn vector3(&mut self, scale: f64) -> Vector3<f64> {
+        Vector3::new(
+            self.range(-scale, scale),
+            self.range(-scale, scale),
+            self.range(-scale, scale),
+        )
+    }
+}
