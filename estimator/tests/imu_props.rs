@@ -6,7 +6,7 @@
 
 use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use limot_estimator::graph::{Factor, Key, Values, Variable, check_factor_jacobians};
-use limot_estimator::imu::preintegration::{
+use limot_estimator::imu::{
     ImuTrajectory, Matrix9, Preintegration, PreintegrationError,
 };
 use limot_estimator::imu::{ImuBias, ImuNoise};

@@ -1,6 +1,8 @@
 //! IMU model shared by preintegration and the graph: biases and noise densities.
 
-pub mod preintegration;
+mod preintegration;
+
+pub use preintegration::{ImuTrajectory, Matrix9, Preintegration, PreintegrationError};
 
 use nalgebra::{Vector3, Vector6};
 

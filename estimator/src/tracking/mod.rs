@@ -5,16 +5,19 @@
 //! ([`tracker`]). Everything is in the world frame; the caller transforms
 //! LiDAR-frame detections with the ego pose.
 
-pub mod association;
-pub mod box_overlap;
-pub mod track;
-pub mod tracker;
-pub mod trajectory_fit;
+mod association;
+mod box_overlap;
+mod track;
+mod tracker;
+mod trajectory_fit;
 
-pub use association::AssociationMetric;
+pub use association::{AssociationMetric, associate_by_class, max_score_assignment};
+pub use box_overlap::{giou_3d, iou_3d};
 pub use track::{Extrapolation, HeadingRule, Lifecycle, Motion, TimedBox, Track};
 pub use tracker::{TrackOutput, Tracker, TrackerError, WorldDetection};
-pub use trajectory_fit::{FitPrediction, FitPrior, FitSample, TrajectoryFit};
+pub use trajectory_fit::{FitError, FitPrediction, FitPrior, FitSample, MAX_DEGREE, TrajectoryFit};
+
+pub(crate) use tracker::wrap_angle;
 
 /// Tracker parameters. Defaults are the paper's where it gives them
 /// (window 5, alpha 100, v_thres 1 m/s, initialised after 5 frames, cubic);
