@@ -1,5 +1,7 @@
 //! IMU model shared by preintegration and the graph: biases and noise densities.
 
+#![warn(missing_docs)]
+
 mod preintegration;
 
 pub use preintegration::{ImuTrajectory, Matrix9, Preintegration, PreintegrationError};

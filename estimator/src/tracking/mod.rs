@@ -5,6 +5,8 @@
 //! ([`tracker`]). Everything is in the world frame; the caller transforms
 //! LiDAR-frame detections with the ego pose.
 
+#![warn(missing_docs)]
+
 mod association;
 mod box_overlap;
 mod track;
