@@ -16,10 +16,10 @@ use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use limot_estimator::graph::{
     Key, NoiseModel, PriorFactor, SlidingWindowSmoother, SolverConfig, Variable,
 };
-use limot_estimator::imu::preintegration::Preintegration;
+use limot_estimator::imu::Preintegration;
 use limot_estimator::imu::{ImuBias, ImuNoise};
 use limot_estimator::input::{Detection, ImuSample, ObjectClass};
-use limot_estimator::lidar::deskew::SweepMotion;
+use limot_estimator::lidar::SweepMotion;
 use limot_estimator::lie;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_estimator::pipeline::objects::{ObjectGraph, ObjectGraphConfig};

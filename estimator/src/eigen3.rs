@@ -13,12 +13,27 @@
 //! eigenvectors are then any orthonormal basis of their plane; a line or
 //! plane fit reads only well-separated ones.
 
+#![warn(missing_docs)]
+
 use nalgebra::{Matrix3, Vector3};
 
 /// Eigenvalues in ascending order and the unit eigenvectors as the matching
 /// columns (a right-handed orthonormal basis) of the symmetric matrix `m`
 /// (only its lower triangle is read). Non-finite input gives non-finite
 /// output, never a panic.
+///
+/// ```
+/// use limot_estimator::eigen3::symmetric_eigen3;
+/// use nalgebra::{Matrix3, Vector3};
+///
+/// let m = Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0);
+/// let (values, vectors) = symmetric_eigen3(&m);
+/// assert!((values - Vector3::new(1.0, 3.0, 5.0)).norm() < 1e-12);
+/// for k in 0..3 {
+///     let v = vectors.column(k);
+///     assert!((m * v - v * values[k]).norm() < 1e-12);
+/// }
+/// ```
 pub fn symmetric_eigen3(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
     let mut sym = *m;
     sym.fill_upper_triangle_with_lower_triangle();

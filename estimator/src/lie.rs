@@ -20,6 +20,8 @@
 //! nothing divides by a vanishing angle; the logarithm goes through a unit
 //! quaternion and `atan2`, which keeps it accurate up to (and at) `θ = π`.
 
+#![warn(missing_docs)]
+
 use nalgebra::{
     Isometry3, Matrix3, Matrix3x6, Matrix6, Quaternion, Rotation3, SMatrix, SVector, Translation3,
     UnitQuaternion, Vector3, Vector6,
@@ -341,6 +343,17 @@ pub fn se3_right_jacobian_inv(xi: &Vector6<f64>) -> Matrix6<f64> {
 
 /// `T ⊕ ξ = T·Exp(ξ)`.
 #[inline]
+///
+/// ```
+/// use limot_estimator::lie::{ominus, oplus};
+/// use nalgebra::{Isometry3, Vector3, Vector6};
+///
+/// let t = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, -0.2, 0.3));
+/// // ξ = (ρ, φ): translation part first.
+/// let xi = Vector6::new(0.5, 0.0, 0.0, 0.0, 0.0, 0.2);
+/// let moved = oplus(&t, &xi);
+/// assert!((ominus(&moved, &t) - xi).norm() < 1e-12);
+/// ```
 pub fn oplus(t: &Isometry3<f64>, xi: &Vector6<f64>) -> Isometry3<f64> {
     t * se3_exp(xi)
 }

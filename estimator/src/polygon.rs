@@ -2,6 +2,8 @@
 //! polygons, area of a convex hull. The footprint geometry of box overlaps
 //! (the tracker's 3D IoU/GIoU and the evaluation's IoU share it).
 
+#![warn(missing_docs)]
+
 use nalgebra::Vector2;
 
 /// Cross product of `a − o` and `b − o` (positive when o→a→b turns left).
@@ -27,6 +29,24 @@ pub fn polygon_area(poly: &[Vector2<f64>]) -> f64 {
 /// Intersection of two convex counter-clockwise polygons (Sutherland–Hodgman:
 /// `subject` clipped by each edge half-plane of `clip`); empty when they do
 /// not overlap.
+///
+/// ```
+/// use limot_estimator::polygon::{convex_intersection, polygon_area};
+/// use nalgebra::Vector2;
+///
+/// let square = |x: f64, y: f64| {
+///     vec![
+///         Vector2::new(x, y),
+///         Vector2::new(x + 1.0, y),
+///         Vector2::new(x + 1.0, y + 1.0),
+///         Vector2::new(x, y + 1.0),
+///     ]
+/// };
+/// // Two unit squares shifted by half a side overlap in half a square.
+/// let overlap = convex_intersection(&square(0.0, 0.0), &square(0.5, 0.0));
+/// assert!((polygon_area(&overlap) - 0.5).abs() < 1e-12);
+/// assert!(convex_intersection(&square(0.0, 0.0), &square(2.0, 0.0)).is_empty());
+/// ```
 pub fn convex_intersection(subject: &[Vector2<f64>], clip: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
     let mut output = subject.to_vec();
     for i in 0..clip.len() {

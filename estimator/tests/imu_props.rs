@@ -6,10 +6,9 @@
 
 use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use limot_estimator::graph::{Factor, Key, Values, Variable, check_factor_jacobians};
-use limot_estimator::imu::preintegration::{
-    ImuTrajectory, Matrix9, Preintegration, PreintegrationError,
+use limot_estimator::imu::{
+    ImuBias, ImuNoise, ImuTrajectory, Matrix9, Preintegration, PreintegrationError,
 };
-use limot_estimator::imu::{ImuBias, ImuNoise};
 use limot_estimator::input::ImuSample;
 use limot_estimator::lie;
 use nalgebra::{Isometry3, Matrix3, Rotation3, SVector, Translation3, Vector3, Vector6};

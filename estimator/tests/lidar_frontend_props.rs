@@ -3,9 +3,8 @@
 //! LiDAR moving along a curved path with rotation, and LOAM features on it.
 
 use limot_estimator::input::{LidarPoint, LidarScan};
-use limot_estimator::lidar::deskew::{Deskewer, SweepMotion, deskew};
-use limot_estimator::lidar::features::{
-    FeatureConfig, FeatureExtractor, ScanFeatures, extract_features,
+use limot_estimator::lidar::{
+    Deskewer, FeatureConfig, FeatureExtractor, ScanFeatures, SweepMotion, deskew, extract_features,
 };
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;

@@ -7,11 +7,10 @@ use std::collections::HashMap;
 use std::num::NonZeroUsize;
 use std::time::Instant;
 
-use limot_estimator::lidar::local_map::{LocalMap, LocalMapConfig};
-use limot_estimator::lidar::scan_matching::{
-    ScanMatchConfig, ScanMatchError, match_scan, point_to_line_residual, point_to_plane_residual,
+use limot_estimator::lidar::{
+    LocalMap, LocalMapConfig, ScanMatchConfig, ScanMatchError, match_scan, point_to_line_residual,
+    point_to_plane_residual, voxel_downsample, voxel_key,
 };
-use limot_estimator::lidar::voxel::{voxel_downsample, voxel_key};
 use limot_estimator::lie::{numerical_jacobian, oplus, xi_phi, xi_rho};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use proptest::prelude::*;

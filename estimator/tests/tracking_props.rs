@@ -5,10 +5,9 @@
 //! Figures are printed with `--nocapture`.
 
 use limot_estimator::input::ObjectClass;
-use limot_estimator::tracking::association::{associate_by_class, max_score_assignment};
 use limot_estimator::tracking::{
     FitPrior, FitSample, Lifecycle, Motion, TrackOutput, Tracker, TrackerConfig, TrajectoryFit,
-    WorldDetection,
+    WorldDetection, associate_by_class, max_score_assignment,
 };
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;

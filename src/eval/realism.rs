@@ -26,7 +26,7 @@
 use super::EvalError;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use limot_estimator::input::LidarPoint;
-use limot_estimator::lidar::voxel::voxel_downsample;
+use limot_estimator::lidar::voxel_downsample;
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{PI, TAU};

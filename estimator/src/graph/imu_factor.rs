@@ -9,7 +9,7 @@ use super::factor::{Factor, FactorError, Linearization};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::Values;
-use crate::imu::preintegration::Preintegration;
+use crate::imu::Preintegration;
 use crate::imu::{ImuBias, ImuNoise};
 use crate::lie;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, SMatrix, SVector, Vector3};
@@ -311,7 +311,7 @@ impl Factor for BiasRandomWalkFactor {
 mod tests {
     use super::*;
     use crate::graph::{Variable, check_factor_jacobians};
-    use crate::imu::preintegration::Preintegration;
+    use crate::imu::Preintegration;
     use nalgebra::Vector6;
 
     fn test_preintegration() -> Preintegration {

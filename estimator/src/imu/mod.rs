@@ -1,13 +1,28 @@
-//! IMU model shared by preintegration and the graph: biases and noise densities.
+//! IMU model shared by preintegration and the graph: biases and noise
+//! densities ([`ImuBias`], [`ImuNoise`]), on-manifold preintegration between
+//! two frames ([`Preintegration`], Forster et al. 2016) and world-frame
+//! propagation of a known state for de-skewing ([`ImuTrajectory`]).
+//!
+//! Measurements are in the IMU body frame (specific force in m/s², angular
+//! rate in rad/s; measured = true + bias + noise) and are treated as
+//! piecewise linear in time between samples.
 
-pub mod preintegration;
+#![warn(missing_docs)]
+
+mod preintegration;
+
+pub use preintegration::{
+    COVERAGE_TOLERANCE_S, ImuTrajectory, Matrix9, Preintegration, PreintegrationError,
+};
 
 use nalgebra::{Vector3, Vector6};
 
 /// Accelerometer and gyroscope biases (measured = true + bias + noise).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ImuBias {
+    /// Accelerometer bias, IMU body frame (m/s²).
     pub accel_mps2: Vector3<f64>,
+    /// Gyroscope bias, IMU body frame (rad/s).
     pub gyro_radps: Vector3<f64>,
 }
 
@@ -24,6 +39,7 @@ impl ImuBias {
         )
     }
 
+    /// Inverse of [`ImuBias::to_vector6`].
     pub fn from_vector6(v: &Vector6<f64>) -> ImuBias {
         ImuBias {
             accel_mps2: Vector3::new(v[0], v[1], v[2]),

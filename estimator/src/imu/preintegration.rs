@@ -10,14 +10,13 @@
 //!   `Δp = Σ Δvₖ·dt + ½Rₖ(ãₖ − b̂a)·dt²` (Forster eq. 24–26, discrete),
 //!   with one deliberate change: `Rₖ = ΔRₖ·Exp((ω̃ₖ − b̂g)·dt/2)` is the
 //!   mid-step rotation instead of `ΔRₖ`. Forster's start-of-step rotation is
-//!   a first-order scheme (1.5 cm/s velocity error after 1 s at 100 Hz and
-//!   ~1 rad/s on the test trajectory); the mid-step one is second order.
+//!   a first-order scheme; the mid-step one is second order.
 //!   The covariance and bias Jacobians are derived for this scheme.
 //! * The 9×9 covariance is ordered **`(δφ, δv, δp)`**, the noise of the
 //!   measured deltas as `ΔR = ΔR_true·Exp(δφ)`, `Δv = Δv_true + δv`,
 //!   `Δp = Δp_true + δp` (eq. 42).
 //!   The same order is used by the residual of
-//!   [`ImuFactor`](crate::graph::imu_factor::ImuFactor).
+//!   the graph's IMU factor.
 //! * Noise: continuous white-noise densities (Kalibr) become the discrete
 //!   per-step covariance `σ²/dt` (eq. 42 and appendix).
 //! * [`Preintegration::from_samples`] treats the measurements as piecewise
@@ -39,7 +38,7 @@ pub type Matrix9 = SMatrix<f64, 9, 9>;
 /// the covariance invertible when only one step was integrated (then δv and
 /// δp are driven by the same noise). Negligible against the accelerometer
 /// noise (GTSAM's `integrationCovariance`, same default magnitude).
-pub const INTEGRATION_VARIANCE_M2_PER_S: f64 = 1e-8;
+pub(crate) const INTEGRATION_VARIANCE_M2_PER_S: f64 = 1e-8;
 
 /// Timestamps closer than this (s) count as equal when checking that the
 /// samples cover an interval; absorbs rounding of `t_s + k·dt` sums.
@@ -47,55 +46,99 @@ pub const COVERAGE_TOLERANCE_S: f64 = 1e-9;
 
 /// Why preintegration or propagation over an interval could not be done.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+///
+/// Times are seconds on the sensor clock.
 pub enum PreintegrationError {
+    /// An interval end is not finite, or the end is not after the start.
     #[error(
         "invalid IMU interval [{t_start_s}, {t_end_s}] s: both ends must be finite and the end after the start"
     )]
-    BadInterval { t_start_s: f64, t_end_s: f64 },
+    BadInterval {
+        /// Requested start.
+        t_start_s: f64,
+        /// Requested end.
+        t_end_s: f64,
+    },
+    /// The largest allowed gap between samples is not finite and positive.
     #[error("max_gap_s = {max_gap_s} must be finite and positive")]
-    BadMaxGap { max_gap_s: f64 },
+    BadMaxGap {
+        /// The value given.
+        max_gap_s: f64,
+    },
+    /// The sample list is empty.
     #[error("no IMU samples to integrate over [{t_start_s}, {t_end_s}] s")]
-    NoSamples { t_start_s: f64, t_end_s: f64 },
+    NoSamples {
+        /// Requested start.
+        t_start_s: f64,
+        /// Requested end.
+        t_end_s: f64,
+    },
+    /// The samples do not bracket the interval.
     #[error(
         "IMU samples span [{first_sample_s}, {last_sample_s}] s, which does not cover the interval [{t_start_s}, {t_end_s}] s"
     )]
     NotCovered {
+        /// Requested start.
         t_start_s: f64,
+        /// Requested end.
         t_end_s: f64,
+        /// Time of the first sample.
         first_sample_s: f64,
+        /// Time of the last sample.
         last_sample_s: f64,
     },
+    /// Two consecutive samples taking part are farther apart than allowed.
     #[error(
         "gap of {gap_s} s between the IMU samples at t={before_s} s and t={after_s} s exceeds max_gap_s = {max_gap_s} s"
     )]
     Gap {
+        /// Time of the sample before the gap.
         before_s: f64,
+        /// Time of the sample after the gap.
         after_s: f64,
+        /// `after_s − before_s`.
         gap_s: f64,
+        /// The allowed gap.
         max_gap_s: f64,
     },
+    /// A sample taking part has a non-finite time or measurement.
     #[error("IMU sample {index} (t={t_s} s): field `{field}` is not finite")]
     NonFinite {
+        /// Index of the sample in the slice given.
         index: usize,
+        /// Its time.
         t_s: f64,
+        /// `"t_s"`, `"accel_mps2"` or `"gyro_radps"`.
         field: &'static str,
     },
+    /// Sample times taking part do not strictly increase.
     #[error(
         "IMU sample {index} at t={t_s} s is not after the previous sample at t={previous_t_s} s"
     )]
     NotIncreasing {
+        /// Index of the sample in the slice given.
         index: usize,
+        /// Its time.
         t_s: f64,
+        /// Time of the sample before it.
         previous_t_s: f64,
     },
+    /// [`Preintegration::try_integrate`] got a bad step or measurement.
     #[error(
         "invalid integration step: dt_s = {dt_s} must be finite and positive, and the measurements finite"
     )]
-    BadStep { dt_s: f64 },
+    BadStep {
+        /// The step given (s).
+        dt_s: f64,
+    },
+    /// An [`ImuTrajectory`] was queried outside its interval.
     #[error("time {t_s} s is outside the propagated interval [{t_start_s}, {t_end_s}] s")]
     TimeOutside {
+        /// The time asked for.
         t_s: f64,
+        /// Start of the propagated interval.
         t_start_s: f64,
+        /// End of the propagated interval.
         t_end_s: f64,
     },
 }
@@ -248,6 +291,37 @@ fn interval_knots(
 
 /// Preintegrated IMU measurements between two frames, with their covariance
 /// and first-order bias Jacobians (Forster et al. 2016).
+///
+/// Deltas are in the IMU body frame at the interval start and exclude
+/// gravity; [`Preintegration::predict`] adds it. The covariance is ordered
+/// `(δφ, δv, δp)`.
+///
+/// ```
+/// use limot_estimator::imu::{ImuBias, ImuNoise, Preintegration};
+/// use limot_estimator::input::ImuSample;
+/// use nalgebra::{Isometry3, Vector3};
+///
+/// // 1 s at 100 Hz of a constant 1 m/s² specific force along x, no rotation.
+/// let samples: Vec<ImuSample> = (0..=100)
+///     .map(|k| ImuSample {
+///         t_s: k as f64 * 0.01,
+///         accel_mps2: Vector3::new(1.0, 0.0, 0.0),
+///         gyro_radps: Vector3::zeros(),
+///     })
+///     .collect();
+/// let pre = Preintegration::from_samples(
+///     &samples, 0.0, 1.0, ImuBias::default(), ImuNoise::default(), 0.05,
+/// )
+/// .unwrap();
+/// assert!((pre.delta_velocity() - Vector3::new(1.0, 0.0, 0.0)).norm() < 1e-12);
+/// assert!((pre.delta_position() - Vector3::new(0.5, 0.0, 0.0)).norm() < 1e-12);
+///
+/// // From rest, with gravity set to zero here: 0.5 m and 1 m/s after 1 s.
+/// let (pose, v) = pre.predict(
+///     &Isometry3::identity(), &Vector3::zeros(), &ImuBias::default(), &Vector3::zeros(),
+/// );
+/// assert!((pose.translation.x - 0.5).abs() < 1e-12 && (v.x - 1.0).abs() < 1e-12);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Preintegration {
     bias_hat: ImuBias,
@@ -374,6 +448,10 @@ impl Preintegration {
     }
 
     /// [`Preintegration::integrate`] with the inputs checked first.
+    ///
+    /// # Errors
+    /// [`PreintegrationError::BadStep`] when `dt_s` is not finite and
+    /// positive or a measurement is not finite; nothing is integrated then.
     pub fn try_integrate(
         &mut self,
         accel_mps2: &Vector3<f64>,
@@ -400,6 +478,14 @@ impl Preintegration {
     /// (one sample at or before the start, one at or after the end, up to
     /// [`COVERAGE_TOLERANCE_S`]) with no gap above `max_gap_s`. Only the
     /// samples taking part are validated.
+    ///
+    /// # Errors
+    /// [`PreintegrationError::BadInterval`], [`PreintegrationError::BadMaxGap`]
+    /// for bad arguments; [`PreintegrationError::NoSamples`],
+    /// [`PreintegrationError::NotCovered`], [`PreintegrationError::Gap`],
+    /// [`PreintegrationError::NonFinite`] and
+    /// [`PreintegrationError::NotIncreasing`] for samples that cannot
+    /// describe the interval.
     pub fn from_samples(
         samples: &[ImuSample],
         t_start_s: f64,
@@ -457,6 +543,7 @@ impl Preintegration {
         &self.bias_hat
     }
 
+    /// The noise densities the covariance was propagated with.
     pub fn noise(&self) -> &ImuNoise {
         &self.noise
     }
@@ -571,6 +658,9 @@ impl ImuTrajectory {
     /// Propagates `(t_world_imu_start, v_world_start)` at `t_start_s` over
     /// `[t_start_s, t_end_s]` with the measurements (piecewise linear, as in
     /// [`Preintegration::from_samples`], same checks) minus `bias`.
+    ///
+    /// # Errors
+    /// The same as [`Preintegration::from_samples`].
     #[allow(clippy::too_many_arguments)]
     pub fn propagate(
         samples: &[ImuSample],
@@ -616,16 +706,21 @@ impl ImuTrajectory {
         })
     }
 
+    /// Start of the propagated interval (s).
     pub fn t_start_s(&self) -> f64 {
         self.knots[0].t_s
     }
 
+    /// End of the propagated interval (s).
     pub fn t_end_s(&self) -> f64 {
         self.knots[self.knots.len() - 1].t_s
     }
 
     /// Pose `t_world_imu` and world velocity at `t_s` in the interval (up to
     /// [`COVERAGE_TOLERANCE_S`] outside it, clamped).
+    ///
+    /// # Errors
+    /// [`PreintegrationError::TimeOutside`] beyond that tolerance.
     pub fn state_at(
         &self,
         t_s: f64,
@@ -660,11 +755,18 @@ impl ImuTrajectory {
     }
 
     /// Pose `t_world_imu` at `t_s` (see [`ImuTrajectory::state_at`]).
+    ///
+    /// # Errors
+    /// [`PreintegrationError::TimeOutside`], as [`ImuTrajectory::state_at`].
     pub fn pose_at(&self, t_s: f64) -> Result<Isometry3<f64>, PreintegrationError> {
         self.state_at(t_s).map(|(pose, _)| pose)
     }
 
     /// Poses at several instants (any order).
+    ///
+    /// # Errors
+    /// [`PreintegrationError::TimeOutside`] for the first time outside the
+    /// interval.
     pub fn poses_at(&self, times_s: &[f64]) -> Result<Vec<Isometry3<f64>>, PreintegrationError> {
         times_s.iter().map(|&t| self.pose_at(t)).collect()
     }
@@ -677,118 +779,4 @@ impl ImuTrajectory {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn sample(t_s: f64, a: [f64; 3], w: [f64; 3]) -> ImuSample {
-        ImuSample {
-            t_s,
-            accel_mps2: Vector3::from(a),
-            gyro_radps: Vector3::from(w),
-        }
-    }
-
-    #[test]
-    fn knots_interpolate_the_ends_and_keep_inner_samples() {
-        let samples = [
-            sample(0.0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
-            sample(1.0, [1.0, 2.0, 3.0], [0.1, 0.2, 0.3]),
-            sample(2.0, [3.0, 2.0, 1.0], [0.3, 0.2, 0.1]),
-        ];
-        let knots = interval_knots(&samples, 0.5, 1.5, 2.0).unwrap();
-        assert_eq!(knots.len(), 3);
-        assert!((knots[0].accel_mps2 - Vector3::new(0.5, 1.0, 1.5)).norm() < 1e-15);
-        assert_eq!(knots[1].t_s, 1.0);
-        assert!((knots[2].gyro_radps - Vector3::new(0.2, 0.2, 0.2)).norm() < 1e-15);
-        // Interval ends exactly on samples: no duplicate knots.
-        let knots = interval_knots(&samples, 0.0, 2.0, 2.0).unwrap();
-        assert_eq!(knots.len(), 3);
-    }
-
-    #[test]
-    fn constant_rotation_rate_gives_exact_delta_rotation() {
-        let w = Vector3::new(0.3, -0.2, 0.5);
-        let mut pre = Preintegration::new(ImuBias::default(), ImuNoise::default());
-        for _ in 0..100 {
-            pre.integrate(&Vector3::zeros(), &w, 0.01);
-        }
-        let err = lie::so3_log(&(lie::so3_exp(&w).inverse() * pre.delta_rotation())).norm();
-        assert!(err < 1e-12, "{err}");
-        assert!((pre.delta_t_s() - 1.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn constant_specific_force_without_rotation_is_exact() {
-        let a = Vector3::new(0.5, -1.0, 2.0);
-        let mut pre = Preintegration::new(ImuBias::default(), ImuNoise::default());
-        for _ in 0..37 {
-            pre.integrate(&a, &Vector3::zeros(), 0.01);
-        }
-        let t = pre.delta_t_s();
-        assert!((pre.delta_velocity() - a * t).norm() < 1e-12);
-        assert!((pre.delta_position() - a * (0.5 * t * t)).norm() < 1e-12);
-    }
-
-    #[test]
-    fn try_integrate_rejects_bad_steps() {
-        let mut pre = Preintegration::new(ImuBias::default(), ImuNoise::default());
-        let z = Vector3::zeros();
-        assert!(pre.try_integrate(&z, &z, 0.0).is_err());
-        assert!(pre.try_integrate(&z, &z, f64::NAN).is_err());
-        assert!(
-            pre.try_integrate(&Vector3::new(f64::INFINITY, 0.0, 0.0), &z, 0.01)
-                .is_err()
-        );
-        assert!(pre.try_integrate(&z, &z, 0.01).is_ok());
-    }
-
-    #[test]
-    fn trajectory_end_equals_prediction() {
-        let samples: Vec<ImuSample> = (0..=30)
-            .map(|k| {
-                let t = k as f64 * 0.01;
-                sample(
-                    t,
-                    [1.0 + t, -0.5 * t, 9.7 + 0.2 * t],
-                    [0.1 * t, 0.3, -0.2 + t],
-                )
-            })
-            .collect();
-        let bias = ImuBias {
-            accel_mps2: Vector3::new(0.02, -0.01, 0.03),
-            gyro_radps: Vector3::new(0.001, 0.002, -0.003),
-        };
-        let g = Vector3::new(0.0, 0.0, -9.80511);
-        let start = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, -0.2, 0.3));
-        let v0 = Vector3::new(3.0, 0.5, -0.1);
-        let pre =
-            Preintegration::from_samples(&samples, 0.013, 0.271, bias, ImuNoise::default(), 0.05)
-                .unwrap();
-        let (pose_j, v_j) = pre.predict(&start, &v0, &bias, &g);
-        let traj =
-            ImuTrajectory::propagate(&samples, 0.013, 0.271, &start, &v0, &bias, &g, 0.05).unwrap();
-        let (end_pose, end_v) = traj.end_state();
-        assert!((end_pose.translation.vector - pose_j.translation.vector).norm() < 1e-12);
-        assert!(end_pose.rotation.angle_to(&pose_j.rotation) < 1e-12);
-        assert!((end_v - v_j).norm() < 1e-12);
-        // pose_at agrees with the knots and with the end.
-        let at_end = traj.pose_at(0.271).unwrap();
-        assert!((at_end.translation.vector - pose_j.translation.vector).norm() < 1e-12);
-        let at_start = traj.pose_at(0.013).unwrap();
-        assert!((at_start.translation.vector - start.translation.vector).norm() < 1e-15);
-        // A query between knots equals a fresh propagation that ends there.
-        let mid = 0.1234;
-        let sub = ImuTrajectory::propagate(&samples, 0.013, mid, &start, &v0, &bias, &g, 0.05)
-            .unwrap()
-            .end_state()
-            .0;
-        let q = traj.pose_at(mid).unwrap();
-        assert!((q.translation.vector - sub.translation.vector).norm() < 1e-12);
-        assert!(q.rotation.angle_to(&sub.rotation) < 1e-12);
-        assert!(matches!(
-            traj.pose_at(0.3),
-            Err(PreintegrationError::TimeOutside { .. })
-        ));
-        assert_eq!(traj.poses_at(&[0.2, 0.1]).unwrap().len(), 2);
-    }
-}
+mod tests;

@@ -14,16 +14,27 @@ use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 /// Why a [`SweepMotion`] could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DeskewError {
+    /// No pose sample was given.
     #[error("sweep motion needs at least one pose sample")]
     NoSamples,
+    /// A sample's time, translation or rotation is NaN or infinite.
     #[error("sweep motion sample {index}: field `{field}` is not finite")]
-    NotFinite { index: usize, field: &'static str },
+    NotFinite {
+        /// Index of the offending sample.
+        index: usize,
+        /// `"t_s"`, `"translation"` or `"rotation"`.
+        field: &'static str,
+    },
+    /// Sample times are not strictly increasing.
     #[error(
         "sweep motion sample {index} at t={t_s} s is not after the previous sample at t={previous_t_s} s"
     )]
     TimeNotIncreasing {
+        /// Index of the offending sample.
         index: usize,
+        /// Its time (s).
         t_s: f64,
+        /// Time of the sample before it (s).
         previous_t_s: f64,
     },
 }
@@ -45,6 +56,11 @@ pub struct SweepMotion {
 impl SweepMotion {
     /// Builds the motion from `(t_s, t_world_lidar)` samples with strictly
     /// increasing, finite times.
+    ///
+    /// # Errors
+    /// [`DeskewError::NoSamples`] for an empty list,
+    /// [`DeskewError::NotFinite`] for a non-finite time or pose,
+    /// [`DeskewError::TimeNotIncreasing`] when times do not strictly increase.
     pub fn from_poses(samples: Vec<(f64, Isometry3<f64>)>) -> Result<SweepMotion, DeskewError> {
         if samples.is_empty() {
             return Err(DeskewError::NoSamples);
@@ -95,6 +111,9 @@ impl SweepMotion {
 
     /// Constant linear and angular velocity between two poses (the classic
     /// LOAM assumption; prefer IMU samples when available).
+    ///
+    /// # Errors
+    /// As [`SweepMotion::from_poses`] on the two samples.
     pub fn constant_velocity(
         t0_s: f64,
         t_world_lidar_t0: Isometry3<f64>,
@@ -250,11 +269,12 @@ pub struct Deskewer {
 }
 
 impl Deskewer {
+    /// An empty de-skewer; its buffers grow on first use and are reused.
     pub fn new() -> Deskewer {
         Deskewer::default()
     }
 
-    /// See [`deskew`].
+    /// Same as [`deskew`], reusing this de-skewer's per-segment buffers.
     pub fn deskew(
         &mut self,
         scan: &LidarScan,
@@ -354,6 +374,29 @@ impl Deskewer {
 /// rotation, and points sharing a time (one firing column) share it. The
 /// only approximation is the motion model itself (piecewise slerp/linear
 /// between samples), so the samples must be dense enough for the motion.
+///
+/// ```
+/// use limot_estimator::input::{LidarPoint, LidarScan};
+/// use limot_estimator::lidar::{SweepMotion, deskew};
+/// use nalgebra::{Isometry3, Vector3};
+///
+/// // The sensor moves 1 m along x during a 0.1 s sweep.
+/// let motion = SweepMotion::constant_velocity(
+///     0.0,
+///     Isometry3::identity(),
+///     0.1,
+///     Isometry3::translation(1.0, 0.0, 0.0),
+/// )
+/// .unwrap();
+/// // A point 5 m ahead, measured half-way through the sweep.
+/// let point = LidarPoint { x: 5.0, y: 0.0, z: 0.0, intensity: 0.0, ring: 0, time_offset_s: 0.05 };
+/// let scan = LidarScan { t_s: 0.0, sweep_duration_s: 0.1, num_rings: 1, points: vec![point] };
+/// let mut out = Vec::new();
+/// deskew(&scan, &motion, 0.0, &mut out);
+/// // In the LiDAR frame at the start of the sweep it is 5.5 m ahead
+/// // (`time_offset_s` is an f32, hence the tolerance).
+/// assert!((out[0] - Vector3::new(5.5, 0.0, 0.0)).norm() < 1e-6);
+/// ```
 pub fn deskew(scan: &LidarScan, motion: &SweepMotion, t_ref_s: f64, out: &mut Vec<Vector3<f64>>) {
     Deskewer::new().deskew(scan, motion, t_ref_s, out);
 }

@@ -70,9 +70,12 @@ impl Default for FeatureConfig {
 /// Why a [`FeatureConfig`] is unusable.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FeatureConfigError {
+    /// A field is out of its valid range.
     #[error("feature config field `{field}` is invalid: {why}")]
     Invalid {
+        /// Name of the field.
         field: &'static str,
+        /// What the field must satisfy.
         why: &'static str,
     },
 }
@@ -80,6 +83,9 @@ pub enum FeatureConfigError {
 impl FeatureConfig {
     /// Rejects values that make no sense (zero windows or sectors, negative
     /// or non-finite thresholds, an empty range interval).
+    ///
+    /// # Errors
+    /// [`FeatureConfigError::Invalid`] naming the first bad field.
     pub fn validate(&self) -> Result<(), FeatureConfigError> {
         let bad = |field, why| Err(FeatureConfigError::Invalid { field, why });
         if self.curvature_half_window == 0 {
@@ -115,7 +121,9 @@ impl FeatureConfig {
 /// of one scan, each list in ring then time order.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ScanFeatures {
+    /// Edge points (high curvature).
     pub edge_indices: Vec<usize>,
+    /// Planar points (low curvature).
     pub planar_indices: Vec<usize>,
 }
 
@@ -129,8 +137,40 @@ const EDGE: u8 = 8;
 
 /// Feature extractor holding scratch buffers so that repeated calls do not
 /// allocate once warmed up.
+///
+/// ```
+/// use limot_estimator::input::{LidarPoint, LidarScan};
+/// use limot_estimator::lidar::{FeatureConfig, FeatureExtractor};
+///
+/// // One ring sweeping a room corner 10 m ahead: walls x = 10 − 2|y|.
+/// let points: Vec<LidarPoint> = (0..=400)
+///     .map(|k| {
+///         let az = (-40.0 + 0.2 * k as f64).to_radians();
+///         let range = 10.0 / (az.cos() + 2.0 * az.sin().abs());
+///         LidarPoint {
+///             x: (range * az.cos()) as f32,
+///             y: (range * az.sin()) as f32,
+///             z: 0.0,
+///             intensity: 0.0,
+///             ring: 0,
+///             time_offset_s: k as f32 * 1e-4,
+///         }
+///     })
+///     .collect();
+/// let scan = LidarScan { t_s: 0.0, sweep_duration_s: 0.1, num_rings: 1, points };
+/// let positions: Vec<_> = scan.points.iter().map(|p| p.position()).collect();
+///
+/// let mut extractor = FeatureExtractor::new(FeatureConfig::default());
+/// let features = extractor.extract(&positions, &scan);
+/// // One edge, at the corner (index 200, ± one point of rounding); the flat
+/// // walls give planar points.
+/// assert_eq!(features.edge_indices.len(), 1);
+/// assert!((199..=201).contains(&features.edge_indices[0]));
+/// assert!(features.planar_indices.len() > 100);
+/// ```
 #[derive(Debug, Clone, Default)]
 pub struct FeatureExtractor {
+    /// The settings used by every call.
     pub config: FeatureConfig,
     /// Range per scan index (NaN = ignored point).
     range_of_index: Vec<f64>,
@@ -243,6 +283,7 @@ fn time_key(t: f32) -> u32 {
 }
 
 impl FeatureExtractor {
+    /// An extractor with empty scratch buffers.
     pub fn new(config: FeatureConfig) -> FeatureExtractor {
         FeatureExtractor {
             config,

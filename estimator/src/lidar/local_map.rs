@@ -11,16 +11,13 @@
 //! costs one hash update per added or dropped point, not a voxelisation of
 //! the whole union). Per cloud the map then rebuilds:
 //! * a hash grid for the radius-bounded k-NN that LOAM matching needs
-//!   ([`MapCloud::nearest_k_within`]): on a 175k-point map it answered
-//!   "5 nearest within 1 m" in ~0.9 µs against ~2.8 µs for the k-d tree;
+//!   ([`MapCloud::nearest_k_within`]), several times faster than the k-d
+//!   tree on these clouds (figures in `docs/estimator-frontend-notes.md`);
 //! * a kiddo [`ImmutableKdTree`] for general k-NN ([`MapCloud::nearest_k`]),
 //!   built lazily on first use. Immutable rather than mutable: it is kiddo's
 //!   fastest to query, and kiddo's mutable tree fails to build
 //!   (`UnsplittableBucket`) on clouds with many equal coordinates, such as a
 //!   flat voxelised ground.
-//!
-//! Adding a keyframe of 2k + 8k points to a full 25-keyframe map
-//! (~118k map points) took ~9 ms in the timing test.
 
 use std::collections::hash_map::Entry;
 use std::collections::{HashMap, VecDeque};
@@ -40,8 +37,11 @@ pub enum LocalMapError {
     /// A configuration field is out of range.
     #[error("invalid local map config: `{field}` = {value} ({reason})")]
     InvalidConfig {
+        /// Name of the field.
         field: &'static str,
+        /// Its value (counts as `f64`).
         value: f64,
+        /// What the field must satisfy.
         reason: &'static str,
     },
     /// The keyframe pose has a non-finite translation or rotation.
@@ -82,6 +82,9 @@ impl Default for LocalMapConfig {
 
 impl LocalMapConfig {
     /// Checks every field (counts ≥ 1, distances positive and finite).
+    ///
+    /// # Errors
+    /// [`LocalMapError::InvalidConfig`] naming the first bad field.
     pub fn validate(&self) -> Result<(), LocalMapError> {
         if self.max_keyframes == 0 {
             return Err(LocalMapError::InvalidConfig {
@@ -111,7 +114,9 @@ impl LocalMapConfig {
 /// A nearest-neighbour result: a map point and its squared distance (m²).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Neighbour {
+    /// The map point, world frame (m).
     pub point_world: Vector3<f64>,
+    /// Its squared distance to the query point (m²).
     pub dist_sq_m2: f64,
 }
 
@@ -287,8 +292,8 @@ impl NeighbourGrid {
 pub struct MapCloud {
     points_world: Vec<Vector3<f64>>,
     /// Built lazily by [`MapCloud::nearest_k`]: scan matching only uses the
-    /// grid, so keyframe insertion does not pay for the tree (~15–20 ms for
-    /// 175k points here). `None` inside = construction failed (only possible
+    /// grid, so keyframe insertion does not pay for the tree. `None`
+    /// inside = construction failed (only possible
     /// beyond u32::MAX points); queries then fall back to brute force.
     tree: OnceLock<Option<ImmutableKdTree<f64, 3>>>,
     grid: NeighbourGrid,
@@ -480,6 +485,11 @@ impl LocalMap {
     /// or distant keyframes and rebuilds the downsampled clouds and grids
     /// (the k-d trees are rebuilt on their first query).
     /// Non-finite points are dropped.
+    ///
+    /// # Errors
+    /// [`LocalMapError::InvalidConfig`] when the map's config is invalid,
+    /// [`LocalMapError::NonFinitePose`] for a non-finite pose; the map is
+    /// unchanged in both cases.
     pub fn add_keyframe(
         &mut self,
         t_world_lidar: &Isometry3<f64>,

@@ -21,7 +21,7 @@
 //! `restricted_gauss_newton_step`).
 //!
 //! Speed: neighbours come from the local map's hash grid
-//! ([`MapCloud::nearest_k_within`], ~3× faster than the k-d tree here);
+//! ([`MapCloud::nearest_k_within`], faster than the k-d tree on these clouds);
 //! correspondences are cached per scan point and re-searched only when the
 //! point's world position moved more than
 //! [`ScanMatchConfig::reassociation_distance_m`] since its last search, so
@@ -76,9 +76,8 @@ pub struct ScanMatchConfig {
     /// A scan point's correspondence is searched again only when its world
     /// position moved more than this since the last search, m (default 0.1:
     /// a tenth of the neighbour radius, so the fitted line / plane is still
-    /// the local one; 0.2 already failed a property-test case from 3 deg
-    /// off). 0 = search every iteration (LIO-SAM's behaviour: slower, same
-    /// result within 1 mm in the tests).
+    /// the local one). 0 = search every iteration (LIO-SAM's behaviour,
+    /// slower).
     pub reassociation_distance_m: f64,
 }
 
@@ -102,6 +101,9 @@ impl Default for ScanMatchConfig {
 
 impl ScanMatchConfig {
     /// Checks every field.
+    ///
+    /// # Errors
+    /// [`ScanMatchError::InvalidConfig`] naming the first bad field.
     pub fn validate(&self) -> Result<(), ScanMatchError> {
         let bad = |field: &'static str, value: f64, reason: &'static str| {
             Err(ScanMatchError::InvalidConfig {
@@ -155,30 +157,53 @@ impl ScanMatchConfig {
 /// Errors of [`match_scan`].
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ScanMatchError {
+    /// A configuration field is out of range.
     #[error("invalid scan match config: `{field}` = {value} ({reason})")]
     InvalidConfig {
+        /// Name of the field.
         field: &'static str,
+        /// Its value (counts as `f64`).
         value: f64,
+        /// What the field must satisfy.
         reason: &'static str,
     },
+    /// The local map has no points to match against.
     #[error("the local map is empty")]
     EmptyMap,
+    /// The initial guess has a non-finite translation or rotation.
     #[error("initial pose t_world_lidar is not finite")]
     NonFiniteInitialPose,
+    /// A scan point is NaN or infinite.
     #[error("{cloud} point {index} of the scan is not finite")]
-    NonFinitePoint { cloud: &'static str, index: usize },
+    NonFinitePoint {
+        /// `"edge"` or `"planar"`.
+        cloud: &'static str,
+        /// Index of the point in that cloud.
+        index: usize,
+    },
+    /// Too few scan points found a valid line or plane.
     #[error(
         "too few correspondences at iteration {iteration}: {found} (edge {edge}, planar {planar}), need {required}"
     )]
     TooFewCorrespondences {
+        /// Gauss–Newton iteration (0-based) at which it happened; the final
+        /// re-linearisation counts as the one after the last iteration.
         iteration: usize,
+        /// Correspondences found in all.
         found: usize,
+        /// Of which point-to-line.
         edge: usize,
+        /// Of which point-to-plane.
         planar: usize,
+        /// [`ScanMatchConfig::min_correspondences`].
         required: usize,
     },
+    /// The Gauss–Newton update became NaN or infinite.
     #[error("the optimisation diverged (non-finite update) at iteration {iteration}")]
-    Diverged { iteration: usize },
+    Diverged {
+        /// Iteration (0-based) of the bad update.
+        iteration: usize,
+    },
 }
 
 /// Result of [`match_scan`].
@@ -201,8 +226,9 @@ pub struct ScanMatchResult {
     pub degenerate: bool,
     /// Number of eigenvalues below the degeneracy threshold.
     pub degenerate_directions: usize,
-    /// Edge / planar correspondences used at the solution.
+    /// Edge (point-to-line) correspondences used at the solution.
     pub edge_matches: usize,
+    /// Planar (point-to-plane) correspondences used at the solution.
     pub planar_matches: usize,
     /// Gauss–Newton iterations taken.
     pub iterations: usize,
@@ -214,7 +240,7 @@ pub struct ScanMatchResult {
 
 /// A map feature a scan point is matched to (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MapFeature {
+pub(crate) enum MapFeature {
     /// Line through `point_world` with unit direction `direction_world`.
     Line {
         point_world: Vector3<f64>,
@@ -315,7 +341,7 @@ fn mean_and_covariance(neigh: &[Neighbour]) -> (Vector3<f64>, Matrix3<f64>) {
 
 /// Fits a line to the neighbours (LOAM): accepted when the largest
 /// covariance eigenvalue exceeds `ratio` times the second largest.
-pub fn fit_line(neigh: &[Neighbour], ratio: f64) -> Option<MapFeature> {
+pub(crate) fn fit_line(neigh: &[Neighbour], ratio: f64) -> Option<MapFeature> {
     if neigh.len() < 2 {
         return None;
     }
@@ -335,7 +361,7 @@ pub fn fit_line(neigh: &[Neighbour], ratio: f64) -> Option<MapFeature> {
 
 /// Fits a plane to the neighbours (PCA normal through the centroid):
 /// accepted when every neighbour lies within `max_residual_m` of it.
-pub fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapFeature> {
+pub(crate) fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapFeature> {
     if neigh.len() < 3 {
         return None;
     }
@@ -563,6 +589,14 @@ fn restricted_gauss_newton_step(ne: &NormalEquations, threshold: f64) -> Option<
 
 /// Matches a scan's features (LiDAR frame, de-skewed) to the local map,
 /// starting from `initial_t_world_lidar` (the IMU prediction).
+///
+/// # Errors
+/// [`ScanMatchError::InvalidConfig`] for a bad `config`,
+/// [`ScanMatchError::EmptyMap`], [`ScanMatchError::NonFiniteInitialPose`] and
+/// [`ScanMatchError::NonFinitePoint`] for unusable inputs,
+/// [`ScanMatchError::TooFewCorrespondences`] when fewer than
+/// `config.min_correspondences` points find a line or plane at some
+/// iteration, [`ScanMatchError::Diverged`] for a non-finite update.
 pub fn match_scan(
     map: &LocalMap,
     edge_points_lidar: &[Vector3<f64>],

@@ -21,11 +21,11 @@ use nalgebra::Vector3;
 pub type VoxelKey = (i64, i64, i64);
 
 /// `floor(v)` as an integer. `f64::floor` is a libm call on baseline x86-64
-/// (no SSE4.1 `roundsd`) and showed up in profiles; truncation plus a
+/// (no SSE4.1 `roundsd`); truncation plus a
 /// correction is exact for every `v` in the `i64` range and saturates
 /// beyond it (NaN gives 0).
 #[inline]
-pub fn floor_to_i64(v: f64) -> i64 {
+pub(crate) fn floor_to_i64(v: f64) -> i64 {
     let t = v as i64;
     if (t as f64) > v {
         t.saturating_sub(1)
@@ -49,7 +49,7 @@ pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> VoxelKey {
 /// default SipHash costs more than the rest of the downsampling, and voxel
 /// keys are not attacker controlled.
 #[derive(Default, Clone, Copy)]
-pub struct VoxelKeyHasher {
+pub(crate) struct VoxelKeyHasher {
     hash: u64,
 }
 
@@ -84,7 +84,7 @@ impl Hasher for VoxelKeyHasher {
 }
 
 /// Hash map keyed by voxel coordinates with [`VoxelKeyHasher`].
-pub type VoxelMap<V> = HashMap<VoxelKey, V, BuildHasherDefault<VoxelKeyHasher>>;
+pub(crate) type VoxelMap<V> = HashMap<VoxelKey, V, BuildHasherDefault<VoxelKeyHasher>>;
 
 /// One point per occupied voxel of edge `voxel_m` (m): the centroid of the
 /// input points in it, in order of each voxel's first point.
@@ -93,6 +93,22 @@ pub type VoxelMap<V> = HashMap<VoxelKey, V, BuildHasherDefault<VoxelKeyHasher>>;
 /// finite number means "no downsampling": the finite points are returned
 /// unchanged (in input order). Allocates its scratch; keep a
 /// [`VoxelDownsampler`] for repeated use.
+///
+/// ```
+/// use limot_estimator::lidar::voxel_downsample;
+/// use nalgebra::Vector3;
+///
+/// let points = [
+///     Vector3::new(0.1, 0.1, 0.1),
+///     Vector3::new(0.3, 0.3, 0.3),
+///     Vector3::new(1.5, 0.0, 0.0),
+/// ];
+/// let kept = voxel_downsample(&points, 1.0);
+/// // The first two share the voxel [0, 1)³ and become their centroid.
+/// assert_eq!(kept.len(), 2);
+/// assert!((kept[0] - Vector3::new(0.2, 0.2, 0.2)).norm() < 1e-12);
+/// assert_eq!(kept[1], points[2]);
+/// ```
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
     VoxelDownsampler::default().downsample(points, voxel_m)
 }

@@ -4,9 +4,9 @@ use super::objects::ObjectGraphConfig;
 use crate::filter::FilterConfig;
 use crate::graph::solver::SolverConfig;
 use crate::imu::ImuNoise;
-use crate::lidar::features::FeatureConfig;
-use crate::lidar::local_map::LocalMapConfig;
-use crate::lidar::scan_matching::ScanMatchConfig;
+use crate::lidar::FeatureConfig;
+use crate::lidar::LocalMapConfig;
+use crate::lidar::ScanMatchConfig;
 use crate::tracking::TrackerConfig;
 
 /// Which sensors drive the ego estimate.

@@ -1,7 +1,7 @@
 //! What the estimator reports per frame.
 
 use crate::imu::ImuBias;
-use crate::tracking::tracker::TrackOutput;
+use crate::tracking::TrackOutput;
 use nalgebra::{Isometry3, Vector3};
 use std::time::Duration;
 

@@ -35,8 +35,8 @@ use crate::graph::{
     WindowError,
 };
 use crate::input::{Detection, ObjectClass};
-use crate::lidar::deskew::SweepMotion;
-use crate::tracking::tracker::wrap_angle;
+use crate::lidar::SweepMotion;
+use crate::tracking::wrap_angle;
 use crate::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;

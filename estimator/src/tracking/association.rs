@@ -34,7 +34,12 @@ pub enum AssociationMetric {
     /// AB3DMOT's affinity: the 3D GIoU of the predicted box (track size)
     /// and the detected box, `psi = GIoU − min_giou` for `GIoU > min_giou`.
     /// With `distance_gate`, pairs with `d ≥ d_thres` score 0 as well.
-    Giou3d { min_giou: f64, distance_gate: bool },
+    Giou3d {
+        /// GIoU at or below which a pair may not be paired, in [-1, 1).
+        min_giou: f64,
+        /// Also require the centre distance to be below `d_thres`.
+        distance_gate: bool,
+    },
 }
 
 /// Score of one track–detection pair (paper eq. 1).

@@ -1,24 +1,42 @@
 //! Multi-object tracking (LIMOT "Multi-object Tracking", after DL-SLOT):
-//! cubic trajectory fit over a sliding window ([`trajectory_fit`]),
-//! score matrix + min-cost-flow association ([`association`]), track
-//! lifecycle and static/dynamic state ([`track`]), and the per-frame driver
-//! ([`tracker`]). Everything is in the world frame; the caller transforms
-//! LiDAR-frame detections with the ego pose.
+//! cubic trajectory fit over a sliding window ([`TrajectoryFit`]),
+//! score matrix + min-cost-flow association ([`AssociationMetric`],
+//! [`associate_by_class`]), track lifecycle and static/dynamic state
+//! ([`Track`], [`Lifecycle`], [`Motion`]), and the per-frame driver
+//! ([`Tracker`], configured by [`TrackerConfig`]). Everything is in the world
+//! frame; the caller transforms LiDAR-frame detections with the ego pose.
+//!
+//! Lifecycle: a track is [`Lifecycle::Tentative`] until `init_frames`
+//! consecutive matched frames, then [`Lifecycle::Confirmed`]; it survives
+//! `max_misses` misses on its prediction. Motion: the horizontal speed of a
+//! line fit over the last `motion_window_frames` boxes; static -> dynamic
+//! when it is significantly above `v_thres_mps`, dynamic -> static below
+//! `v_thres_mps - v_hysteresis_mps`.
 
-pub mod association;
-pub mod box_overlap;
-pub mod track;
-pub mod tracker;
-pub mod trajectory_fit;
+#![warn(missing_docs)]
 
-pub use association::AssociationMetric;
+mod association;
+mod box_overlap;
+mod track;
+mod tracker;
+mod trajectory_fit;
+
+pub use association::{
+    AssociationMetric, associate_by_class, matching_matrix, matching_score, max_score_assignment,
+};
+pub use box_overlap::{giou_3d, iou_3d};
 pub use track::{Extrapolation, HeadingRule, Lifecycle, Motion, TimedBox, Track};
 pub use tracker::{TrackOutput, Tracker, TrackerError, WorldDetection};
-pub use trajectory_fit::{FitPrediction, FitPrior, FitSample, TrajectoryFit};
+pub use trajectory_fit::{
+    FitError, FitPrediction, FitPrior, FitSample, MAX_DEGREE, TrajectoryFit, degree_for_samples,
+};
+
+pub(crate) use tracker::wrap_angle;
 
 /// Tracker parameters. Defaults are the paper's where it gives them
 /// (window 5, alpha 100, v_thres 1 m/s, initialised after 5 frames, cubic);
-/// the static/dynamic decision adds noise-aware hysteresis (see [`track`]).
+/// the static/dynamic decision adds noise-aware hysteresis (see the module
+/// documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackerConfig {
     /// Measured boxes in the sliding window used by the trajectory fit.
@@ -27,7 +45,7 @@ pub struct TrackerConfig {
     pub max_poly_degree: usize,
     /// Zero-mean prior sigma of an object's acceleration in the trajectory fit
     /// (`f64::INFINITY` = the paper's plain least-squares cubic; see
-    /// [`trajectory_fit`] for why the default regularises).
+    /// [`TrajectoryFit::fit_with_prior`] for why the default regularises).
     pub accel_sigma_mps2: f64,
     /// Prior sigma of the jerk (third derivative).
     pub jerk_sigma_mps3: f64,
@@ -51,7 +69,8 @@ pub struct TrackerConfig {
     pub v_hysteresis_mps: f64,
     /// Measured boxes over which the average speed is computed. The paper
     /// uses its sliding window (5); 10 (1 s at 10 Hz) cuts the speed noise
-    /// of a parked car by 2.9x (see `track` for the figures).
+    /// of a parked car by 2.9x (the slope noise of a line fit falls as
+    /// `1/sqrt(Σ (t_i − t̄)²)`).
     pub motion_window_frames: usize,
     /// Per-axis standard deviation of detected box centres (metres): weighs
     /// the fit's priors and judges whether a speed is significantly above
@@ -119,13 +138,19 @@ impl Default for TrackerConfig {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("tracker config: field `{field}` = {value} is invalid ({why})")]
 pub struct TrackerConfigError {
+    /// Name of the field (`association.min_giou` for the GIoU threshold).
     pub field: &'static str,
+    /// Its value (counts as `f64`).
     pub value: f64,
+    /// What the field must satisfy.
     pub why: &'static str,
 }
 
 impl TrackerConfig {
     /// Checks every field's range.
+    ///
+    /// # Errors
+    /// [`TrackerConfigError`] naming the first field out of range.
     pub fn validate(&self) -> Result<(), TrackerConfigError> {
         let check = |ok: bool, field, value: f64, why| {
             if ok {

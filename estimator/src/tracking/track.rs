@@ -30,7 +30,7 @@
 //! `v_hysteresis_mps = 0` and `motion_window_frames = 5` give the paper's rule.
 
 use super::TrackerConfig;
-use super::trajectory_fit::{FitPrediction, FitSample, TrajectoryFit};
+use super::trajectory_fit::{FitError, FitPrediction, FitSample, TrajectoryFit};
 use crate::input::ObjectClass;
 use nalgebra::{Isometry3, Vector3};
 use std::collections::VecDeque;
@@ -75,18 +75,23 @@ pub enum Lifecycle {
 /// Whether the object moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Motion {
+    /// Parked or standing (its speed is not significantly above `v_thres_mps`).
     Static,
+    /// Moving.
     Dynamic,
 }
 
 /// One measured box of a track, world frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TimedBox {
+    /// Measurement time (s).
     pub t_s: f64,
+    /// Box centre, world frame (m).
     pub center_world: Vector3<f64>,
     /// Unwrapped so that consecutive boxes differ by less than π/2
     /// (heading flips of the detector are folded onto the track's heading).
     pub yaw_rad: f64,
+    /// Length, width, height (m).
     pub size_lwh: Vector3<f64>,
 }
 
@@ -116,13 +121,17 @@ pub struct Track {
 
 impl Track {
     /// Starts a track from its first detection. `first.yaw_rad` is taken as is.
-    /// Fails only on a non-finite box (the tracker filters those out first).
+    ///
+    /// # Errors
+    /// [`FitError::NotFinite`] for a non-finite box (the tracker filters
+    /// those out first); [`FitError`] for a `config` whose fit settings
+    /// [`TrackerConfig::validate`] would reject.
     pub fn new(
         id: u64,
         class: ObjectClass,
         first: TimedBox,
         config: &TrackerConfig,
-    ) -> Result<Self, super::trajectory_fit::FitError> {
+    ) -> Result<Self, FitError> {
         let fit = TrajectoryFit::fit_with_prior(
             &[fit_sample(&first)],
             config.max_poly_degree,
@@ -147,18 +156,22 @@ impl Track {
         Ok(track)
     }
 
+    /// Stable id, unique within one tracker.
     pub fn id(&self) -> u64 {
         self.id
     }
 
+    /// Class of the first detection (tracks only match their own class).
     pub fn class(&self) -> ObjectClass {
         self.class
     }
 
+    /// Tentative or confirmed.
     pub fn lifecycle(&self) -> Lifecycle {
         self.lifecycle
     }
 
+    /// Static or dynamic, with the hysteresis of the module documentation.
     pub fn motion(&self) -> Motion {
         self.motion
     }
@@ -168,14 +181,17 @@ impl Track {
         self.speed_mps
     }
 
+    /// Matched frames in a row up to now (0 after a miss).
     pub fn consecutive_hits(&self) -> usize {
         self.consecutive_hits
     }
 
+    /// Missed frames in a row up to now (0 after a hit).
     pub fn consecutive_misses(&self) -> usize {
         self.consecutive_misses
     }
 
+    /// Matched frames in all, the first detection included.
     pub fn total_hits(&self) -> usize {
         self.total_hits
     }
@@ -249,11 +265,16 @@ impl Track {
 
     /// Adds a matched detection (yaw already unwrapped with [`Self::unwrap_yaw`],
     /// time after the last box).
+    ///
+    /// # Errors
+    /// [`FitError`] when the refit fails (a non-finite box, or fit settings
+    /// that [`TrackerConfig::validate`] rejects); the box is then in the
+    /// history but the fit is the previous one.
     pub fn record_hit(
         &mut self,
         measured: TimedBox,
         config: &TrackerConfig,
-    ) -> Result<(), super::trajectory_fit::FitError> {
+    ) -> Result<(), FitError> {
         self.history.push_back(measured);
         while self.history.len() > config.history_len() {
             self.history.pop_front();
@@ -304,11 +325,16 @@ impl Track {
     /// Re-expresses the track in another world frame: every kept box is
     /// moved by `t_new_old` (its heading rotated with it), then the fit and
     /// the motion state are recomputed from the moved boxes.
+    ///
+    /// # Errors
+    /// [`FitError`] when the refit fails (a non-finite `t_new_old`, or fit
+    /// settings that [`TrackerConfig::validate`] rejects); the boxes are
+    /// moved but the fit is the previous one.
     pub fn transform_world(
         &mut self,
         t_new_old: &Isometry3<f64>,
         config: &TrackerConfig,
-    ) -> Result<(), super::trajectory_fit::FitError> {
+    ) -> Result<(), FitError> {
         for b in &mut self.history {
             b.center_world = t_new_old.transform_point(&b.center_world.into()).coords;
             b.yaw_rad = rotated_yaw(t_new_old, b.yaw_rad);
@@ -318,7 +344,7 @@ impl Track {
         Ok(())
     }
 
-    fn refit(&mut self, config: &TrackerConfig) -> Result<(), super::trajectory_fit::FitError> {
+    fn refit(&mut self, config: &TrackerConfig) -> Result<(), FitError> {
         let skip = self.history.len().saturating_sub(config.window_frames);
         let samples: Vec<FitSample> = self.history.iter().skip(skip).map(fit_sample).collect();
         self.fit =

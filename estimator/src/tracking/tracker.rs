@@ -16,12 +16,15 @@ use std::f64::consts::PI;
 /// (with the ego pose at the detection time).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WorldDetection {
+    /// Box centre, world frame (m).
     pub center_world: Vector3<f64>,
     /// Length, width, height (metres).
     pub size_lwh: Vector3<f64>,
     /// Heading about the world z axis (radians).
     pub yaw_rad: f64,
+    /// Detected class; tracks only match detections of their class.
     pub class: ObjectClass,
+    /// Detector confidence, compared with `min_score` / `birth_min_score`.
     pub score: f64,
     /// When the sensor saw the object, relative to the update time, s (a
     /// rolling LiDAR sees each object at its own time within the sweep: at
@@ -53,7 +56,9 @@ impl WorldDetection {
 /// One track's state after an update.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackOutput {
+    /// The track's stable id.
     pub id: u64,
+    /// The track's class.
     pub class: ObjectClass,
     /// Fitted (smoothed) centre at the frame time, or the prediction when
     /// `predicted`.
@@ -64,7 +69,9 @@ pub struct TrackOutput {
     pub size_lwh: Vector3<f64>,
     /// Derivative of the fitted trajectory at the frame time.
     pub velocity_world_mps: Vector3<f64>,
+    /// Tentative or confirmed.
     pub lifecycle: Lifecycle,
+    /// Static or dynamic.
     pub motion: Motion,
     /// Horizontal speed of the straight-line fit over the motion window, the
     /// statistic `motion` is decided on (steadier than the derivative of
@@ -82,17 +89,59 @@ pub struct TrackOutput {
 /// Errors of [`Tracker`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TrackerError {
+    /// The configuration is invalid.
     #[error(transparent)]
     Config(#[from] TrackerConfigError),
+    /// The update time is NaN or infinite.
     #[error("tracker update at t={t_s}: time is not finite")]
-    TimeNotFinite { t_s: f64 },
+    TimeNotFinite {
+        /// The time given (s).
+        t_s: f64,
+    },
+    /// The update time is not after the previous update's.
     #[error("tracker update at t={t_s} is not after the previous update at t={previous_t_s}")]
-    TimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    TimeNotIncreasing {
+        /// The time given (s).
+        t_s: f64,
+        /// The previous update's time (s).
+        previous_t_s: f64,
+    },
+    /// A track's trajectory fit failed (a non-finite world transform).
     #[error("tracker: trajectory fit failed: {0}")]
     Fit(#[from] FitError),
 }
 
 /// Multi-object tracker over world-frame detections.
+///
+/// ```
+/// use limot_estimator::input::ObjectClass;
+/// use limot_estimator::tracking::{Lifecycle, Motion, Tracker, TrackerConfig, WorldDetection};
+/// use nalgebra::Vector3;
+///
+/// let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
+/// // A car driving along x at 10 m/s, detected at 10 Hz.
+/// let mut outputs = Vec::new();
+/// for k in 0..8 {
+///     let t_s = 0.1 * k as f64;
+///     let car = WorldDetection {
+///         center_world: Vector3::new(10.0 * t_s, 0.0, 0.8),
+///         size_lwh: Vector3::new(4.5, 1.8, 1.6),
+///         yaw_rad: 0.0,
+///         class: ObjectClass::Car,
+///         score: 0.9,
+///         time_offset_s: 0.0,
+///     };
+///     outputs = tracker.update(t_s, &[car]).unwrap();
+///     assert_eq!(outputs.len(), 1);
+///     // Tentative until `init_frames` (5) consecutive matched frames.
+///     let expected = if k + 1 >= 5 { Lifecycle::Confirmed } else { Lifecycle::Tentative };
+///     assert_eq!(outputs[0].lifecycle, expected);
+/// }
+/// let track = &outputs[0];
+/// assert_eq!(track.id, 0);
+/// assert_eq!(track.motion, Motion::Dynamic);
+/// assert!((track.speed_mps - 10.0).abs() < 1e-6);
+/// ```
 #[derive(Debug, Clone)]
 pub struct Tracker {
     config: TrackerConfig,
@@ -130,7 +179,11 @@ pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
 }
 
 impl Tracker {
-    /// Creates an empty tracker; fails on an invalid configuration.
+    /// Creates an empty tracker.
+    ///
+    /// # Errors
+    /// [`TrackerError::Config`] when [`TrackerConfig::validate`] rejects
+    /// `config`.
     pub fn new(config: TrackerConfig) -> Result<Self, TrackerError> {
         config.validate()?;
         Ok(Tracker {
@@ -144,6 +197,7 @@ impl Tracker {
         })
     }
 
+    /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.config
     }
@@ -185,6 +239,10 @@ impl Tracker {
     /// old world coordinates to new ones), keeping ids, lifecycles and
     /// hit counts: the ego's world may be re-anchored (gravity alignment at
     /// initialisation) without losing what was tracked.
+    ///
+    /// # Errors
+    /// [`TrackerError::Fit`] when a track cannot be refitted (a non-finite
+    /// `t_new_old`).
     pub fn transform_world(&mut self, t_new_old: &Isometry3<f64>) -> Result<(), TrackerError> {
         for track in self.tracks.iter_mut().chain(&mut self.lost) {
             track.transform_world(t_new_old, &self.config)?;
@@ -249,6 +307,13 @@ impl Tracker {
 
     /// Processes one frame of detections taken at `t_s` (strictly after the
     /// previous frame). Returns every live track's state at `t_s`, sorted by id.
+    /// Unusable detections (non-finite, non-positive size) and those below
+    /// `min_score` are skipped and counted, not errors.
+    ///
+    /// # Errors
+    /// [`TrackerError::TimeNotFinite`], [`TrackerError::TimeNotIncreasing`]
+    /// for a bad `t_s` (nothing changes then); [`TrackerError::Fit`] if a
+    /// track's refit fails.
     pub fn update(
         &mut self,
         t_s: f64,

@@ -13,14 +13,9 @@
 //! cannot bend the extrapolation arbitrarily (an interpolating cubic through
 //! four noisy boxes extrapolates the noise with a gain of ~7).
 //!
-//! Noise: an unregularised cubic through the paper's 5 boxes extrapolates one
-//! frame ahead with a noise gain of 4.9 (quadratic 2.1, line 1.05); with
-//! 0.15 m box noise that is 0.74 m per axis, so a 2 m association gate loses
-//! several percent of true matches. [`TrajectoryFit::fit_with_prior`] adds
-//! zero-mean priors on the acceleration and jerk at the window centre (ridge
-//! rows in the least-squares system, in physical units): the cubic still
-//! follows strong, well-sampled curvature but no longer amplifies box noise.
-//! [`TrajectoryFit::fit`] is the plain least-squares fit.
+//! [`TrajectoryFit::fit`] is the plain least-squares fit;
+//! [`TrajectoryFit::fit_with_prior`] adds priors on the higher derivatives
+//! (its documentation says why).
 
 use nalgebra::{DMatrix, Vector3};
 
@@ -34,31 +29,48 @@ const N_COORDS: usize = 4;
 /// consecutive samples differ by less than π).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitSample {
+    /// Time (s).
     pub t_s: f64,
+    /// Centre, world frame (m).
     pub center_world: Vector3<f64>,
+    /// Unwrapped yaw about the world z axis (rad).
     pub yaw_rad: f64,
 }
 
 /// The fitted trajectory evaluated at one time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitPrediction {
+    /// Centre, world frame (m).
     pub center_world: Vector3<f64>,
     /// Unwrapped (continuous) yaw; wrap it for display.
     pub yaw_rad: f64,
     /// Time derivative of the centre.
     pub velocity_world_mps: Vector3<f64>,
+    /// Time derivative of the yaw (rad/s).
     pub yaw_rate_radps: f64,
 }
 
 /// Why a fit could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FitError {
+    /// No sample was given.
     #[error("trajectory fit needs at least one sample")]
     NoSamples,
+    /// A sample's time, centre or yaw is not finite.
     #[error("trajectory fit: sample {index}, field `{field}` is not finite")]
-    NotFinite { index: usize, field: &'static str },
+    NotFinite {
+        /// Index of the sample.
+        index: usize,
+        /// Name of the field.
+        field: &'static str,
+    },
+    /// `max_degree` is above [`MAX_DEGREE`].
     #[error("trajectory fit: max degree {max_degree} above the supported {MAX_DEGREE}")]
-    DegreeTooHigh { max_degree: usize },
+    DegreeTooHigh {
+        /// The degree asked for.
+        max_degree: usize,
+    },
+    /// A sigma of the [`FitPrior`] is not positive (or a noise sigma not finite).
     #[error("trajectory fit: prior sigmas must be positive (noise sigmas also finite)")]
     BadPrior,
 }
@@ -72,9 +84,13 @@ pub struct FitPrior {
     pub position_sigma_m: f64,
     /// Noise of the measured (unwrapped) yaw.
     pub yaw_sigma_rad: f64,
+    /// Prior sigma of the acceleration (m/s²; infinity = no prior).
     pub accel_sigma_mps2: f64,
+    /// Prior sigma of the jerk (m/s³; infinity = no prior).
     pub jerk_sigma_mps3: f64,
+    /// Prior sigma of the yaw acceleration (rad/s²; infinity = no prior).
     pub yaw_accel_sigma_radps2: f64,
+    /// Prior sigma of the yaw jerk (rad/s³; infinity = no prior).
     pub yaw_jerk_sigma_radps3: f64,
 }
 
@@ -115,7 +131,9 @@ pub struct TrajectoryFit {
 }
 
 /// Degree used for `n_samples` samples with at most `max_degree`
-/// (see the module comment for why one sample is kept redundant).
+/// (1 sample: constant, 2: line, n ≥ 3: `min(max_degree, n − 2)`, one
+/// sample kept redundant so a single noisy box cannot bend the
+/// extrapolation arbitrarily).
 pub fn degree_for_samples(n_samples: usize, max_degree: usize) -> usize {
     match n_samples {
         0 | 1 => 0,
@@ -128,13 +146,47 @@ impl TrajectoryFit {
     /// Plain least-squares fit of all coordinates over `samples` (any order,
     /// distinct times expected; repeated times only reduce the effective
     /// degree through the SVD's minimum-norm solution).
+    ///
+    /// # Errors
+    /// As [`TrajectoryFit::fit_with_prior`].
+    ///
+    /// ```
+    /// use limot_estimator::tracking::{FitSample, TrajectoryFit};
+    /// use nalgebra::Vector3;
+    ///
+    /// // Five samples of x = t²: the degree is min(3, 5 − 2) = 3, and a cubic
+    /// // fit reproduces a quadratic exactly.
+    /// let samples: Vec<FitSample> = (0..5)
+    ///     .map(|k| {
+    ///         let t_s = 0.1 * k as f64;
+    ///         FitSample { t_s, center_world: Vector3::new(t_s * t_s, 0.0, 0.0), yaw_rad: 0.0 }
+    ///     })
+    ///     .collect();
+    /// let fit = TrajectoryFit::fit(&samples, 3).unwrap();
+    /// let ahead = fit.predict(0.5);
+    /// assert!((ahead.center_world.x - 0.25).abs() < 1e-9);
+    /// assert!((ahead.velocity_world_mps.x - 1.0).abs() < 1e-9);
+    /// ```
     pub fn fit(samples: &[FitSample], max_degree: usize) -> Result<Self, FitError> {
         Self::fit_with_prior(samples, max_degree, &FitPrior::NONE)
     }
 
-    /// Least-squares fit with zero-mean priors on acceleration and jerk
-    /// (see the module comment). The degree still follows
-    /// [`degree_for_samples`].
+    /// Least-squares fit with zero-mean priors on acceleration and jerk at
+    /// the window centre. The degree still follows [`degree_for_samples`].
+    ///
+    /// Why: an unregularised cubic through the paper's 5 boxes extrapolates
+    /// one frame ahead with a noise gain of 4.9 (quadratic 2.1, line 1.05);
+    /// with 0.15 m box noise that is 0.74 m per axis, so a 2 m association
+    /// gate loses several percent of true matches. The priors are ridge rows
+    /// in the least-squares system, in physical units: the cubic still
+    /// follows strong, well-sampled curvature but no longer amplifies box
+    /// noise.
+    ///
+    /// # Errors
+    /// [`FitError::DegreeTooHigh`] above [`MAX_DEGREE`],
+    /// [`FitError::BadPrior`] for a sigma that is not positive (noise sigmas
+    /// also finite), [`FitError::NoSamples`] for no samples,
+    /// [`FitError::NotFinite`] for a non-finite sample.
     pub fn fit_with_prior(
         samples: &[FitSample],
         max_degree: usize,
