@@ -12,9 +12,9 @@
 //! known, so the end of each run prints the estimation error as a sanity
 //! check that the graph timed is a well-posed one.
 
-use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use limot_estimator::graph::{
-    Key, NoiseModel, PriorFactor, SlidingWindowSmoother, SolverConfig, Variable,
+    BiasRandomWalkFactor, ImuFactor, Key, NoiseModel, PriorFactor, SlidingWindowSmoother,
+    SolverConfig, Variable,
 };
 use limot_estimator::imu::preintegration::Preintegration;
 use limot_estimator::imu::{ImuBias, ImuNoise};

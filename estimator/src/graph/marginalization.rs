@@ -7,7 +7,9 @@
 use super::factor::{Factor, Linearization};
 use super::key::Key;
 use super::noise::NoiseModel;
-use super::solver::{SolverError, VariableIndex, linearize_normal_equations};
+use super::linearization::linearize_normal_equations;
+use super::optimizer::SolverError;
+use super::variable_index::VariableIndex;
 use super::values::{Values, Variable};
 use crate::lie;
 use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector6};

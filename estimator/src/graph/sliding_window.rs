@@ -12,10 +12,10 @@ use super::key::Key;
 use super::marginalization::{
     MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
 };
-use super::solver::{
-    FastHashMap, SolverConfig, SolverError, SolverReport, SolverWorkspace, marginal_covariance,
-    optimize_with, total_cost,
-};
+use super::elimination::SolverWorkspace;
+use super::linearization::{FastHashMap, total_cost};
+use super::marginals::marginal_covariance;
+use super::optimizer::{SolverConfig, SolverError, SolverReport, optimize_with};
 use super::values::{Values, Variable};
 use nalgebra::DMatrix;
 use std::collections::BTreeSet;

@@ -2,7 +2,7 @@
 
 use super::objects::ObjectGraphConfig;
 use crate::filter::FilterConfig;
-use crate::graph::solver::SolverConfig;
+use crate::graph::SolverConfig;
 use crate::imu::ImuNoise;
 use crate::lidar::features::FeatureConfig;
 use crate::lidar::local_map::LocalMapConfig;

@@ -17,10 +17,9 @@ use super::estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 use super::initialization::{MIN_STATIC_SAMPLES, NotStatic, moving_init, static_init};
 use super::objects::{ObjectGraph, yaw_of};
 use crate::filter::{BoxAtTime, FilterError, OrientedBox, all_boxes_mask, dynamic_feature_mask};
-use crate::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
-use crate::graph::prior_factor::PriorFactor;
-use crate::graph::sliding_window::SlidingWindowSmoother;
-use crate::graph::sliding_window::WindowError;
+use crate::graph::{
+    BiasRandomWalkFactor, ImuFactor, PriorFactor, SlidingWindowSmoother, WindowError,
+};
 use crate::graph::{FactorError, Key, NoiseModel, Variable};
 use crate::imu::ImuBias;
 use crate::imu::preintegration::{ImuTrajectory, Preintegration, PreintegrationError};
