@@ -288,7 +288,6 @@ mod tests {
     use crate::lie;
     use nalgebra::{DMatrix, Isometry3, Vector6};
 
-
     /// A hub (the ego) coupled to many leaves (objects), the leaves chained
     /// in pairs: the block ordering eliminates every leaf before the hub,
     /// and the supernodal solve equals a dense one.

@@ -9,9 +9,9 @@ use super::key::Key;
 use super::optimizer::SolverError;
 use super::values::Values;
 use super::variable_index::VariableIndex;
-use faer::sparse::SymbolicSparseColMat;
 #[cfg(test)]
 use faer::sparse::SparseColMat;
+use faer::sparse::SymbolicSparseColMat;
 use nalgebra::{DMatrix, DMatrixView, DVector};
 use std::borrow::Borrow;
 use std::collections::HashMap;
@@ -223,7 +223,11 @@ impl BlockPattern {
 
     /// `H + diag(damping)` (lower triangle) on this pattern.
     #[cfg(test)]
-    pub(super) fn matrix(&self, normal: &NormalEquations, damping: &DVector<f64>) -> SparseColMat<usize, f64> {
+    pub(super) fn matrix(
+        &self,
+        normal: &NormalEquations,
+        damping: &DVector<f64>,
+    ) -> SparseColMat<usize, f64> {
         SparseColMat::new(self.symbolic.clone(), self.fill(normal, damping))
     }
 
@@ -259,7 +263,12 @@ impl BlockPattern {
     }
 
     /// [`BlockPattern::fill`] into `values` (resized; its memory reused).
-    pub(super) fn fill_into(&self, normal: &NormalEquations, damping: &DVector<f64>, values: &mut Vec<f64>) {
+    pub(super) fn fill_into(
+        &self,
+        normal: &NormalEquations,
+        damping: &DVector<f64>,
+        values: &mut Vec<f64>,
+    ) {
         let index = &normal.index;
         let col_ptr = self.symbolic.col_ptr();
         values.clear();

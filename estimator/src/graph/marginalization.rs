@@ -6,11 +6,11 @@
 
 use super::factor::{Factor, Linearization};
 use super::key::Key;
-use super::noise::NoiseModel;
 use super::linearization::linearize_normal_equations;
+use super::noise::NoiseModel;
 use super::optimizer::SolverError;
-use super::variable_index::VariableIndex;
 use super::values::{Values, Variable};
+use super::variable_index::VariableIndex;
 use crate::lie;
 use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector6};
 use std::borrow::Borrow;

@@ -7,13 +7,13 @@
 //! [`SlidingWindowSmoother::condition_factors`]) keep separate small priors.
 
 use super::conditioned_factor::ConditionedFactor;
+use super::elimination::SolverWorkspace;
 use super::factor::Factor;
 use super::key::Key;
+use super::linearization::{FastHashMap, total_cost};
 use super::marginalization::{
     MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
 };
-use super::elimination::SolverWorkspace;
-use super::linearization::{FastHashMap, total_cost};
 use super::marginals::marginal_covariance;
 use super::optimizer::{SolverConfig, SolverError, SolverReport, optimize_with};
 use super::values::{Values, Variable};

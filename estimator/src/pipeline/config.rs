@@ -20,7 +20,7 @@ pub enum Mode {
 }
 
 /// How object points are treated (the paper's ablation).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Variant {
     /// LiDAR-inertial odometry, no object handling.
     Lio,
@@ -32,6 +32,76 @@ pub enum Variant {
     /// `dynafilt` plus the joint graph: confirmed objects' poses and pose
     /// changes are optimized with the ego states (the paper's LIMOT).
     Limot,
+}
+
+impl Variant {
+    /// Every variant, in the paper's order.
+    pub const ALL: [Variant; 4] = [
+        Variant::Lio,
+        Variant::Allfilt,
+        Variant::Dynafilt,
+        Variant::Limot,
+    ];
+
+    /// Machine name, as on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Lio => "lio",
+            Variant::Allfilt => "allfilt",
+            Variant::Dynafilt => "dynafilt",
+            Variant::Limot => "limot",
+        }
+    }
+
+    /// Display name, as in the paper's tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Variant::Lio => "LIO",
+            Variant::Allfilt => "LIO-Allfilt",
+            Variant::Dynafilt => "LIO-Dynafilt",
+            Variant::Limot => "LIMOT",
+        }
+    }
+
+    /// Whether the variant uses the tracker's objects (every variant but
+    /// `lio`).
+    pub fn tracks_objects(self) -> bool {
+        self != Variant::Lio
+    }
+}
+
+/// A string that names no [`Variant`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown variant {name:?} (expected lio, allfilt, dynafilt or limot)")]
+pub struct ParseVariantError {
+    /// The string as given.
+    pub name: String,
+}
+
+impl std::str::FromStr for Variant {
+    type Err = ParseVariantError;
+
+    /// Accepts the machine name or the display name, in any case, with
+    /// surrounding whitespace ignored.
+    ///
+    /// # Errors
+    /// [`ParseVariantError`] naming the string when it is no variant's name.
+    fn from_str(s: &str) -> Result<Variant, ParseVariantError> {
+        let t = s.trim();
+        Variant::ALL
+            .into_iter()
+            .find(|v| t.eq_ignore_ascii_case(v.name()) || t.eq_ignore_ascii_case(v.label()))
+            .ok_or_else(|| ParseVariantError {
+                name: s.to_string(),
+            })
+    }
+}
+
+impl std::fmt::Display for Variant {
+    /// The machine name ([`Variant::name`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 #[derive(Debug, Clone)]
