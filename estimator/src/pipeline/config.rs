@@ -1,7 +1,7 @@
 //! Estimator configuration with the paper's / LIO-SAM's defaults.
 
 use super::objects::ObjectGraphConfig;
-use crate::filter::FilterConfig;
+use crate::object_removal::FilterConfig;
 use crate::graph::SolverConfig;
 use crate::imu::ImuNoise;
 use crate::lidar::features::FeatureConfig;

@@ -18,7 +18,7 @@
 //! O(E log V). Detections left without flow start new tracks.
 
 use super::box_overlap::giou_3d;
-use crate::filter::OrientedBox;
+use crate::object_removal::OrientedBox;
 use crate::input::ObjectClass;
 use nalgebra::DMatrix;
 use std::cmp::{Ordering, Reverse};

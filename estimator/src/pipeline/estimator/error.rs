@@ -1,7 +1,7 @@
 //! [`EstimatorError`]: why the estimator rejected input or could not
 //! process a frame.
 
-use crate::filter::FilterError;
+use crate::object_removal::FilterError;
 use crate::graph::{FactorError, WindowError};
 use crate::imu::preintegration::PreintegrationError;
 use crate::input::InputError;

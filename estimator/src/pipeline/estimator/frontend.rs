@@ -5,7 +5,7 @@
 use super::EgoState;
 use super::Estimator;
 use super::EstimatorError;
-use crate::filter::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
+use crate::object_removal::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::imu::preintegration::ImuTrajectory;
 use crate::input::LidarScan;
 use crate::lidar::deskew::{DeskewError, SweepMotion};
