@@ -57,6 +57,7 @@ struct CholeskyStructure {
 pub struct SolverWorkspace(pub(super) SparseCholesky);
 
 impl SolverWorkspace {
+    /// An empty workspace.
     pub fn new() -> SolverWorkspace {
         SolverWorkspace(SparseCholesky::new())
     }

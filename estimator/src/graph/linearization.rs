@@ -54,6 +54,7 @@ pub(crate) type FastHashMap<K, V> = HashMap<K, V, BuildHasherDefault<BlockKeyHas
 /// per pair of variables (lower triangle: row position ≥ column position).
 #[derive(Debug, Clone)]
 pub struct NormalEquations {
+    /// The column layout of `H`, `g` and the step.
     pub index: VariableIndex,
     /// `(row position, col position)` → offset of the block in
     /// `block_values` (column-major, `dims[row] × dims[col]`), for row ≥ col.
@@ -441,6 +442,10 @@ fn key_list(keys: &[Key]) -> String {
 }
 
 /// Total cost `Σ ρ(‖L·r‖)` (or `½‖L·r‖²`) of `factors` at `values`.
+///
+/// # Errors
+/// [`SolverError::MissingKey`] for a factor key without a value,
+/// [`SolverError::NonFinite`] for a non-finite factor cost.
 pub fn total_cost<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &Values,
@@ -472,6 +477,10 @@ pub fn total_cost<F: Borrow<dyn Factor>>(
 /// variables of `index`. Keys of a factor that are not in `index` are an
 /// error ([`SolverError::UnknownKey`]) unless they have no value at all
 /// ([`SolverError::MissingKey`]).
+///
+/// # Errors
+/// A factor key without a value or outside `index`, shapes that disagree,
+/// or non-finite residuals or Jacobians ([`SolverError`]).
 pub fn linearize_normal_equations<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &Values,

@@ -24,26 +24,53 @@ use std::time::{Duration, Instant};
 /// Why an optimization (or a linearization) failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SolverError {
+    /// A factor names a key that has no value.
     #[error("factor {factor} needs key {key}, which has no value")]
-    MissingKey { factor: usize, key: Key },
+    MissingKey {
+        /// Index of the factor.
+        factor: usize,
+        /// The key without a value.
+        key: Key,
+    },
+    /// A factor's residual, Jacobians and noise model disagree in shape
+    /// with each other or with the key's tangent.
     #[error(
         "factor {factor}: shapes disagree at key {key} (residual {residual_dim}, noise {noise_dim}, jacobian {jacobian_rows}×{jacobian_cols}, tangent {tangent_dim})"
     )]
     DimensionMismatch {
+        /// Index of the factor.
         factor: usize,
+        /// The key whose Jacobian disagrees.
         key: Key,
+        /// Length of the residual.
         residual_dim: usize,
+        /// Columns of the noise model's square-root information.
         noise_dim: usize,
+        /// Rows of the Jacobian.
         jacobian_rows: usize,
+        /// Columns of the Jacobian.
         jacobian_cols: usize,
+        /// Tangent dimension of the key's variable.
         tangent_dim: usize,
     },
+    /// A factor gave a non-finite residual, Jacobian or cost.
     #[error("factor {factor} (keys {keys}) gave a non-finite residual or Jacobian")]
-    NonFinite { factor: usize, keys: String },
+    NonFinite {
+        /// Index of the factor.
+        factor: usize,
+        /// Its keys, comma-separated.
+        keys: String,
+    },
+    /// `H + λD` could not be factorized even at the largest damping.
     #[error("the normal equations are not positive definite even with damping {lambda:e}")]
-    NotPositiveDefinite { lambda: f64 },
+    NotPositiveDefinite {
+        /// The last damping tried.
+        lambda: f64,
+    },
+    /// The sparse Cholesky's symbolic analysis or workspace failed.
     #[error("sparse factorization failed: {0}")]
     Factorization(String),
+    /// A key asked for is not a variable of the problem.
     #[error("key {0} is not a variable of the problem")]
     UnknownKey(Key),
 }
@@ -84,42 +111,58 @@ impl Default for SolverConfig {
 pub struct SolverReport {
     /// Linearizations (outer iterations) performed.
     pub iterations: usize,
+    /// Cost at the initial values.
     pub initial_cost: f64,
+    /// Cost at the returned values.
     pub final_cost: f64,
+    /// A tolerance was met (rather than the iteration limit).
     pub converged: bool,
     /// Final damping.
     pub lambda: f64,
+    /// Wall time of the optimization.
     pub duration: Duration,
 }
 
 /// A set of factors, owned; the solver's input.
 #[derive(Debug, Default)]
 pub struct FactorGraph {
+    /// The factors, in the order they were added.
     pub factors: Vec<Box<dyn Factor>>,
 }
 
 impl FactorGraph {
+    /// An empty graph.
     pub fn new() -> FactorGraph {
         FactorGraph::default()
     }
 
+    /// Appends `factor`.
     pub fn add(&mut self, factor: Box<dyn Factor>) {
         self.factors.push(factor);
     }
 
+    /// Number of factors.
     pub fn len(&self) -> usize {
         self.factors.len()
     }
 
+    /// Whether the graph has no factor.
     pub fn is_empty(&self) -> bool {
         self.factors.is_empty()
     }
 
     /// Total cost at `values`.
+    ///
+    /// # Errors
+    /// As [`total_cost`].
     pub fn cost(&self, values: &Values) -> Result<f64, SolverError> {
         total_cost(&self.factors, values)
     }
 
+    /// Levenberg–Marquardt on every variable of `values` ([`optimize`]).
+    ///
+    /// # Errors
+    /// As [`optimize`].
     pub fn optimize(
         &self,
         values: &mut Values,
@@ -139,6 +182,11 @@ const MIN_LAMBDA: f64 = 1e-15;
 /// Levenberg–Marquardt on every variable of `values` (each must be reached
 /// by a factor for a well-posed problem; unreached ones stay put under damping).
 /// `values` is updated in place to the best values found.
+///
+/// # Errors
+/// A factor key without a value, shapes that disagree, non-finite
+/// residuals or Jacobians, or normal equations that stay indefinite up to
+/// [`SolverConfig::max_lambda`] ([`SolverError`]).
 pub fn optimize<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &mut Values,
@@ -149,6 +197,9 @@ pub fn optimize<F: Borrow<dyn Factor>>(
 
 /// [`optimize`] with a workspace kept by the caller: symbolic analyses of
 /// block patterns it has seen before are reused.
+///
+/// # Errors
+/// As [`optimize`].
 pub fn optimize_with<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &mut Values,
@@ -263,6 +314,10 @@ pub fn optimize_with<F: Borrow<dyn Factor>>(
 
 /// One undamped Gauss–Newton step `δ = -H⁻¹g` at `values` via the sparse
 /// Cholesky (tests compare it with a dense solve).
+///
+/// # Errors
+/// As [`linearize_normal_equations`]; [`SolverError::NotPositiveDefinite`]
+/// when `H` is singular.
 pub fn gauss_newton_step<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &Values,

@@ -27,6 +27,9 @@ impl VariableIndex {
     }
 
     /// The given keys in the given order (duplicates skipped).
+    ///
+    /// # Errors
+    /// [`SolverError::UnknownKey`] for a key without a value.
     pub fn from_keys(keys: &[Key], values: &Values) -> Result<VariableIndex, SolverError> {
         let mut index = VariableIndex::default();
         for key in keys {
@@ -46,14 +49,17 @@ impl VariableIndex {
         self.total_dim += dim;
     }
 
+    /// The variables in column order.
     pub fn keys(&self) -> &[Key] {
         &self.keys
     }
 
+    /// Number of variables.
     pub fn len(&self) -> usize {
         self.keys.len()
     }
 
+    /// Whether there is no variable.
     pub fn is_empty(&self) -> bool {
         self.keys.is_empty()
     }
@@ -68,6 +74,7 @@ impl VariableIndex {
         self.position(key).map(|p| (self.offsets[p], self.dims[p]))
     }
 
+    /// Length of the stacked tangent vector.
     pub fn total_dim(&self) -> usize {
         self.total_dim
     }

@@ -5,13 +5,13 @@
 use super::EgoState;
 use super::Estimator;
 use super::EstimatorError;
-use crate::object_removal::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::imu::preintegration::ImuTrajectory;
 use crate::input::LidarScan;
 use crate::lidar::deskew::{DeskewError, SweepMotion};
 use crate::lidar::features::ScanFeatures;
 use crate::lidar::local_map::LocalMapError;
 use crate::lidar::scan_matching::{ScanMatchResult, match_scan};
+use crate::object_removal::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
 use crate::pipeline::config::Variant;
 use crate::pipeline::estimate::{ModuleTimings, ScanMatchSummary};
 use crate::tracking::track::{Lifecycle, Motion, Track};

@@ -53,11 +53,13 @@ struct EgoState {
 pub struct Footprint {
     /// IMU samples buffered for preintegration and initialisation.
     pub imu_samples: usize,
+    /// Keyframes in the local map.
     pub map_keyframes: usize,
     /// Edge plus planar points of the local map.
     pub map_points: usize,
     /// Frames in the sliding window.
     pub window_frames: usize,
+    /// Live tracks.
     pub tracks: usize,
     /// Tracks kept for revival.
     pub lost_tracks: usize,
@@ -70,6 +72,77 @@ pub struct Footprint {
 /// The streaming estimator. Feed IMU samples in time order with
 /// [`Estimator::push_imu`] and frames with [`Estimator::push_frame`] once the
 /// IMU covers the sweep (the IMU is extrapolated, with a flag, when it does not).
+///
+/// # Example
+///
+/// A sensor standing still in a box-shaped room: after the inertial
+/// initialization every frame has its estimate, and the LiDAR stays at the
+/// world origin.
+///
+/// ```
+/// use limot_estimator::{
+///     Estimator, EstimatorConfig, Extrinsics, Frame, ImuSample, LidarPoint, LidarScan,
+/// };
+/// use nalgebra::Vector3;
+///
+/// // 32 rings × 360 columns in a 20 m × 14 m × 6 m room.
+/// fn room_scan(t_s: f64) -> LidarScan {
+///     let walls = [
+///         (Vector3::x(), 12.0),
+///         (-Vector3::x(), 8.0),
+///         (Vector3::y(), 6.0),
+///         (-Vector3::y(), 8.0),
+///         (-Vector3::z(), 1.7),
+///         (Vector3::z(), 4.3),
+///     ];
+///     let mut points = Vec::new();
+///     for column in 0..360 {
+///         let az = column as f64 / 360.0 * std::f64::consts::TAU;
+///         for ring in 0..32u16 {
+///             let el = (-24.0 + 26.0 * ring as f64 / 31.0_f64).to_radians();
+///             let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+///             let range = walls
+///                 .iter()
+///                 .filter(|(n, _)| d.dot(n) > 1e-9)
+///                 .map(|(n, offset)| offset / d.dot(n))
+///                 .fold(f64::INFINITY, f64::min);
+///             let p = d * range;
+///             points.push(LidarPoint {
+///                 x: p.x as f32,
+///                 y: p.y as f32,
+///                 z: p.z as f32,
+///                 intensity: 0.5,
+///                 ring,
+///                 time_offset_s: (column as f64 / 360.0 * 0.1) as f32,
+///             });
+///         }
+///     }
+///     LidarScan { t_s, sweep_duration_s: 0.1, num_rings: 32, points }
+/// }
+///
+/// let mut estimator = Estimator::new(EstimatorConfig::default(), Extrinsics::default())?;
+/// let mut estimates = Vec::new();
+/// let mut next_sample = 0;
+/// for k in 0..8 {
+///     // 100 Hz of a still IMU through the end of the sweep.
+///     while next_sample <= 10 * (k + 1) {
+///         estimator.push_imu(ImuSample {
+///             t_s: next_sample as f64 * 0.01,
+///             accel_mps2: Vector3::new(0.0, 0.0, 9.80511),
+///             gyro_radps: Vector3::zeros(),
+///         })?;
+///         next_sample += 1;
+///     }
+///     let frame = Frame { scan: room_scan(k as f64 * 0.1), detections: Vec::new() };
+///     estimates.extend(estimator.push_frame(&frame)?);
+/// }
+/// assert!(estimator.is_initialized());
+/// assert_eq!(estimates.len(), 8);
+/// for estimate in &estimates {
+///     assert!(estimate.t_world_lidar.translation.vector.norm() < 0.02);
+/// }
+/// # Ok::<(), limot_estimator::EstimatorError>(())
+/// ```
 pub struct Estimator {
     config: EstimatorConfig,
     t_lidar_imu: Isometry3<f64>,
@@ -110,7 +183,12 @@ pub struct Estimator {
 }
 
 impl Estimator {
-    /// Fails when a part of the configuration is invalid.
+    /// An estimator that has seen no data yet.
+    ///
+    /// # Errors
+    /// [`EstimatorError::FilterConfig`] or [`EstimatorError::Tracker`] for
+    /// invalid object-removal or tracker settings;
+    /// [`EstimatorError::LimotNeedsImu`] for `limot` in LiDAR-only mode.
     pub fn new(
         config: EstimatorConfig,
         extrinsics: Extrinsics,
@@ -155,6 +233,7 @@ impl Estimator {
         })
     }
 
+    /// The configuration it runs with.
     pub fn config(&self) -> &EstimatorConfig {
         &self.config
     }
@@ -188,6 +267,10 @@ impl Estimator {
     }
 
     /// Adds one IMU sample. Samples must be finite and strictly increasing in time.
+    ///
+    /// # Errors
+    /// [`EstimatorError::Input`] for a non-finite sample or one not after
+    /// the previous sample.
     pub fn push_imu(&mut self, sample: ImuSample) -> Result<(), EstimatorError> {
         sample.validate()?;
         if let Some(last) = self.imu.last()
@@ -212,6 +295,12 @@ impl Estimator {
     /// frame gets exactly one estimate unless an error ends the run.
     /// Non-finite points are dropped (a driver's "no return"); a scan must
     /// start after the previous one.
+    ///
+    /// # Errors
+    /// [`EstimatorError::Input`] for a non-finite scan time or duration or a
+    /// scan not after the previous one; otherwise the error of the stage
+    /// that failed (IMU coverage, de-skew, factors, window, map, tracker),
+    /// naming the frame.
     pub fn push_frame(&mut self, frame: &Frame) -> Result<Vec<FrameEstimate>, EstimatorError> {
         let scan = &frame.scan;
         if !scan.t_s.is_finite() {

@@ -42,18 +42,14 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-/// Noise of the object factors (one sigma), with the reasons for the
-/// defaults.
+/// Noise of the object factors (one sigma) and the rules that shape the
+/// objects' part of the graph. The measurements behind the defaults are in
+/// `docs/estimator-notes.md`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectGraphConfig {
     /// Observation: box centre, m, per class (car, truck, cyclist,
-    /// pedestrian): twice the detector's per-axis centre noise (0.15 / 0.3 /
-    /// 0.15 / 0.12 m in the simulator), a compromise between smoothing on the
-    /// highway and following the less regular urban motion. Object centre
-    /// RMSE (20 s) at 1x / 2x / 3x: congested highway 0.182 / 0.161 /
-    /// 0.152 m, urban 0.148 / 0.152 / 0.174 m (tracker alone: 0.239 and
-    /// 0.176 m); mean over six drives (three urban seeds, the parked street,
-    /// both highways) 0.151 / 0.143 / 0.148 m.
+    /// pedestrian); by default twice the simulated detector's per-axis
+    /// centre noise.
     pub observation_position_sigma_m: [f64; 4],
     /// Observation: heading, rad, per class (twice the detector's yaw noise).
     pub observation_yaw_sigma_rad: [f64; 4],
@@ -64,17 +60,17 @@ pub struct ObjectGraphConfig {
     /// Huber threshold on the whitened observation residual (6 dof): a
     /// detection from the wrong object or a bad box is down-weighted.
     pub observation_huber_k: f64,
-    /// r_moti: the pose change must equal the relative pose of the two
-    /// frames' nodes ("must always satisfy", the paper), so tight.
+    /// r_moti, translation, m: the pose change must equal the relative pose
+    /// of the two frames' nodes ("must always satisfy", the paper), so tight.
     pub motion_sigma_m: f64,
+    /// r_moti, rotation, rad (see [`ObjectGraphConfig::motion_sigma_m`]).
     pub motion_sigma_rad: f64,
-    /// r_smoo, translation (longitudinal, lateral, vertical) per frame:
+    /// r_smoo, translation (longitudinal, lateral, vertical) per frame, m:
     /// an acceleration of 3 m/s² changes the 0.1 s pose change by 0.03 m.
-    /// Half or twice these: mean object error over the six drives above
-    /// 0.161 / 0.148 m (0.143 m as set).
     pub smooth_sigma_m: [f64; 3],
-    /// r_smoo, rotation (roll, pitch, yaw) per frame: a yaw rate changing by
-    /// 0.05 rad/s per frame changes the pose change's yaw by 0.005 rad.
+    /// r_smoo, rotation (roll, pitch, yaw) per frame, rad: a yaw rate
+    /// changing by 0.05 rad/s per frame changes the pose change's yaw by
+    /// 0.005 rad.
     pub smooth_sigma_rad: [f64; 3],
     /// Whether dynamic objects' observations also correct the ego (the
     /// paper's fully joint graph). A moving object tells the ego something
@@ -82,45 +78,35 @@ pub struct ObjectGraphConfig {
     /// (a congestion wave accelerates every car ahead at once), so by default
     /// their observations are conditioned on the ego's scan-matched pose:
     /// the ego informs the objects, not the reverse. Static objects (one
-    /// node, a landmark) always inform the ego. Measured on the congested
-    /// highway (20 s, seeds 1 / 2 / 3), ego ATE_T: joint 0.76 / 0.24 / 0.53 m,
-    /// conditioned 0.28 / 0.26 / 0.30 m (dynafilt 0.28 / 0.26 / 0.30 m), with
-    /// the same object errors (within 1 mm).
+    /// node, a landmark) always inform the ego.
     pub dynamic_objects_inform_ego: bool,
     /// A track the tracker calls static but whose speed
     /// ([`TrackOutput::speed_mps`], the line fit the tracker decides on)
-    /// exceeds this is a chain in the graph. The tracker wants confidence
-    /// before it calls a track dynamic (two sigmas of that speed above
-    /// `v_thres_mps`, ~2 m/s for a new track), but one node for a pedestrian
-    /// walking at 1.4 m/s trails it by 0.2-0.3 m within a few frames: the
-    /// graph takes the tracker's threshold without the margin. Urban seed 1,
-    /// 20 s: moving objects 0.127 m with the rule, 0.165 m without (tracker
-    /// 0.163 m). Not the cubic's end derivative: it exceeds 1 m/s for many
-    /// parked cars, whose fresh chains then cost 8 points of MOTP.
+    /// exceeds this, m/s, is a chain in the graph. The tracker wants
+    /// confidence before it calls a track dynamic (two sigmas of that speed
+    /// above its threshold), but one node for a pedestrian walking at
+    /// 1.4 m/s trails it by 0.2-0.3 m within a few frames: the graph takes
+    /// the tracker's threshold without the margin.
     pub static_max_speed_mps: f64,
     /// Whether a static node keeps, folded into its prior, the observations
     /// of the frames that have left the window. The node is a landmark in
     /// the odometry's world frame, and each observation places it with the
     /// ego pose of its frame. Where the odometry drifts against the
-    /// detections (real KITTI, docs/kitti-real-data.md), the observations
-    /// made from poses that have left the window hold the node where the
-    /// object was in an older version of that frame, behind where the
-    /// current scans see it. Off: the node rests on the window's
-    /// observations only (the ego poses that are still estimated together).
-    /// On (the default): it averages every detection since it was created,
-    /// which is right for an odometry that does not drift measurably over
-    /// the life of a node (the simulator's).
+    /// detections, the observations made from poses that have left the
+    /// window hold the node where the object was in an older version of
+    /// that frame. Off: the node rests on the window's observations only
+    /// (the ego poses that are still estimated together). On (the default):
+    /// it averages every detection since it was created, which is right for
+    /// an odometry that does not drift measurably over the life of a node.
     pub static_keeps_old_observations: bool,
     /// Pose changes a chain needs before its velocity is reported (fewer
     /// rest on two or three detections: 0.15 m of noise makes 2-3 m/s).
     pub min_motions_for_velocity: usize,
     /// Levenberg–Marquardt for each dynamic object's own part of the window
-    /// (solved after the ego when `dynamic_objects_inform_ego` is off): two
-    /// linearizations per frame. A new node starts from the chain's
-    /// constant-velocity prediction, so the first step moves it by about the
-    /// detection noise (~5 cm), the second by under a millimetre and a third
-    /// would by micrometres (measured in `benches/joint_graph.rs`); the
-    /// window is warm-started next frame, so nothing is lost over time.
+    /// (solved after the ego when `dynamic_objects_inform_ego` is off). A
+    /// new node starts from the chain's constant-velocity prediction and the
+    /// window is warm-started every frame, so two linearizations per frame
+    /// suffice.
     pub solver: SolverConfig,
 }
 
@@ -164,6 +150,7 @@ fn class_index(class: ObjectClass) -> usize {
 pub struct ObjectEstimate {
     /// World pose of the box centre at `t_s` (the node's time, the scan start).
     pub t_world_object: Isometry3<f64>,
+    /// The node's time, s (the frame's scan start).
     pub t_s: f64,
     /// World velocity from the pose change into this frame; zero for a
     /// static object, `None` at the start of a chain (no pose change yet).
@@ -267,6 +254,7 @@ pub struct ObjectGraph {
 }
 
 impl ObjectGraph {
+    /// No objects yet.
     pub fn new(config: ObjectGraphConfig) -> ObjectGraph {
         ObjectGraph {
             config,
@@ -283,6 +271,7 @@ impl ObjectGraph {
             .count()
     }
 
+    /// Whether no object has nodes in the window.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -451,6 +440,9 @@ impl ObjectGraph {
     /// only); `t_world_lidar` is the best current guess of the sweep-start
     /// LiDAR pose (initial values); `motion` the sweep's IMU motion. The ego
     /// pose of `frame` must be in the smoother.
+    ///
+    /// # Errors
+    /// A node or factor the smoother rejects ([`WindowError`]).
     #[allow(clippy::too_many_arguments)]
     pub fn add_frame(
         &mut self,
