@@ -51,7 +51,7 @@ struct CholeskyStructure {
     workspace: MemBuffer,
 }
 
-/// Buffers and symbolic factorizations that [`optimize_with`] reuses
+/// Buffers and symbolic factorizations that [`optimize_with`](super::optimize_with) reuses
 /// across calls: pass the same workspace to repeated solves of problems of
 /// recurring shapes (a sliding window's parts, frame after frame).
 pub struct SolverWorkspace(pub(super) SparseCholesky);
