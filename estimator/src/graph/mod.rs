@@ -1,5 +1,21 @@
 //! Factor graph: typed variable keys, values on their manifolds, factors
-//! (residual + Jacobians, GTSAM style), kept separate from the solver.
+//! (residual + Jacobians, GTSAM style), and the sparse solver built on them,
+//! one concept per file as in GTSAM:
+//! * variables: [`Key`], [`Values`]/[`Variable`], [`VariableIndex`] (the
+//!   column layout of the stacked tangent);
+//! * factors: [`Factor`] and [`NoiseModel`], the ego factors ([`PriorFactor`],
+//!   [`BetweenFactor`], [`ImuFactor`], [`BiasRandomWalkFactor`]), the object
+//!   factors ([`ObjectObservationFactor`], [`ObjectMotionFactor`],
+//!   [`SmoothMotionFactor`]) and [`ConditionedFactor`];
+//! * linearization: whitened factors accumulated into the block-sparse
+//!   [`NormalEquations`] ([`linearize_normal_equations`], [`total_cost`]);
+//! * elimination: block-AMD ordering and supernodal sparse Cholesky, with
+//!   symbolic analyses kept in a [`SolverWorkspace`];
+//! * optimizer: Levenberg–Marquardt ([`optimize`], [`SolverConfig`],
+//!   [`SolverReport`], [`FactorGraph`]);
+//! * marginals: [`marginal_covariance`]; marginalization by Schur complement
+//!   ([`marginalize`], [`MarginalPriorFactor`]); the fixed-lag
+//!   [`SlidingWindowSmoother`].
 //!
 //! Conventions shared by every factor:
 //! * Poses are [`Isometry3`](nalgebra::Isometry3) with the right perturbation

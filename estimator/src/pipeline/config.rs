@@ -262,3 +262,23 @@ impl EstimatorConfig {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variant_names_and_labels_parse_back() {
+        for v in Variant::ALL {
+            assert_eq!(v.name().parse::<Variant>(), Ok(v));
+            assert_eq!(v.label().to_lowercase().parse::<Variant>(), Ok(v));
+            assert_eq!(v.to_string(), v.name());
+        }
+        assert_eq!(" LIMOT ".parse::<Variant>(), Ok(Variant::Limot));
+        let err = "lidar".parse::<Variant>().unwrap_err();
+        assert_eq!(err.name, "lidar");
+        let message = err.to_string();
+        assert!(message.contains("\"lidar\"") && message.contains("dynafilt"));
+        assert!(!Variant::Lio.tracks_objects() && Variant::Allfilt.tracks_objects());
+    }
+}

@@ -11,6 +11,12 @@
 //! States live at scan START times, and the de-skew reference is the scan
 //! start too, so the detections (also stamped within the sweep) and the
 //! ground truth boxes (at scan start) refer to the same instant.
+//!
+//! Files: `inertial.rs` (the per-frame stages above), `frontend.rs` (the
+//! sweep: motion, de-skew, features, object removal, matching, map),
+//! `bootstrap.rs` (LiDAR-only start and inertial initialization),
+//! `lidar_only.rs` (odometry without an IMU), `tracks.rs` (the tracker's side),
+//! `error.rs`.
 
 mod bootstrap;
 mod error;

@@ -28,6 +28,11 @@
 //!   each object keeps its own small prior and the cost stays linear in the
 //!   number of objects. A static node's observations are dropped instead
 //!   when [`ObjectGraphConfig::static_keeps_old_observations`] is off.
+//!
+//! Per frame, the owner of the window calls [`ObjectGraph::add_frame`] once
+//! the frame's ego state is in the smoother, [`ObjectGraph::optimize`], and
+//! [`ObjectGraph::marginalize_oldest`] for each frame leaving the window;
+//! [`ObjectGraph::estimates`] reads the smoothed objects back.
 
 use crate::graph::{
     ConditionedFactor, Factor, Key, NoiseModel, ObjectMotionFactor, ObjectObservationFactor,
