@@ -8,7 +8,7 @@
 //! computed several times per sweep and the median is kept.
 
 use limot::simulate::resolve_scenario;
-use limot_estimator::filter::{
+use limot_estimator::object_removal::{
     BoxAtTime, ConstantVelocityBox, FilterConfig, OrientedBox, dynamic_feature_mask,
 };
 use limot_sim::simulation::Simulation;

@@ -7,14 +7,14 @@
 //! with the real `ImuFactor` on preintegrated IMU samples, the bias random
 //! walk and a LiDAR pose prior with a full 6×6 information; the objects of
 //! the frame through `ObjectGraph::add_frame`; `optimize`; then, with a
-//! window of 5, `condition_oldest` → `marginalize_frame` →
-//! `after_marginalize`. About 20 % of the objects are static. The truth is
-//! known, so the end of each run prints the estimation error as a sanity
-//! check that the graph timed is a well-posed one.
+//! window of 5, `ObjectGraph::marginalize_oldest`. About 20 % of the objects
+//! are static. The truth is known, so the end of each run prints the
+//! estimation error as a sanity check that the graph timed is a well-posed
+//! one.
 
-use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
 use limot_estimator::graph::{
-    Key, NoiseModel, PriorFactor, SlidingWindowSmoother, SolverConfig, Variable,
+    BiasRandomWalkFactor, ImuFactor, Key, NoiseModel, PriorFactor, SlidingWindowSmoother,
+    SolverConfig, Variable,
 };
 use limot_estimator::imu::Preintegration;
 use limot_estimator::imu::{ImuBias, ImuNoise};
@@ -22,7 +22,7 @@ use limot_estimator::input::{Detection, ImuSample, ObjectClass};
 use limot_estimator::lidar::SweepMotion;
 use limot_estimator::lie;
 use limot_estimator::pipeline::EstimatorConfig;
-use limot_estimator::pipeline::objects::{ObjectGraph, ObjectGraphConfig};
+use limot_estimator::pipeline::{ObjectGraph, ObjectGraphConfig};
 use limot_estimator::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{DMatrix, Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
 use std::f64::consts::PI;
@@ -420,12 +420,8 @@ fn run(n_objects: usize, seed: u64) -> (Vec<FrameTiming>, FinalErrors) {
         while window.len() > config.window_size.max(2) {
             let oldest = window.pop_front().expect("non-empty window");
             graph
-                .condition_oldest(&mut smoother, oldest)
-                .expect("condition");
-            smoother.marginalize_frame(oldest).expect("marginalize");
-            graph
-                .after_marginalize(&mut smoother, oldest)
-                .expect("after marginalize");
+                .marginalize_oldest(&mut smoother, oldest)
+                .expect("marginalize");
         }
         let marginalize = clock.elapsed();
 

@@ -13,8 +13,6 @@
 //! eigenvectors are then any orthonormal basis of their plane; a line or
 //! plane fit reads only well-separated ones.
 
-#![warn(missing_docs)]
-
 use nalgebra::{Matrix3, Vector3};
 
 /// Eigenvalues in ascending order and the unit eigenvectors as the matching

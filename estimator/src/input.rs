@@ -9,6 +9,7 @@ use std::fmt;
 /// One IMU sample in the IMU body frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImuSample {
+    /// Time of the sample, s.
     pub t_s: f64,
     /// Specific force (acceleration minus gravity), body frame.
     pub accel_mps2: Vector3<f64>,
@@ -20,9 +21,13 @@ pub struct ImuSample {
 /// (raw, not motion-compensated).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LidarPoint {
+    /// Position, LiDAR frame, m.
     pub x: f32,
+    /// See [`LidarPoint::x`].
     pub y: f32,
+    /// See [`LidarPoint::x`].
     pub z: f32,
+    /// Return intensity, as the sensor reports it.
     pub intensity: f32,
     /// Laser index, 0 = lowest beam.
     pub ring: u16,
@@ -31,6 +36,7 @@ pub struct LidarPoint {
 }
 
 impl LidarPoint {
+    /// The position `(x, y, z)` as `f64`, LiDAR frame, m.
     pub fn position(&self) -> Vector3<f64> {
         Vector3::new(self.x as f64, self.y as f64, self.z as f64)
     }
@@ -45,19 +51,25 @@ pub struct LidarScan {
     pub sweep_duration_s: f64,
     /// Number of lasers (rings) of the sensor.
     pub num_rings: u16,
+    /// The returns, in the order the sensor delivered them.
     pub points: Vec<LidarPoint>,
 }
 
 /// Object classes shared by detector, tracker and evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ObjectClass {
+    /// A car or van.
     Car,
+    /// A truck or bus.
     Truck,
+    /// A cyclist with the bicycle.
     Cyclist,
+    /// A person on foot.
     Pedestrian,
 }
 
 impl ObjectClass {
+    /// Every class, in index order.
     pub const ALL: [ObjectClass; 4] = [
         ObjectClass::Car,
         ObjectClass::Truck,
@@ -65,6 +77,7 @@ impl ObjectClass {
         ObjectClass::Pedestrian,
     ];
 
+    /// The class name as KITTI writes it (`Car`, `Truck`, ...).
     pub fn name(self) -> &'static str {
         match self {
             ObjectClass::Car => "Car",
@@ -102,6 +115,7 @@ pub struct Detection {
     pub size_lwh: Vector3<f64>,
     /// Heading about the LiDAR z axis, radians, 0 = along +x.
     pub yaw_rad: f64,
+    /// Detected class.
     pub class: ObjectClass,
     /// Detector confidence in [0, 1].
     pub score: f64,
@@ -113,7 +127,9 @@ pub struct Detection {
 /// Everything that arrives with one LiDAR sweep.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Frame {
+    /// The sweep.
     pub scan: LidarScan,
+    /// The detector's boxes of this sweep.
     pub detections: Vec<Detection>,
 }
 
@@ -135,25 +151,57 @@ impl Default for Extrinsics {
 /// Why a piece of input was rejected.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InputError {
+    /// An IMU sample has a non-finite field.
     #[error("IMU sample at t={t_s}: field `{field}` is not finite")]
-    ImuNotFinite { t_s: f64, field: &'static str },
+    ImuNotFinite {
+        /// Time of the sample, s.
+        t_s: f64,
+        /// The field.
+        field: &'static str,
+    },
+    /// IMU samples out of order.
     #[error("IMU sample at t={t_s} is not after the previous one at t={previous_t_s}")]
-    ImuTimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    ImuTimeNotIncreasing {
+        /// Time of the sample, s.
+        t_s: f64,
+        /// Time of the sample before it, s.
+        previous_t_s: f64,
+    },
+    /// A scan's time or sweep duration is not finite (or negative).
     #[error("scan at t={t_s}: field `{field}` is not finite")]
-    ScanNotFinite { t_s: f64, field: &'static str },
+    ScanNotFinite {
+        /// Scan start time, s.
+        t_s: f64,
+        /// The field.
+        field: &'static str,
+    },
+    /// Scans out of order.
     #[error("scan at t={t_s} is not after the previous scan at t={previous_t_s}")]
-    ScanTimeNotIncreasing { t_s: f64, previous_t_s: f64 },
+    ScanTimeNotIncreasing {
+        /// Scan start time, s.
+        t_s: f64,
+        /// Start time of the scan before it, s.
+        previous_t_s: f64,
+    },
+    /// A detection no detector can produce.
     #[error("detection {index} of the scan at t={t_s}: field `{field}` is invalid ({why})")]
     BadDetection {
+        /// Scan start time, s.
         t_s: f64,
+        /// Index of the detection in its frame.
         index: usize,
+        /// The field.
         field: &'static str,
+        /// What is wrong with it.
         why: &'static str,
     },
 }
 
 impl ImuSample {
     /// Rejects non-finite values.
+    ///
+    /// # Errors
+    /// [`InputError::ImuNotFinite`] naming the first non-finite field.
     pub fn validate(&self) -> Result<(), InputError> {
         let t_s = self.t_s;
         if !t_s.is_finite() {
@@ -178,6 +226,9 @@ impl ImuSample {
 impl Detection {
     /// Rejects boxes no detector can produce: non-finite values, non-positive
     /// sizes, scores outside [0, 1].
+    ///
+    /// # Errors
+    /// [`InputError::BadDetection`] naming the field and why.
     pub fn validate(&self, t_s: f64, index: usize) -> Result<(), InputError> {
         let bad = |field, why| InputError::BadDetection {
             t_s,
@@ -205,6 +256,10 @@ impl Detection {
 
     /// [`Detection::validate`], and the box must have been seen during its
     /// sweep (`0 ≤ time_offset_s ≤ sweep_duration_s`, to a microsecond).
+    ///
+    /// # Errors
+    /// As [`Detection::validate`], and [`InputError::BadDetection`] for a time
+    /// offset outside the sweep.
     pub fn validate_in_sweep(
         &self,
         t_s: f64,

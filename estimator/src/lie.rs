@@ -20,8 +20,6 @@
 //! nothing divides by a vanishing angle; the logarithm goes through a unit
 //! quaternion and `atan2`, which keeps it accurate up to (and at) `θ = π`.
 
-#![warn(missing_docs)]
-
 use nalgebra::{
     Isometry3, Matrix3, Matrix3x6, Matrix6, Quaternion, Rotation3, SMatrix, SVector, Translation3,
     UnitQuaternion, Vector3, Vector6,

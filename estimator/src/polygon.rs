@@ -2,8 +2,6 @@
 //! polygons, area of a convex hull. The footprint geometry of box overlaps
 //! (the tracker's 3D IoU/GIoU and the evaluation's IoU share it).
 
-#![warn(missing_docs)]
-
 use nalgebra::Vector2;
 
 /// Cross product of `a − o` and `b − o` (positive when o→a→b turns left).

@@ -3,7 +3,7 @@
 //! crossing at 15 m/s (per-point time vs scan-start time), the stats on hand
 //! cases, and a timing print for a full-size sweep.
 
-use limot_estimator::filter::*;
+use limot_estimator::object_removal::*;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
 use std::f64::consts::PI;

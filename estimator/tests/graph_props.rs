@@ -2,16 +2,11 @@
 //! marginalization exactness on linear-Gaussian problems, LM on a nonlinear
 //! pose graph, robust kernels, error paths and timing of window-sized solves.
 
-use limot_estimator::graph::between_factor::BetweenFactor;
-use limot_estimator::graph::marginalization::{MarginalizationConfig, marginalize};
-use limot_estimator::graph::prior_factor::PriorFactor;
-use limot_estimator::graph::sliding_window::{SlidingWindowSmoother, WindowError};
-use limot_estimator::graph::solver::{
-    SolverConfig, SolverError, VariableIndex, gauss_newton_step, linearize_normal_equations,
-    marginal_covariance, optimize, total_cost,
-};
 use limot_estimator::graph::{
-    Factor, Key, Linearization, NoiseModel, RobustKernel, Values, Variable, check_factor_jacobians,
+    BetweenFactor, Factor, Key, Linearization, MarginalizationConfig, NoiseModel, PriorFactor,
+    RobustKernel, SlidingWindowSmoother, SolverConfig, SolverError, Values, Variable,
+    VariableIndex, WindowError, check_factor_jacobians, gauss_newton_step,
+    linearize_normal_equations, marginal_covariance, marginalize, optimize, total_cost,
 };
 use limot_estimator::imu::ImuBias;
 use limot_estimator::lie;

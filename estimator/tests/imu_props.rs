@@ -4,8 +4,9 @@
 //!
 //! Run with `--nocapture` to see the measured figures.
 
-use limot_estimator::graph::imu_factor::{BiasRandomWalkFactor, ImuFactor};
-use limot_estimator::graph::{Factor, Key, Values, Variable, check_factor_jacobians};
+use limot_estimator::graph::{
+    BiasRandomWalkFactor, Factor, ImuFactor, Key, Values, Variable, check_factor_jacobians,
+};
 use limot_estimator::imu::{
     ImuBias, ImuNoise, ImuTrajectory, Matrix9, Preintegration, PreintegrationError,
 };

@@ -3,10 +3,10 @@
 //! Levenberg–Marquardt on a synthetic sliding window with an ego, three
 //! constant-velocity objects (one turning) and a static object.
 
-use limot_estimator::graph::solver::{SolverConfig, marginal_covariance, optimize};
 use limot_estimator::graph::{
     Factor, Key, NoiseModel, ObjectMotionFactor, ObjectObservationFactor, PriorFactor,
-    SmoothMotionFactor, Values, Variable, check_factor_jacobians,
+    SmoothMotionFactor, SolverConfig, Values, Variable, check_factor_jacobians,
+    marginal_covariance, optimize,
 };
 use limot_estimator::lie;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};

@@ -31,6 +31,7 @@ impl BetweenFactor {
         }
     }
 
+    /// The measured relative pose `T_a_b`.
     pub fn measured(&self) -> &Isometry3<f64> {
         &self.measured_t_a_b
     }

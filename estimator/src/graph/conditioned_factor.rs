@@ -29,6 +29,9 @@ impl ConditionedFactor {
     /// Holds every key of `inner` that `fixed` has a value for. Returns the
     /// factor unchanged (as `Err`) when no key would remain free, since a
     /// factor without variables carries no information.
+    ///
+    /// # Errors
+    /// The factor unchanged when `fixed` holds every one of its keys.
     pub fn new(
         inner: Box<dyn Factor>,
         fixed: Values,

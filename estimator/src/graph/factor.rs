@@ -8,6 +8,7 @@ use nalgebra::{DMatrix, DVector};
 /// A factor's residual and its Jacobians at the current values, unwhitened.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Linearization {
+    /// The residual `r(x)`, unwhitened.
     pub residual: DVector<f64>,
     /// One block per key of [`Factor::keys`], in that order:
     /// `residual_dim × key tangent dim`, wrt a right perturbation of the key.
@@ -17,12 +18,23 @@ pub struct Linearization {
 /// Why a factor could not be built or evaluated.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FactorError {
+    /// A key of the factor has no value.
     #[error("factor needs key {0}, which has no value")]
     MissingKey(Key),
+    /// A key holds another kind of variable than the factor needs.
     #[error("key {key} holds the wrong kind of variable for this factor (expected {expected})")]
-    WrongKind { key: Key, expected: &'static str },
+    WrongKind {
+        /// The key.
+        key: Key,
+        /// The kind of variable the factor needs.
+        expected: &'static str,
+    },
+    /// A covariance given to the factor is not positive definite.
     #[error("covariance of {what} is not positive definite")]
-    BadCovariance { what: &'static str },
+    BadCovariance {
+        /// Which covariance.
+        what: &'static str,
+    },
 }
 
 /// One term `½‖ρ(L·r(x))‖²` of the cost, GTSAM style: the factor knows its
@@ -34,6 +46,7 @@ pub trait Factor: Send + Sync + std::fmt::Debug {
     /// Residual and Jacobians at `values` (which hold every key of the factor).
     fn linearize(&self, values: &Values) -> Linearization;
 
+    /// The noise model that whitens the residual (and its robust kernel).
     fn noise(&self) -> &NoiseModel;
 
     /// Residual only; override when it is much cheaper than [`Factor::linearize`].

@@ -20,10 +20,15 @@ pub type Vector9 = SVector<f64, 9>;
 /// Jacobians of the IMU residual, one block per key of [`ImuFactor`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImuFactorJacobians {
+    /// With respect to the pose at `i`.
     pub pose_i: SMatrix<f64, 9, 6>,
+    /// With respect to the velocity at `i`.
     pub velocity_i: SMatrix<f64, 9, 3>,
+    /// With respect to the biases at `i`.
     pub bias_i: SMatrix<f64, 9, 6>,
+    /// With respect to the pose at `j`.
     pub pose_j: SMatrix<f64, 9, 6>,
+    /// With respect to the velocity at `j`.
     pub velocity_j: SMatrix<f64, 9, 3>,
 }
 
@@ -47,6 +52,10 @@ impl ImuFactor {
     /// Factor between ego frames `i` and `j` with the measurements
     /// preintegrated from `i` to `j`. Fails if the preintegration covariance
     /// is not positive definite (e.g. nothing integrated or zero noise).
+    ///
+    /// # Errors
+    /// [`FactorError::BadCovariance`] when the preintegrated covariance is
+    /// not positive definite.
     pub fn new(
         i: u64,
         j: u64,
@@ -72,10 +81,12 @@ impl ImuFactor {
         })
     }
 
+    /// The preintegrated measurements from `i` to `j`.
     pub fn preintegration(&self) -> &Preintegration {
         &self.preintegration
     }
 
+    /// Gravity in the world frame, m/s².
     pub fn gravity_world(&self) -> &Vector3<f64> {
         &self.gravity_world
     }
@@ -256,6 +267,10 @@ pub struct BiasRandomWalkFactor {
 
 impl BiasRandomWalkFactor {
     /// Fails unless `dt_s` and both random-walk densities are finite and positive.
+    ///
+    /// # Errors
+    /// [`FactorError::BadCovariance`] unless `dt_s` and both random-walk
+    /// densities are finite and positive.
     pub fn new(
         i: u64,
         j: u64,

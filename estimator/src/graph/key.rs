@@ -13,12 +13,25 @@ pub enum Key {
     /// IMU biases at frame `k` (dim 6: accelerometer then gyroscope).
     EgoBias(u64),
     /// World pose of object `id` at frame `k` (SE(3), dim 6).
-    ObjectPose { id: u64, frame: u64 },
+    ObjectPose {
+        /// Track id.
+        id: u64,
+        /// Frame index.
+        frame: u64,
+    },
     /// Pose change of object `id` from frame `k` to `k + 1`, in the object
     /// frame (SE(3), dim 6); the paper's motion node.
-    ObjectMotion { id: u64, frame: u64 },
+    ObjectMotion {
+        /// Track id.
+        id: u64,
+        /// Frame index of the change's start.
+        frame: u64,
+    },
     /// Pose of a static object `id`, one node while it stays static (SE(3), dim 6).
-    StaticObjectPose { id: u64 },
+    StaticObjectPose {
+        /// Track id.
+        id: u64,
+    },
 }
 
 impl Key {

@@ -6,9 +6,11 @@
 
 use super::factor::{Factor, Linearization};
 use super::key::Key;
+use super::linearization::linearize_normal_equations;
 use super::noise::NoiseModel;
-use super::solver::{SolverError, VariableIndex, linearize_normal_equations};
+use super::optimizer::SolverError;
 use super::values::{Values, Variable};
+use super::variable_index::VariableIndex;
 use crate::lie;
 use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector6};
 use std::borrow::Borrow;
@@ -17,10 +19,13 @@ use std::collections::BTreeSet;
 /// Why a marginalization failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MarginalizationError {
+    /// A key to marginalize has no value.
     #[error("key {0} to marginalize has no value")]
     MissingKey(Key),
+    /// Linearizing the factors of the removed keys failed.
     #[error("linearizing the marginalized factors failed: {0}")]
     Solver(#[from] SolverError),
+    /// The marginal information came out non-finite.
     #[error("the marginal information matrix is not finite")]
     NonFinite,
 }
@@ -223,6 +228,10 @@ fn prior_square_root(
 /// should be folded in) linearized at `values`, and returns the prior on the
 /// remaining keys of those factors, or `None` when no key remains (or the
 /// remaining information is zero).
+///
+/// # Errors
+/// A removed key without a value, a failed linearization, or a
+/// non-finite marginal information ([`MarginalizationError`]).
 pub fn marginalize<F: Borrow<dyn Factor>>(
     factors: &[F],
     values: &Values,

@@ -1,5 +1,21 @@
 //! Factor graph: typed variable keys, values on their manifolds, factors
-//! (residual + Jacobians, GTSAM style), kept separate from the solver.
+//! (residual + Jacobians, GTSAM style), and the sparse solver built on them,
+//! one concept per file as in GTSAM:
+//! * variables: [`Key`], [`Values`]/[`Variable`], [`VariableIndex`] (the
+//!   column layout of the stacked tangent);
+//! * factors: [`Factor`] and [`NoiseModel`], the ego factors ([`PriorFactor`],
+//!   [`BetweenFactor`], [`ImuFactor`], [`BiasRandomWalkFactor`]), the object
+//!   factors ([`ObjectObservationFactor`], [`ObjectMotionFactor`],
+//!   [`SmoothMotionFactor`]) and [`ConditionedFactor`];
+//! * linearization: whitened factors accumulated into the block-sparse
+//!   [`NormalEquations`] ([`linearize_normal_equations`], [`total_cost`]);
+//! * elimination: block-AMD ordering and supernodal sparse Cholesky, with
+//!   symbolic analyses kept in a [`SolverWorkspace`];
+//! * optimizer: Levenberg–Marquardt ([`optimize`], [`SolverConfig`],
+//!   [`SolverReport`], [`FactorGraph`]);
+//! * marginals: [`marginal_covariance`]; marginalization by Schur complement
+//!   ([`marginalize`], [`MarginalPriorFactor`]); the fixed-lag
+//!   [`SlidingWindowSmoother`].
 //!
 //! Conventions shared by every factor:
 //! * Poses are [`Isometry3`](nalgebra::Isometry3) with the right perturbation
@@ -9,29 +25,41 @@
 //!   with respect to that key's tangent); the [`NoiseModel`] whitens them and
 //!   applies the robust kernel, so factors never do.
 
-pub mod between_factor;
-pub mod conditioned_factor;
-pub mod factor;
-pub mod imu_factor;
-pub mod key;
-pub mod marginalization;
-pub mod noise;
-pub mod object_factors;
-pub mod prior_factor;
-pub mod sliding_window;
-pub mod solver;
-pub mod values;
+mod between_factor;
+mod conditioned_factor;
+mod elimination;
+mod factor;
+mod imu_factor;
+mod key;
+mod linearization;
+mod marginalization;
+mod marginals;
+mod noise;
+mod object_factors;
+mod optimizer;
+mod prior_factor;
+mod sliding_window;
+mod values;
+mod variable_index;
 
 pub use between_factor::BetweenFactor;
 pub use conditioned_factor::ConditionedFactor;
+pub use elimination::SolverWorkspace;
 pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
+pub use imu_factor::{BiasRandomWalkFactor, ImuFactor, ImuFactorJacobians, Vector9};
 pub use key::Key;
-pub use marginalization::{MarginalPriorFactor, MarginalizationConfig, MarginalizationError};
+pub use linearization::{NormalEquations, linearize_normal_equations, total_cost};
+pub use marginalization::{
+    MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
+};
+pub use marginals::marginal_covariance;
 pub use noise::{NoiseModel, RobustKernel};
 pub use object_factors::{ObjectMotionFactor, ObjectObservationFactor, SmoothMotionFactor};
+pub use optimizer::{
+    FactorGraph, SolverConfig, SolverError, SolverReport, gauss_newton_step, optimize,
+    optimize_with,
+};
 pub use prior_factor::PriorFactor;
 pub use sliding_window::{SlidingWindowSmoother, WindowError};
-pub use solver::{
-    FactorGraph, SolverConfig, SolverError, SolverReport, SolverWorkspace, VariableIndex,
-};
 pub use values::{Values, Variable};
+pub use variable_index::VariableIndex;

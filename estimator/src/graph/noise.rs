@@ -7,9 +7,15 @@ use nalgebra::{DMatrix, DVector};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RobustKernel {
     /// Quadratic within `k`, linear beyond.
-    Huber { k: f64 },
+    Huber {
+        /// Threshold on the whitened residual norm.
+        k: f64,
+    },
     /// `ρ(s) = k²/2·ln(1 + s²/k²)`.
-    Cauchy { k: f64 },
+    Cauchy {
+        /// Scale on the whitened residual norm.
+        k: f64,
+    },
 }
 
 impl RobustKernel {
@@ -46,7 +52,9 @@ impl RobustKernel {
 /// optionally with a robust kernel on the whitened residual.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NoiseModel {
+    /// `L` with `LᵀL` the information matrix: the whitened residual is `L·r`.
     pub sqrt_information: DMatrix<f64>,
+    /// Robust kernel on the whitened residual norm, if any.
     pub robust: Option<RobustKernel>,
 }
 
@@ -78,11 +86,13 @@ impl NoiseModel {
         })
     }
 
+    /// The same model with `kernel` on the whitened residual norm.
     pub fn with_robust(mut self, kernel: RobustKernel) -> NoiseModel {
         self.robust = Some(kernel);
         self
     }
 
+    /// Dimension of the residual it whitens.
     pub fn dim(&self) -> usize {
         self.sqrt_information.nrows()
     }

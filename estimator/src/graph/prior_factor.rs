@@ -26,6 +26,7 @@ impl PriorFactor {
         }
     }
 
+    /// The prior value.
     pub fn prior(&self) -> &Variable {
         &self.prior
     }

@@ -7,15 +7,15 @@
 //! [`SlidingWindowSmoother::condition_factors`]) keep separate small priors.
 
 use super::conditioned_factor::ConditionedFactor;
+use super::elimination::SolverWorkspace;
 use super::factor::Factor;
 use super::key::Key;
+use super::linearization::{FastHashMap, total_cost};
 use super::marginalization::{
     MarginalPriorFactor, MarginalizationConfig, MarginalizationError, marginalize,
 };
-use super::solver::{
-    FastHashMap, SolverConfig, SolverError, SolverReport, SolverWorkspace, marginal_covariance,
-    optimize_with, total_cost,
-};
+use super::marginals::marginal_covariance;
+use super::optimizer::{SolverConfig, SolverError, SolverReport, optimize_with};
 use super::values::{Values, Variable};
 use nalgebra::DMatrix;
 use std::collections::BTreeSet;
@@ -23,15 +23,20 @@ use std::collections::BTreeSet;
 /// Bad use of the window (named keys), or a failed solve/marginalization.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum WindowError {
+    /// A variable was added twice.
     #[error("key {0} already has a value in the window")]
     DuplicateKey(Key),
+    /// A named key is not in the window.
     #[error("key {0} is not in the window")]
     UnknownKey(Key),
+    /// A factor names a key the window does not hold.
     #[error("factor references key {0}, which is not in the window")]
     FactorKeyMissing(Key),
     #[error(transparent)]
+    /// An optimization failed.
     Solver(#[from] SolverError),
     #[error(transparent)]
+    /// A marginalization failed.
     Marginalization(#[from] MarginalizationError),
 }
 
@@ -99,10 +104,12 @@ fn connected_parts(factors: &[&(dyn Factor + 'static)]) -> Vec<Vec<usize>> {
 }
 
 impl SlidingWindowSmoother {
+    /// An empty window with the default marginalization settings.
     pub fn new() -> SlidingWindowSmoother {
         SlidingWindowSmoother::default()
     }
 
+    /// An empty window marginalizing with `config`.
     pub fn with_marginalization_config(config: MarginalizationConfig) -> SlidingWindowSmoother {
         SlidingWindowSmoother {
             marginalization: config,
@@ -111,6 +118,9 @@ impl SlidingWindowSmoother {
     }
 
     /// Adds a variable with its initial value.
+    ///
+    /// # Errors
+    /// [`WindowError::DuplicateKey`] when `key` is already in the window.
     pub fn add_variable(&mut self, key: Key, value: Variable) -> Result<(), WindowError> {
         if self.values.contains(&key) {
             return Err(WindowError::DuplicateKey(key));
@@ -120,6 +130,9 @@ impl SlidingWindowSmoother {
     }
 
     /// Overwrites the value of an existing variable (e.g. a re-prediction).
+    ///
+    /// # Errors
+    /// [`WindowError::UnknownKey`] when `key` is not in the window.
     pub fn set_value(&mut self, key: Key, value: Variable) -> Result<(), WindowError> {
         if !self.values.contains(&key) {
             return Err(WindowError::UnknownKey(key));
@@ -129,6 +142,10 @@ impl SlidingWindowSmoother {
     }
 
     /// Adds a factor; every key it references must already be in the window.
+    ///
+    /// # Errors
+    /// [`WindowError::FactorKeyMissing`] naming the first key of `factor` the
+    /// window does not hold.
     pub fn add_factor(&mut self, factor: Box<dyn Factor>) -> Result<(), WindowError> {
         if let Some(key) = factor.keys().iter().find(|k| !self.values.contains(k)) {
             return Err(WindowError::FactorKeyMissing(*key));
@@ -143,6 +160,9 @@ impl SlidingWindowSmoother {
     }
 
     /// Optimizes every variable of the window.
+    ///
+    /// # Errors
+    /// A failed solve ([`WindowError::Solver`]).
     pub fn optimize(&mut self, config: &SolverConfig) -> Result<SolverReport, WindowError> {
         // Borrowed field by field: the workspace is borrowed mutably.
         let factors = window_factors(&self.factors, &self.priors);
@@ -156,6 +176,9 @@ impl SlidingWindowSmoother {
     /// of variables linked by factors or priors) whose keys `select` picks.
     /// Parts share no variable, so this reaches the same optimum as one
     /// joint solve, and each part stops after its own number of iterations.
+    ///
+    /// # Errors
+    /// A failed solve of any part ([`WindowError::Solver`]).
     pub fn optimize_parts(
         &mut self,
         config: &SolverConfig,
@@ -201,6 +224,9 @@ impl SlidingWindowSmoother {
     /// Removes `keys` from the window: every factor and marginal prior
     /// touching them is folded into a new marginal prior at the current
     /// values. Factors touching only removed keys vanish with them.
+    ///
+    /// # Errors
+    /// A failed marginalization ([`WindowError::Marginalization`]).
     pub fn marginalize(&mut self, keys: &[Key]) -> Result<(), WindowError> {
         let removed: BTreeSet<Key> = keys.iter().copied().collect();
         if let Some(key) = removed.iter().find(|k| !self.values.contains(k)) {
@@ -216,6 +242,10 @@ impl SlidingWindowSmoother {
     /// linear prior at the current values (nothing is removed). Bounds the
     /// factor count of a long-lived variable, e.g. a parked car's single
     /// pose node observed in every frame.
+    ///
+    /// # Errors
+    /// A failed linearization of the folded factors
+    /// ([`WindowError::Marginalization`]).
     pub fn fold_factors(&mut self, keys: &[Key]) -> Result<(), WindowError> {
         let kept: BTreeSet<Key> = keys.iter().copied().collect();
         if let Some(key) = kept.iter().find(|k| !self.values.contains(k)) {
@@ -279,6 +309,9 @@ impl SlidingWindowSmoother {
     /// window for the other factors). Used before marginalizing the oldest
     /// frame: conditioning its object observations on the ego pose keeps
     /// each object's marginal prior separate from the ego's.
+    ///
+    /// # Errors
+    /// [`WindowError::UnknownKey`] when a key of `fixed` is not in the window.
     pub fn condition_factors(
         &mut self,
         fixed: &[Key],
@@ -318,6 +351,9 @@ impl SlidingWindowSmoother {
     }
 
     /// Marginalizes every key of frame `frame`; returns the removed keys.
+    ///
+    /// # Errors
+    /// A failed marginalization ([`WindowError::Marginalization`]).
     pub fn marginalize_frame(&mut self, frame: u64) -> Result<Vec<Key>, WindowError> {
         let keys: Vec<Key> = self
             .values
@@ -329,6 +365,7 @@ impl SlidingWindowSmoother {
         Ok(keys)
     }
 
+    /// The current values of the window's variables.
     pub fn values(&self) -> &Values {
         &self.values
     }
@@ -338,10 +375,12 @@ impl SlidingWindowSmoother {
         self.factors.len()
     }
 
+    /// The window's factors (marginal priors not included).
     pub fn factors(&self) -> &[Box<dyn Factor>] {
         &self.factors
     }
 
+    /// The window's variables, in key order.
     pub fn keys(&self) -> Vec<Key> {
         self.values.keys().copied().collect()
     }
@@ -357,11 +396,18 @@ impl SlidingWindowSmoother {
     }
 
     /// Marginal covariance of `key` (tangent space) at the current values.
+    ///
+    /// # Errors
+    /// As [`SlidingWindowSmoother::joint_marginal_covariance`].
     pub fn marginal_covariance(&self, key: Key) -> Result<DMatrix<f64>, WindowError> {
         self.joint_marginal_covariance(&[key])
     }
 
     /// Joint marginal covariance of `keys` (stacked tangents, in that order).
+    ///
+    /// # Errors
+    /// [`WindowError::UnknownKey`] for a key not in the window; a singular
+    /// or non-finite Hessian ([`WindowError::Solver`]).
     pub fn joint_marginal_covariance(&self, keys: &[Key]) -> Result<DMatrix<f64>, WindowError> {
         if let Some(key) = keys.iter().find(|k| !self.values.contains(k)) {
             return Err(WindowError::UnknownKey(*key));
@@ -374,6 +420,9 @@ impl SlidingWindowSmoother {
     }
 
     /// Total cost of the window (the marginal prior included) at the current values.
+    ///
+    /// # Errors
+    /// A factor with a non-finite cost ([`WindowError::Solver`]).
     pub fn cost(&self) -> Result<f64, WindowError> {
         Ok(total_cost(&self.all_factors(), &self.values)?)
     }

@@ -64,38 +64,47 @@ pub struct Values {
 }
 
 impl Values {
+    /// No values.
     pub fn new() -> Values {
         Values::default()
     }
 
+    /// Sets the value of `key`; returns the value it replaces.
     pub fn insert(&mut self, key: Key, value: Variable) -> Option<Variable> {
         self.map.insert(key, value)
     }
 
+    /// Removes `key`; returns its value.
     pub fn remove(&mut self, key: &Key) -> Option<Variable> {
         self.map.remove(key)
     }
 
+    /// The value of `key`.
     pub fn get(&self, key: &Key) -> Option<&Variable> {
         self.map.get(key)
     }
 
+    /// Whether `key` has a value.
     pub fn contains(&self, key: &Key) -> bool {
         self.map.contains_key(key)
     }
 
+    /// Number of values.
     pub fn len(&self) -> usize {
         self.map.len()
     }
 
+    /// Whether there is no value.
     pub fn is_empty(&self) -> bool {
         self.map.is_empty()
     }
 
+    /// The values in key order.
     pub fn iter(&self) -> impl Iterator<Item = (&Key, &Variable)> {
         self.map.iter()
     }
 
+    /// The keys in order.
     pub fn keys(&self) -> impl Iterator<Item = &Key> {
         self.map.keys()
     }

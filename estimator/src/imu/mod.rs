@@ -7,8 +7,6 @@
 //! rate in rad/s; measured = true + bias + noise) and are treated as
 //! piecewise linear in time between samples.
 
-#![warn(missing_docs)]
-
 mod preintegration;
 
 pub use preintegration::{

@@ -16,7 +16,7 @@
 //!   measured deltas as `ΔR = ΔR_true·Exp(δφ)`, `Δv = Δv_true + δv`,
 //!   `Δp = Δp_true + δp` (eq. 42).
 //!   The same order is used by the residual of
-//!   the graph's IMU factor.
+//!   [`ImuFactor`](crate::graph::ImuFactor).
 //! * Noise: continuous white-noise densities (Kalibr) become the discrete
 //!   per-step covariance `σ²/dt` (eq. 42 and appendix).
 //! * [`Preintegration::from_samples`] treats the measurements as piecewise

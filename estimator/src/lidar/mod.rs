@@ -9,8 +9,6 @@
 //! Points are in metres; `_lidar` names the sensor frame, `_world` the map
 //! frame.
 
-#![warn(missing_docs)]
-
 pub use deskew::{DeskewError, Deskewer, SweepMotion, deskew};
 pub use features::{
     FeatureConfig, FeatureConfigError, FeatureExtractor, ScanFeatures, extract_features,

@@ -1,12 +1,12 @@
 //! Estimator configuration with the paper's / LIO-SAM's defaults.
 
 use super::objects::ObjectGraphConfig;
-use crate::filter::FilterConfig;
-use crate::graph::solver::SolverConfig;
+use crate::graph::SolverConfig;
 use crate::imu::ImuNoise;
 use crate::lidar::FeatureConfig;
 use crate::lidar::LocalMapConfig;
 use crate::lidar::ScanMatchConfig;
+use crate::object_removal::FilterConfig;
 use crate::tracking::TrackerConfig;
 
 /// Which sensors drive the ego estimate.
@@ -20,7 +20,7 @@ pub enum Mode {
 }
 
 /// How object points are treated (the paper's ablation).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Variant {
     /// LiDAR-inertial odometry, no object handling.
     Lio,
@@ -34,12 +34,87 @@ pub enum Variant {
     Limot,
 }
 
+impl Variant {
+    /// Every variant, in the paper's order.
+    pub const ALL: [Variant; 4] = [
+        Variant::Lio,
+        Variant::Allfilt,
+        Variant::Dynafilt,
+        Variant::Limot,
+    ];
+
+    /// Machine name, as on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Lio => "lio",
+            Variant::Allfilt => "allfilt",
+            Variant::Dynafilt => "dynafilt",
+            Variant::Limot => "limot",
+        }
+    }
+
+    /// Display name, as in the paper's tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Variant::Lio => "LIO",
+            Variant::Allfilt => "LIO-Allfilt",
+            Variant::Dynafilt => "LIO-Dynafilt",
+            Variant::Limot => "LIMOT",
+        }
+    }
+
+    /// Whether the variant uses the tracker's objects (every variant but
+    /// `lio`).
+    pub fn tracks_objects(self) -> bool {
+        self != Variant::Lio
+    }
+}
+
+/// A string that names no [`Variant`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown variant {name:?} (expected lio, allfilt, dynafilt or limot)")]
+pub struct ParseVariantError {
+    /// The string as given.
+    pub name: String,
+}
+
+impl std::str::FromStr for Variant {
+    type Err = ParseVariantError;
+
+    /// Accepts the machine name or the display name, in any case, with
+    /// surrounding whitespace ignored.
+    ///
+    /// # Errors
+    /// [`ParseVariantError`] naming the string when it is no variant's name.
+    fn from_str(s: &str) -> Result<Variant, ParseVariantError> {
+        let t = s.trim();
+        Variant::ALL
+            .into_iter()
+            .find(|v| t.eq_ignore_ascii_case(v.name()) || t.eq_ignore_ascii_case(v.label()))
+            .ok_or_else(|| ParseVariantError {
+                name: s.to_string(),
+            })
+    }
+}
+
+impl std::fmt::Display for Variant {
+    /// The machine name ([`Variant::name`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 #[derive(Debug, Clone)]
+/// Everything the [`Estimator`](super::Estimator) is configured by; the
+/// defaults are the paper's / LIO-SAM's.
 pub struct EstimatorConfig {
+    /// Which sensors drive the ego estimate.
     pub mode: Mode,
+    /// How object points are treated.
     pub variant: Variant,
     /// Box inflation and time bins of the object filter.
     pub filter: FilterConfig,
+    /// The multi-object tracker.
     pub tracker: TrackerConfig,
     /// Noise of the object factors (`limot`).
     pub objects: ObjectGraphConfig,
@@ -53,6 +128,7 @@ pub struct EstimatorConfig {
     pub window_size: usize,
     /// Gravity magnitude, m/s² (the world z axis points up).
     pub gravity_mps2: f64,
+    /// IMU noise densities and bias random walks.
     pub imu_noise: ImuNoise,
     /// Largest tolerated hole in the IMU stream, s; longer gaps are errors.
     pub max_imu_gap_s: f64,
@@ -66,8 +142,9 @@ pub struct EstimatorConfig {
     pub init_tilt_sigma_rad: f64,
     /// Prior sigma on the initial velocity (the ego stands still), m/s.
     pub init_velocity_sigma_mps: f64,
-    /// Prior sigmas on the initial biases.
+    /// Prior sigma on the initial accelerometer bias, m/s².
     pub init_accel_bias_sigma_mps2: f64,
+    /// Prior sigma on the initial gyroscope bias, rad/s.
     pub init_gyro_bias_sigma_radps: f64,
     /// Static test on the LiDAR: largest motion over the last three sweeps, m.
     pub init_max_lidar_motion_m: f64,
@@ -75,16 +152,21 @@ pub struct EstimatorConfig {
     pub bootstrap_frames: usize,
     /// Moving start: largest error of the recovered gravity magnitude, m/s².
     pub bootstrap_gravity_tolerance_mps2: f64,
-    /// Moving start: prior sigmas on the first state's tilt and velocity.
+    /// Moving start: prior sigma on the first state's roll and pitch, rad.
     pub bootstrap_tilt_sigma_rad: f64,
+    /// Moving start: prior sigma on the first state's velocity, m/s.
     pub bootstrap_velocity_sigma_mps: f64,
     /// Poses sampled per sweep for the IMU-driven de-skew.
     pub deskew_samples: usize,
+    /// LOAM feature extraction.
     pub features: FeatureConfig,
-    /// Voxel sizes for the scan's features before matching, m.
+    /// Voxel size for the edge features before matching, m.
     pub edge_voxel_m: f64,
+    /// Voxel size for the planar features, m (edges: `edge_voxel_m`).
     pub planar_voxel_m: f64,
+    /// The local map of keyframes.
     pub local_map: LocalMapConfig,
+    /// Scan-to-map matching.
     pub scan_match: ScanMatchConfig,
     /// Std of one point-to-line/plane residual, m; scales the matching
     /// information into the odometry factor.
@@ -95,15 +177,20 @@ pub struct EstimatorConfig {
     /// Eigenvalues of the odometry information are floored here, so
     /// degenerate directions are left to the IMU instead of being singular.
     pub odometry_min_information: f64,
-    /// A new keyframe enters the local map after this motion, m / rad.
+    /// A new keyframe enters the local map after this translation, m (or
+    /// `keyframe_angle_rad` of rotation).
     pub keyframe_distance_m: f64,
+    /// Rotation since the last keyframe that makes a new one, rad.
     pub keyframe_angle_rad: f64,
+    /// Levenberg–Marquardt of the ego window.
     pub solver: SolverConfig,
     /// LiDAR-only: when the match lands farther than this from the
     /// constant-velocity prediction, the sweep is de-skewed again with the
     /// matched velocity and re-matched (at most `max_redeskew_rounds` times).
     pub redeskew_translation_m: f64,
+    /// LiDAR-only: the rotation threshold of the re-de-skew, rad.
     pub redeskew_rotation_rad: f64,
+    /// LiDAR-only: re-de-skews per sweep at most.
     pub max_redeskew_rounds: usize,
 }
 
@@ -114,10 +201,7 @@ impl Default for EstimatorConfig {
             variant: Variant::Lio,
             // 0.6 m rather than a "slight" inflation: it has to absorb the
             // detector's box noise (~0.15 m) and the one-frame trajectory
-            // prediction error (~0.3 m RMS). Measured on 30 s of urban
-            // traffic: dynafilt recall 0.77 at 0.3 m, 0.88 at 0.5 m, 0.91 at
-            // 0.6 m, with precision 0.92 -> 0.90 and 3.5 % -> 4.1 % of the
-            // static-object features removed.
+            // prediction error (~0.3 m RMS); see docs/estimator-notes.md.
             filter: FilterConfig {
                 inflate_m: 0.6,
                 ..FilterConfig::default()
@@ -176,5 +260,25 @@ impl EstimatorConfig {
             mode: Mode::LidarOnly,
             ..EstimatorConfig::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variant_names_and_labels_parse_back() {
+        for v in Variant::ALL {
+            assert_eq!(v.name().parse::<Variant>(), Ok(v));
+            assert_eq!(v.label().to_lowercase().parse::<Variant>(), Ok(v));
+            assert_eq!(v.to_string(), v.name());
+        }
+        assert_eq!(" LIMOT ".parse::<Variant>(), Ok(Variant::Limot));
+        let err = "lidar".parse::<Variant>().unwrap_err();
+        assert_eq!(err.name, "lidar");
+        let message = err.to_string();
+        assert!(message.contains("\"lidar\"") && message.contains("dynafilt"));
+        assert!(!Variant::Lio.tracks_objects() && Variant::Allfilt.tracks_objects());
     }
 }

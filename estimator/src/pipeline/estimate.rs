@@ -15,6 +15,7 @@ pub struct FrameEstimate {
     pub frame_index: u64,
     /// Scan start time, s (the state's time).
     pub t_s: f64,
+    /// LiDAR pose in the world frame at `t_s`.
     pub t_world_lidar: Isometry3<f64>,
     /// Velocity of the IMU in the world frame (LiDAR-only: of the LiDAR,
     /// from consecutive poses).
@@ -33,6 +34,7 @@ pub struct FrameEstimate {
     pub feature_indices: Vec<u32>,
     /// Every live track after this frame (world frame), sorted by id.
     pub tracks: Vec<TrackOutput>,
+    /// Time spent per stage on this frame.
     pub timings: ModuleTimings,
 }
 
@@ -57,33 +59,50 @@ impl FrameEstimate {
 /// Diagnostics of the scan-to-map match of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanMatchSummary {
+    /// Edge features matched (after downsampling).
     pub edge_features: usize,
+    /// Planar features matched (after downsampling).
     pub planar_features: usize,
+    /// Edge features with a line correspondence in the last iteration.
     pub edge_matches: usize,
+    /// Planar features with a plane correspondence in the last iteration.
     pub planar_matches: usize,
+    /// Gauss–Newton iterations of the match.
     pub iterations: usize,
+    /// The match met its convergence tolerance.
     pub converged: bool,
     /// Number of weakly constrained directions (0 = well conditioned).
     pub degenerate_directions: usize,
+    /// RMS point-to-line/plane residual of the last iteration, m.
     pub rms_residual_m: f64,
 }
 
 /// Wall-clock time per pipeline stage for one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ModuleTimings {
+    /// IMU preintegration and the sweep's motion (LiDAR-only: the motion model).
     pub imu_prediction: Duration,
+    /// De-skewing the sweep.
     pub deskew: Duration,
+    /// LOAM feature extraction.
     pub features: Duration,
     /// Dropping object features (`allfilt`, `dynafilt`).
     pub filter: Duration,
+    /// Voxel downsampling of the features.
     pub downsample: Duration,
+    /// Scan-to-map matching.
     pub scan_matching: Duration,
+    /// Sliding-window factors, optimization and marginalization (`limot`: with
+    /// the tracking that runs before the graph).
     pub graph: Duration,
+    /// Adding a keyframe to the local map.
     pub map_update: Duration,
+    /// Tracking the detections.
     pub tracking: Duration,
 }
 
 impl ModuleTimings {
+    /// Sum of every stage.
     pub fn total(&self) -> Duration {
         self.imu_prediction
             + self.deskew

@@ -2,13 +2,13 @@
 //! pipeline (IMU prediction → de-skew → features → scan-to-map matching →
 //! sliding-window smoothing → local-map update).
 
-pub mod config;
-pub mod estimate;
-pub mod estimator;
-pub mod initialization;
-pub mod objects;
+mod config;
+mod estimate;
+mod estimator;
+mod initialization;
+mod objects;
 
-pub use config::{EstimatorConfig, Mode, Variant};
+pub use config::{EstimatorConfig, Mode, ParseVariantError, Variant};
 pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
 pub use estimator::{Estimator, EstimatorError, Footprint};
-pub use objects::{ObjectEstimate, ObjectGraphConfig};
+pub use objects::{ObjectEstimate, ObjectGraph, ObjectGraphConfig};

@@ -18,8 +18,8 @@
 //! O(E log V). Detections left without flow start new tracks.
 
 use super::box_overlap::giou_3d;
-use crate::filter::OrientedBox;
 use crate::input::ObjectClass;
+use crate::object_removal::OrientedBox;
 use nalgebra::DMatrix;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;

@@ -11,7 +11,7 @@
 //! decreasing with distance once the boxes no longer touch, so it can rank
 //! disjoint pairs.
 
-use crate::filter::OrientedBox;
+use crate::object_removal::OrientedBox;
 use crate::polygon::{convex_intersection, hull_area, polygon_area};
 use nalgebra::Vector2;
 

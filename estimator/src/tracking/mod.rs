@@ -13,8 +13,6 @@
 //! when it is significantly above `v_thres_mps`, dynamic -> static below
 //! `v_thres_mps - v_hysteresis_mps`.
 
-#![warn(missing_docs)]
-
 mod association;
 mod box_overlap;
 mod track;

@@ -7,8 +7,8 @@ use super::association::{associate_by_class, matching_matrix};
 use super::track::{Lifecycle, Motion, TimedBox, Track, rotated_yaw};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
-use crate::filter::OrientedBox;
 use crate::input::ObjectClass;
+use crate::object_removal::OrientedBox;
 use nalgebra::{Isometry3, Vector3};
 use std::f64::consts::PI;
 

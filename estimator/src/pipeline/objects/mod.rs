@@ -28,6 +28,15 @@
 //!   each object keeps its own small prior and the cost stays linear in the
 //!   number of objects. A static node's observations are dropped instead
 //!   when [`ObjectGraphConfig::static_keeps_old_observations`] is off.
+//!
+//! Per frame, the owner of the window calls [`ObjectGraph::add_frame`] once
+//! the frame's ego state is in the smoother, [`ObjectGraph::optimize`], and
+//! [`ObjectGraph::marginalize_oldest`] for each frame leaving the window;
+//! [`ObjectGraph::estimates`] reads the smoothed objects back.
+
+mod config;
+
+pub use config::ObjectGraphConfig;
 
 use crate::graph::{
     ConditionedFactor, Factor, Key, NoiseModel, ObjectMotionFactor, ObjectObservationFactor,
@@ -41,114 +50,6 @@ use crate::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-
-/// Noise of the object factors (one sigma), with the reasons for the
-/// defaults.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ObjectGraphConfig {
-    /// Observation: box centre, m, per class (car, truck, cyclist,
-    /// pedestrian): twice the detector's per-axis centre noise (0.15 / 0.3 /
-    /// 0.15 / 0.12 m in the simulator), a compromise between smoothing on the
-    /// highway and following the less regular urban motion. Object centre
-    /// RMSE (20 s) at 1x / 2x / 3x: congested highway 0.182 / 0.161 /
-    /// 0.152 m, urban 0.148 / 0.152 / 0.174 m (tracker alone: 0.239 and
-    /// 0.176 m); mean over six drives (three urban seeds, the parked street,
-    /// both highways) 0.151 / 0.143 / 0.148 m.
-    pub observation_position_sigma_m: [f64; 4],
-    /// Observation: heading, rad, per class (twice the detector's yaw noise).
-    pub observation_yaw_sigma_rad: [f64; 4],
-    /// Observation: roll and pitch, rad. Boxes are upright in the LiDAR
-    /// frame; the object's true tilt relative to the ego is the difference
-    /// of road grades (a few percent).
-    pub observation_tilt_sigma_rad: f64,
-    /// Huber threshold on the whitened observation residual (6 dof): a
-    /// detection from the wrong object or a bad box is down-weighted.
-    pub observation_huber_k: f64,
-    /// r_moti: the pose change must equal the relative pose of the two
-    /// frames' nodes ("must always satisfy", the paper), so tight.
-    pub motion_sigma_m: f64,
-    pub motion_sigma_rad: f64,
-    /// r_smoo, translation (longitudinal, lateral, vertical) per frame:
-    /// an acceleration of 3 m/s² changes the 0.1 s pose change by 0.03 m.
-    /// Half or twice these: mean object error over the six drives above
-    /// 0.161 / 0.148 m (0.143 m as set).
-    pub smooth_sigma_m: [f64; 3],
-    /// r_smoo, rotation (roll, pitch, yaw) per frame: a yaw rate changing by
-    /// 0.05 rad/s per frame changes the pose change's yaw by 0.005 rad.
-    pub smooth_sigma_rad: [f64; 3],
-    /// Whether dynamic objects' observations also correct the ego (the
-    /// paper's fully joint graph). A moving object tells the ego something
-    /// only through its constant-velocity model, and real traffic breaks it
-    /// (a congestion wave accelerates every car ahead at once), so by default
-    /// their observations are conditioned on the ego's scan-matched pose:
-    /// the ego informs the objects, not the reverse. Static objects (one
-    /// node, a landmark) always inform the ego. Measured on the congested
-    /// highway (20 s, seeds 1 / 2 / 3), ego ATE_T: joint 0.76 / 0.24 / 0.53 m,
-    /// conditioned 0.28 / 0.26 / 0.30 m (dynafilt 0.28 / 0.26 / 0.30 m), with
-    /// the same object errors (within 1 mm).
-    pub dynamic_objects_inform_ego: bool,
-    /// A track the tracker calls static but whose speed
-    /// ([`TrackOutput::speed_mps`], the line fit the tracker decides on)
-    /// exceeds this is a chain in the graph. The tracker wants confidence
-    /// before it calls a track dynamic (two sigmas of that speed above
-    /// `v_thres_mps`, ~2 m/s for a new track), but one node for a pedestrian
-    /// walking at 1.4 m/s trails it by 0.2-0.3 m within a few frames: the
-    /// graph takes the tracker's threshold without the margin. Urban seed 1,
-    /// 20 s: moving objects 0.127 m with the rule, 0.165 m without (tracker
-    /// 0.163 m). Not the cubic's end derivative: it exceeds 1 m/s for many
-    /// parked cars, whose fresh chains then cost 8 points of MOTP.
-    pub static_max_speed_mps: f64,
-    /// Whether a static node keeps, folded into its prior, the observations
-    /// of the frames that have left the window. The node is a landmark in
-    /// the odometry's world frame, and each observation places it with the
-    /// ego pose of its frame. Where the odometry drifts against the
-    /// detections (real KITTI, docs/kitti-real-data.md), the observations
-    /// made from poses that have left the window hold the node where the
-    /// object was in an older version of that frame, behind where the
-    /// current scans see it. Off: the node rests on the window's
-    /// observations only (the ego poses that are still estimated together).
-    /// On (the default): it averages every detection since it was created,
-    /// which is right for an odometry that does not drift measurably over
-    /// the life of a node (the simulator's).
-    pub static_keeps_old_observations: bool,
-    /// Pose changes a chain needs before its velocity is reported (fewer
-    /// rest on two or three detections: 0.15 m of noise makes 2-3 m/s).
-    pub min_motions_for_velocity: usize,
-    /// Levenberg–Marquardt for each dynamic object's own part of the window
-    /// (solved after the ego when `dynamic_objects_inform_ego` is off): two
-    /// linearizations per frame. A new node starts from the chain's
-    /// constant-velocity prediction, so the first step moves it by about the
-    /// detection noise (~5 cm), the second by under a millimetre and a third
-    /// would by micrometres (measured in `benches/joint_graph.rs`); the
-    /// window is warm-started next frame, so nothing is lost over time.
-    pub solver: SolverConfig,
-}
-
-impl Default for ObjectGraphConfig {
-    fn default() -> Self {
-        ObjectGraphConfig {
-            observation_position_sigma_m: [0.3, 0.6, 0.3, 0.24],
-            observation_yaw_sigma_rad: [0.06, 0.06, 0.2, 0.6],
-            observation_tilt_sigma_rad: 0.1,
-            observation_huber_k: 3.0,
-            motion_sigma_m: 0.01,
-            motion_sigma_rad: 0.002,
-            smooth_sigma_m: [0.03, 0.02, 0.01],
-            smooth_sigma_rad: [0.003, 0.003, 0.005],
-            min_motions_for_velocity: 3,
-            static_max_speed_mps: 1.0,
-            static_keeps_old_observations: true,
-            dynamic_objects_inform_ego: false,
-            solver: SolverConfig {
-                max_iterations: 2,
-                function_tolerance: 1e-6,
-                gradient_tolerance: 1e-9,
-                step_tolerance: 1e-5,
-                ..SolverConfig::default()
-            },
-        }
-    }
-}
 
 fn class_index(class: ObjectClass) -> usize {
     match class {
@@ -164,6 +65,7 @@ fn class_index(class: ObjectClass) -> usize {
 pub struct ObjectEstimate {
     /// World pose of the box centre at `t_s` (the node's time, the scan start).
     pub t_world_object: Isometry3<f64>,
+    /// The node's time, s (the frame's scan start).
     pub t_s: f64,
     /// World velocity from the pose change into this frame; zero for a
     /// static object, `None` at the start of a chain (no pose change yet).
@@ -267,6 +169,7 @@ pub struct ObjectGraph {
 }
 
 impl ObjectGraph {
+    /// No objects yet.
     pub fn new(config: ObjectGraphConfig) -> ObjectGraph {
         ObjectGraph {
             config,
@@ -283,6 +186,7 @@ impl ObjectGraph {
             .count()
     }
 
+    /// Whether no object has nodes in the window.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -451,6 +355,9 @@ impl ObjectGraph {
     /// only); `t_world_lidar` is the best current guess of the sweep-start
     /// LiDAR pose (initial values); `motion` the sweep's IMU motion. The ego
     /// pose of `frame` must be in the smoother.
+    ///
+    /// # Errors
+    /// A node or factor the smoother rejects ([`WindowError`]).
     #[allow(clippy::too_many_arguments)]
     pub fn add_frame(
         &mut self,
@@ -615,12 +522,59 @@ impl ObjectGraph {
         Ok(())
     }
 
+    /// Optimizes the window holding the objects. When dynamic objects inform
+    /// the ego ([`ObjectGraphConfig::dynamic_objects_inform_ego`]) the window
+    /// is solved jointly with `ego_solver`. Otherwise they do not move the
+    /// ego, so the window splits into independent parts: the ego's (with the
+    /// static objects) is solved first with `ego_solver`, the dynamic
+    /// objects' observations are then conditioned on that estimate, and each
+    /// object's part is solved on its own with [`ObjectGraphConfig::solver`].
+    ///
+    /// # Errors
+    /// A failed solve of any part ([`WindowError`]).
+    pub fn optimize(
+        &self,
+        smoother: &mut SlidingWindowSmoother,
+        ego_solver: &SolverConfig,
+    ) -> Result<(), WindowError> {
+        if self.config.dynamic_objects_inform_ego {
+            smoother.optimize(ego_solver)?;
+            return Ok(());
+        }
+        let has_ego = |keys: &[Key]| keys.iter().any(|k| matches!(k, Key::EgoPose(_)));
+        smoother.optimize_parts(ego_solver, has_ego)?;
+        smoother.refresh_conditioned();
+        smoother.optimize_parts(&self.config.solver, |keys| !has_ego(keys))?;
+        Ok(())
+    }
+
+    /// Marginalizes `frame`, the window's oldest frame, out of `smoother`
+    /// with the objects' bookkeeping around it: that frame's object
+    /// observations are first conditioned on its ego pose (so the ego and
+    /// each object get separate marginal priors), the smoother then
+    /// marginalizes the frame, and the objects forget its nodes, fold each
+    /// static node's old observations into one prior and drop the static
+    /// nodes no frame of the window observes any more. With no objects in
+    /// the graph this is `smoother.marginalize_frame(frame)`.
+    ///
+    /// # Errors
+    /// A failed conditioning or marginalization ([`WindowError`]).
+    pub fn marginalize_oldest(
+        &mut self,
+        smoother: &mut SlidingWindowSmoother,
+        frame: u64,
+    ) -> Result<(), WindowError> {
+        self.condition_oldest(smoother, frame)?;
+        smoother.marginalize_frame(frame)?;
+        self.after_marginalize(smoother, frame)
+    }
+
     /// Call right before the smoother marginalizes frame `frame`: holds the
     /// ego pose fixed in that frame's object observations, so the ego and
     /// each object get separate marginal priors. Without
     /// [`ObjectGraphConfig::static_keeps_old_observations`], that frame's
     /// observations of static nodes are dropped.
-    pub fn condition_oldest(
+    fn condition_oldest(
         &self,
         smoother: &mut SlidingWindowSmoother,
         frame: u64,
@@ -658,7 +612,7 @@ impl ObjectGraph {
     /// forgets its nodes, compresses each static node's accumulated
     /// observations into one prior, and removes static nodes no frame in the
     /// window observes any more.
-    pub fn after_marginalize(
+    fn after_marginalize(
         &mut self,
         smoother: &mut SlidingWindowSmoother,
         frame: u64,
@@ -749,365 +703,4 @@ impl ObjectGraph {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::graph::PriorFactor;
-    use std::collections::VecDeque;
-
-    const OBJECT_ID: u64 = 7;
-
-    fn ego_pose(k: u64) -> Isometry3<f64> {
-        Isometry3::translation(2.0 * k as f64, 0.0, 0.0)
-    }
-
-    /// The ego driving along x at 20 m/s (held by tight priors), one object
-    /// and the window bookkeeping of the estimator.
-    struct Scene {
-        smoother: SlidingWindowSmoother,
-        objects: ObjectGraph,
-        frames: VecDeque<u64>,
-        window: usize,
-        t_imu_lidar: Isometry3<f64>,
-    }
-
-    /// What the tracker says of the object in a frame, and what the
-    /// detector saw.
-    struct Sighting {
-        center_world: Vector3<f64>,
-        velocity_world_mps: Vector3<f64>,
-        track_yaw_rad: f64,
-        detected_yaw_rad: f64,
-        lifecycle: Lifecycle,
-        motion: Motion,
-        /// The detector saw it this frame (otherwise the tracker coasts).
-        detected: bool,
-    }
-
-    impl Scene {
-        fn new(window: usize) -> Scene {
-            Scene::with_config(window, ObjectGraphConfig::default())
-        }
-
-        fn with_config(window: usize, config: ObjectGraphConfig) -> Scene {
-            Scene {
-                smoother: SlidingWindowSmoother::new(),
-                objects: ObjectGraph::new(config),
-                frames: VecDeque::new(),
-                window,
-                t_imu_lidar: Isometry3::translation(0.3, 0.0, 0.2),
-            }
-        }
-
-        /// Runs frame `k` (every object node optimized, then the window
-        /// slid) and returns the object's estimate.
-        fn step(&mut self, k: u64, sighting: &Sighting) -> Option<ObjectEstimate> {
-            let t_s = 0.1 * k as f64;
-            let t_world_lidar = ego_pose(k);
-            let ego_key = Key::EgoPose(k);
-            let t_world_imu = t_world_lidar * self.t_imu_lidar.inverse();
-            self.smoother
-                .add_variable(ego_key, Variable::Pose(t_world_imu))
-                .unwrap();
-            self.smoother
-                .add_factor(Box::new(PriorFactor::new(
-                    ego_key,
-                    Variable::Pose(t_world_imu),
-                    NoiseModel::diagonal_sigmas(&[0.01; 6]),
-                )))
-                .unwrap();
-            let track = TrackOutput {
-                id: OBJECT_ID,
-                class: ObjectClass::Car,
-                center_world: sighting.center_world,
-                yaw_rad: sighting.track_yaw_rad,
-                size_lwh: Vector3::new(4.5, 1.8, 1.5),
-                velocity_world_mps: sighting.velocity_world_mps,
-                lifecycle: sighting.lifecycle,
-                motion: sighting.motion,
-                speed_mps: sighting.velocity_world_mps.xy().norm(),
-                predicted: !sighting.detected,
-                detection_index: sighting.detected.then_some(0),
-                detection_score: None,
-            };
-            let detection = Detection {
-                center_lidar: t_world_lidar
-                    .inverse_transform_point(&sighting.center_world.into())
-                    .coords,
-                size_lwh: track.size_lwh,
-                yaw_rad: sighting.detected_yaw_rad,
-                class: ObjectClass::Car,
-                score: 0.9,
-                time_offset_s: 0.0,
-            };
-            let motion = SweepMotion::from_poses(vec![(t_s, t_world_lidar)]).unwrap();
-            self.objects
-                .add_frame(
-                    &mut self.smoother,
-                    k,
-                    self.frames.back().copied(),
-                    t_s,
-                    &[track],
-                    &[detection],
-                    &motion,
-                    &t_world_lidar,
-                    &self.t_imu_lidar,
-                )
-                .unwrap();
-            self.frames.push_back(k);
-            self.smoother.optimize(&SolverConfig::default()).unwrap();
-            let estimate = self
-                .objects
-                .estimates(&self.smoother, k, t_s)
-                .get(&OBJECT_ID)
-                .copied();
-            while self.frames.len() > self.window {
-                let oldest = self.frames.pop_front().unwrap();
-                self.objects
-                    .condition_oldest(&mut self.smoother, oldest)
-                    .unwrap();
-                self.smoother.marginalize_frame(oldest).unwrap();
-                self.objects
-                    .after_marginalize(&mut self.smoother, oldest)
-                    .unwrap();
-            }
-            estimate
-        }
-
-        fn has(&self, key: Key) -> bool {
-            self.smoother.values().contains(&key)
-        }
-    }
-
-    /// A vehicle seen as it is, heading along its velocity.
-    fn driving(center_world: Vector3<f64>, velocity_world_mps: Vector3<f64>) -> Sighting {
-        let yaw = velocity_world_mps.y.atan2(velocity_world_mps.x);
-        Sighting {
-            center_world,
-            velocity_world_mps,
-            track_yaw_rad: yaw,
-            detected_yaw_rad: yaw,
-            lifecycle: Lifecycle::Confirmed,
-            motion: Motion::Dynamic,
-            detected: true,
-        }
-    }
-
-    #[test]
-    fn a_parked_object_that_drives_off_switches_from_one_node_to_a_chain() {
-        // Parked at x = 20 for 4 frames, then along x at 5 m/s.
-        let window = 3;
-        let mut scene = Scene::new(window);
-        let static_frames = 4;
-        let mut seen_static = false;
-        for k in 0..12u64 {
-            let moving = k >= static_frames;
-            let center = Vector3::new(
-                20.0 + k.saturating_sub(static_frames) as f64 * 0.5,
-                3.0,
-                0.0,
-            );
-            let mut sighting = driving(center, Vector3::new(5.0, 0.0, 0.0));
-            if !moving {
-                sighting.velocity_world_mps = Vector3::zeros();
-                sighting.motion = Motion::Static;
-            }
-            let e = scene.step(k, &sighting).expect("an estimate every frame");
-            let error = (e.t_world_object.translation.vector - center).norm();
-            // The parked frames stay on the static node: the chain is exact.
-            assert!(error < 1e-6, "frame {k}: error {error}");
-            assert_eq!(e.is_static, !moving, "frame {k}");
-            seen_static |= e.is_static;
-            if k >= static_frames + 3 {
-                let v = e.velocity_world_mps.expect("a chain of 3 pose changes");
-                assert!(
-                    (v - Vector3::new(5.0, 0.0, 0.0)).norm() < 1e-6,
-                    "frame {k}: {v}"
-                );
-            }
-            // The static node leaves once no frame in the window observes it.
-            let has_static = scene.has(Key::StaticObjectPose { id: OBJECT_ID });
-            assert_eq!(
-                has_static,
-                k < static_frames + window as u64 - 1,
-                "frame {k}"
-            );
-            // Its observations were folded: never more than one factor on it.
-            let on_static = scene
-                .smoother
-                .factors()
-                .iter()
-                .filter(|f| f.keys() == [Key::StaticObjectPose { id: OBJECT_ID }])
-                .count();
-            assert!(on_static <= 1, "frame {k}: {on_static} unary factors");
-        }
-        assert!(seen_static);
-        assert_eq!(scene.objects.len(), 1);
-    }
-
-    #[test]
-    fn without_old_observations_a_static_node_follows_an_odometry_that_drifts() {
-        // A parked car seen from an odometry that drifts against the
-        // detections: in the estimated world it creeps 2 cm per frame (1 % of
-        // the ego's 2 m), always along +x, while the tracker calls it static.
-        // Kept, the old observations hold the node back by half the drift
-        // over its life; dropped, by half the drift over the window.
-        let window = 5;
-        let error_after = |keep: bool| {
-            let config = ObjectGraphConfig {
-                static_keeps_old_observations: keep,
-                ..ObjectGraphConfig::default()
-            };
-            let mut scene = Scene::with_config(window, config);
-            let mut error = 0.0;
-            for k in 0..40u64 {
-                let seen_at = Vector3::new(60.0 + 0.02 * k as f64, 4.0, 0.0);
-                let mut sighting = driving(seen_at, Vector3::zeros());
-                sighting.track_yaw_rad = 0.0;
-                sighting.detected_yaw_rad = 0.0;
-                sighting.motion = Motion::Static;
-                let e = scene.step(k, &sighting).expect("an estimate every frame");
-                assert!(e.is_static, "frame {k}");
-                error = (e.t_world_object.translation.vector - seen_at).norm();
-                // One static node, one unary factor at most (kept or not).
-                let unary = scene
-                    .smoother
-                    .factors()
-                    .iter()
-                    .filter(|f| f.keys() == [Key::StaticObjectPose { id: OBJECT_ID }])
-                    .count();
-                assert!(unary <= 1, "frame {k}: {unary} unary factors");
-            }
-            error
-        };
-        let kept = error_after(true);
-        let dropped = error_after(false);
-        // The mean of the window's 6 frames lags 2.5 frames (5 cm), that of
-        // all 40 frames 19.5 (39 cm).
-        assert!((dropped - 0.05).abs() < 0.005, "dropped: {dropped}");
-        assert!((kept - 0.39).abs() < 0.02, "kept: {kept}");
-    }
-
-    #[test]
-    fn a_chain_starts_with_the_detections_of_the_tracks_tentative_frames() {
-        // Driving along x at 10 m/s from the start; the tracker confirms it
-        // at the fourth detection.
-        let mut scene = Scene::new(5);
-        let velocity = Vector3::new(10.0, 0.0, 0.0);
-        for k in 0..8u64 {
-            let center = Vector3::new(30.0 + k as f64, -4.0, 0.5);
-            let mut sighting = driving(center, velocity);
-            if k < 3 {
-                sighting.lifecycle = Lifecycle::Tentative;
-            }
-            let e = scene.step(k, &sighting);
-            if k < 3 {
-                assert!(e.is_none(), "frame {k}: a tentative track has no node");
-                assert!(scene.objects.is_empty());
-                continue;
-            }
-            let e = e.expect("a confirmed track");
-            // From the first confirmed frame on, the chain holds the three
-            // earlier detections: three pose changes, a velocity at once.
-            if k == 3 {
-                for f in 0..3 {
-                    assert!(
-                        scene.has(Key::ObjectMotion {
-                            id: OBJECT_ID,
-                            frame: f
-                        }),
-                        "motion {f}"
-                    );
-                }
-            }
-            let error = (e.t_world_object.translation.vector - center).norm();
-            assert!(error < 1e-6, "frame {k}: error {error}");
-            let v = e
-                .velocity_world_mps
-                .expect("velocity from the first confirmed frame");
-            assert!((v - velocity).norm() < 1e-6, "frame {k}: {v}");
-        }
-    }
-
-    #[test]
-    fn a_track_the_tracker_still_calls_static_while_it_creeps_is_a_chain() {
-        // 1.5 m/s: above the graph's 1 m/s, below the tracker's confident
-        // threshold, so the track stays "static" for the whole drive.
-        let mut scene = Scene::new(5);
-        let velocity = Vector3::new(0.0, 1.5, 0.0);
-        for k in 0..15u64 {
-            let center = Vector3::new(15.0, 5.0 + 0.15 * k as f64, 0.0);
-            let mut sighting = driving(center, velocity);
-            sighting.motion = Motion::Static;
-            let e = scene.step(k, &sighting).expect("an estimate every frame");
-            assert!(!e.is_static, "frame {k}");
-            assert!(!scene.has(Key::StaticObjectPose { id: OBJECT_ID }));
-            let error = (e.t_world_object.translation.vector - center).norm();
-            assert!(error < 1e-6, "frame {k}: error {error}");
-        }
-    }
-
-    #[test]
-    fn noisy_and_flipped_detected_headings_do_not_turn_the_chain() {
-        // A pedestrian walking along +y at 1.4 m/s. Detected headings carry
-        // 0.3 rad of noise and a half turn one time in five; the tracker's
-        // heading is off by ±1.4 rad, as for a pedestrian whose detections
-        // flip. The chain must keep heading along the walk, not spin in
-        // place (a constant turn rate with the body-frame step traces a
-        // circle).
-        let mut scene = Scene::new(5);
-        let velocity = Vector3::new(0.0, 1.4, 0.0);
-        let walk_yaw = 0.5 * PI;
-        for k in 0..40u64 {
-            let center = Vector3::new(40.0, -6.0 + 0.14 * k as f64, 0.0);
-            let noise = 0.3 * (1.7 * k as f64).sin();
-            let flip = if k % 5 == 2 { PI } else { 0.0 };
-            let mut sighting = driving(center, velocity);
-            sighting.detected_yaw_rad = walk_yaw + noise + flip;
-            sighting.track_yaw_rad = walk_yaw + if k % 2 == 0 { 1.4 } else { -1.4 };
-            let e = scene.step(k, &sighting).expect("an estimate every frame");
-            let error = (e.t_world_object.translation.vector - center).norm();
-            assert!(error < 0.03, "frame {k}: error {error}");
-            let heading_error = wrap_angle(yaw_of(&e.t_world_object) - walk_yaw);
-            assert!(
-                heading_error.abs() < 0.3,
-                "frame {k}: heading off by {heading_error}"
-            );
-            if k >= 3 {
-                let v = e.velocity_world_mps.expect("a chain of 3 pose changes");
-                assert!((v - velocity).norm() < 0.2, "frame {k}: {v:?}");
-            }
-        }
-    }
-
-    #[test]
-    fn a_missed_detection_does_not_break_the_chain() {
-        // Along x at 10 m/s; the detector misses frames 6 and 7 (the tracker
-        // coasts). The chain bridges the gap with predicted nodes, so the
-        // detections on both sides stay one constant-velocity chain.
-        let mut scene = Scene::new(5);
-        let velocity = Vector3::new(10.0, 0.0, 0.0);
-        for k in 0..12u64 {
-            let center = Vector3::new(30.0 + k as f64, -4.0, 0.5);
-            let mut sighting = driving(center, velocity);
-            sighting.detected = !(6..8).contains(&k);
-            let e = scene.step(k, &sighting).expect("an estimate every frame");
-            let error = (e.t_world_object.translation.vector - center).norm();
-            assert!(error < 1e-6, "frame {k}: error {error}");
-            if k >= 3 {
-                // Never restarted: the velocity is there through and after
-                // the gap.
-                let v = e.velocity_world_mps.expect("a chain of 3 pose changes");
-                assert!((v - velocity).norm() < 1e-6, "frame {k}: {v:?}");
-            }
-        }
-        for f in 7..11 {
-            assert!(
-                scene.has(Key::ObjectMotion {
-                    id: OBJECT_ID,
-                    frame: f
-                }),
-                "motion {f}"
-            );
-        }
-    }
-}
+mod tests;

@@ -89,6 +89,7 @@ impl OrientedBox {
 /// A box that may move: the tracker's predicted box of one track at time
 /// `t_s` (seconds on the sensor clock).
 pub trait BoxAtTime {
+    /// The box at time `t_s`, world frame.
     fn box_at(&self, t_s: f64) -> OrientedBox;
 }
 
@@ -103,9 +104,13 @@ impl BoxAtTime for OrientedBox {
 /// box at `t_ref_s` (for callers without a fitted trajectory, and tests).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConstantVelocityBox {
+    /// The box at `t_ref_s`.
     pub box_ref: OrientedBox,
+    /// Reference time, s.
     pub t_ref_s: f64,
+    /// Velocity of the centre, world frame.
     pub velocity_world_mps: Vector3<f64>,
+    /// Rate of change of the heading.
     pub yaw_rate_radps: f64,
 }
 
@@ -154,6 +159,11 @@ impl Default for FilterConfig {
 }
 
 impl FilterConfig {
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`FilterError`] naming the first setting that is non-finite or out of
+    /// range.
     pub fn validate(&self) -> Result<(), FilterError> {
         if !self.inflate_m.is_finite() {
             return Err(FilterError::Config {
@@ -180,17 +190,38 @@ impl FilterConfig {
 /// Bad input to the filter functions.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FilterError {
+    /// Points and point times differ in length.
     #[error("{points} points but {times} point times")]
-    TimesLength { points: usize, times: usize },
+    TimesLength {
+        /// Number of points.
+        points: usize,
+        /// Number of point times.
+        times: usize,
+    },
+    /// A point time is not finite.
     #[error("point {index}: time {t_s} s is not finite")]
-    NonFiniteTime { index: usize, t_s: f64 },
+    NonFiniteTime {
+        /// Index of the point.
+        index: usize,
+        /// Its time.
+        t_s: f64,
+    },
+    /// A setting of [`FilterConfig`] is out of range.
     #[error("filter config field `{field}`: {reason}")]
     Config {
+        /// The setting.
         field: &'static str,
+        /// What is wrong with it.
         reason: &'static str,
     },
+    /// Mask and labels differ in length ([`filter_stats`]).
     #[error("mask has {mask} entries but labels have {labels}")]
-    LabelsLength { mask: usize, labels: usize },
+    LabelsLength {
+        /// Entries of the mask.
+        mask: usize,
+        /// Entries of the labels.
+        labels: usize,
+    },
 }
 
 /// One box at one time bin, prepared for fast tests of LiDAR-frame points.
@@ -271,6 +302,11 @@ impl BinBox {
 /// `points_lidar[i]` was measured at `point_times_s[i]`; `t_world_lidar_at`
 /// maps it into the world (see the module docs for raw vs de-skewed points).
 /// `boxes` are the predicted boxes of the dynamic tracks.
+///
+/// # Errors
+/// [`FilterError::Config`] for an invalid `config`,
+/// [`FilterError::TimesLength`] when points and times differ in length,
+/// [`FilterError::NonFiniteTime`] for a non-finite point time.
 pub fn dynamic_feature_mask(
     points_lidar: &[Vector3<f64>],
     point_times_s: &[f64],
@@ -366,6 +402,9 @@ pub fn dynamic_feature_mask(
 /// `boxes_world` (every detection of the scan, mapped into the world at the
 /// scan time, e.g. with [`OrientedBox::from_detection`]), with no motion.
 /// Points and poses are handled as in [`dynamic_feature_mask`].
+///
+/// # Errors
+/// As [`dynamic_feature_mask`].
 pub fn all_boxes_mask(
     points_lidar: &[Vector3<f64>],
     point_times_s: &[f64],
@@ -406,6 +445,9 @@ pub struct FilterStats {
 
 /// Precision and recall of `mask` (true = removed) against `labels_moving`
 /// (true = the point lies on a moving object).
+///
+/// # Errors
+/// [`FilterError::LabelsLength`] when the two slices differ in length.
 pub fn filter_stats(mask: &[bool], labels_moving: &[bool]) -> Result<FilterStats, FilterError> {
     if mask.len() != labels_moving.len() {
         return Err(FilterError::LabelsLength {

@@ -1,0 +1,125 @@
+//! LiDAR-only odometry: scan-to-map matching with a constant-velocity
+//! motion model on mid-sweep poses, for sources without an IMU and for the
+//! sweeps before the inertial initialization.
+
+use super::frontend::summary;
+use super::{Estimator, EstimatorError};
+use crate::imu::ImuBias;
+use crate::input::LidarScan;
+use crate::lidar::SweepMotion;
+use crate::lie;
+use crate::pipeline::estimate::{FrameEstimate, ModuleTimings};
+use nalgebra::{Isometry3, Vector3, Vector6};
+use std::time::Instant;
+
+impl Estimator {
+    pub(super) fn process_lidar_only(
+        &mut self,
+        frame_index: u64,
+        scan: &LidarScan,
+    ) -> Result<FrameEstimate, EstimatorError> {
+        let mut timings = ModuleTimings::default();
+        let t_s = scan.t_s;
+        let clock = Instant::now();
+        // Without an IMU the sweep is de-skewed to its MIDDLE and matched
+        // there, and the constant-velocity model runs on mid-sweep poses: a
+        // velocity error then distorts the cloud symmetrically instead of
+        // shifting it, which would feed the error back through the
+        // prediction (an oscillation that grows).
+        let half_s = 0.5 * scan.sweep_duration_s.max(1e-3);
+        let mid_s = t_s + half_s;
+        let (predicted_mid, twist_per_s) = match (
+            self.lidar_only_history.front(),
+            self.lidar_only_history.back(),
+        ) {
+            (Some(&(t_a, pose_a)), Some(&(t_b, pose_b))) if t_b > t_a => {
+                let twist = lie::se3_log(&(pose_a.inverse() * pose_b)) / (t_b - t_a);
+                (pose_b * lie::se3_exp(&(twist * (mid_s - t_b))), twist)
+            }
+            (_, Some(&(_, pose_b))) => (pose_b, Vector6::zeros()),
+            _ => (Isometry3::identity(), Vector6::zeros()),
+        };
+        timings.imu_prediction = clock.elapsed();
+        // When the match moves far from the prediction (start-up, sudden
+        // acceleration), the de-skew used the wrong velocity: redo it with the
+        // velocity the match implies and match again.
+        let mut guess_mid = predicted_mid;
+        let mut twist_per_s = twist_per_s;
+        let mut features;
+        let mut matched;
+        let mut rounds = 0;
+        loop {
+            let motion = SweepMotion::constant_velocity(
+                t_s,
+                guess_mid * lie::se3_exp(&(-twist_per_s * half_s)),
+                mid_s + half_s,
+                guess_mid * lie::se3_exp(&(twist_per_s * half_s)),
+            )
+            .map_err(|source| EstimatorError::Deskew {
+                frame_index,
+                t_s,
+                source,
+            })?;
+            let filter = self.feature_filter(scan, &motion);
+            features = self.sweep_features(scan, &motion, mid_s, &filter, &mut timings);
+            let clock = Instant::now();
+            matched = self.match_features(&features, &guess_mid);
+            timings.scan_matching += clock.elapsed();
+            rounds += 1;
+            let (Some(m), Some(&(t_b, pose_b))) = (&matched, self.lidar_only_history.back()) else {
+                break;
+            };
+            let change = lie::se3_log(&(guess_mid.inverse() * m.t_world_lidar));
+            let small = lie::xi_rho(&change).norm() < self.config.redeskew_translation_m
+                && lie::xi_phi(&change).norm() < self.config.redeskew_rotation_rad;
+            if small || rounds > self.config.max_redeskew_rounds || mid_s <= t_b {
+                break;
+            }
+            twist_per_s = lie::se3_log(&(pose_b.inverse() * m.t_world_lidar)) / (mid_s - t_b);
+            guess_mid = m.t_world_lidar;
+        }
+        let t_world_lidar_mid = matched.as_ref().map_or(predicted_mid, |m| m.t_world_lidar);
+        // The reported state is at the scan start, like the IMU mode's.
+        let t_world_lidar = t_world_lidar_mid * lie::se3_exp(&(-twist_per_s * half_s));
+        let velocity_world_mps = match self.lidar_only_history.back() {
+            Some(&(t_b, pose_b)) if mid_s > t_b => {
+                (t_world_lidar_mid.translation.vector - pose_b.translation.vector) / (mid_s - t_b)
+            }
+            _ => Vector3::zeros(),
+        };
+        self.lidar_only_history
+            .push_back((mid_s, t_world_lidar_mid));
+        while self.lidar_only_history.len() > 2 {
+            self.lidar_only_history.pop_front();
+        }
+        let clock = Instant::now();
+        self.update_map(frame_index, scan.t_s, &t_world_lidar_mid, &features, false)?;
+        timings.map_update = clock.elapsed();
+        let clock = Instant::now();
+        let final_motion = SweepMotion::constant_velocity(
+            t_s,
+            t_world_lidar,
+            t_s + 2.0 * half_s,
+            t_world_lidar * lie::se3_exp(&(twist_per_s * 2.0 * half_s)),
+        )
+        .map_err(|source| EstimatorError::Deskew {
+            frame_index,
+            t_s,
+            source,
+        })?;
+        let tracks = self.track_objects(t_s, &t_world_lidar, &final_motion)?;
+        timings.tracking = clock.elapsed();
+        Ok(FrameEstimate {
+            frame_index,
+            t_s,
+            t_world_lidar,
+            velocity_world_mps,
+            bias: ImuBias::default(),
+            scan_match: matched.as_ref().map(|m| summary(m, &features)),
+            removed_feature_indices: features.removed.clone(),
+            feature_indices: features.all_indices.clone(),
+            tracks,
+            timings,
+        })
+    }
+}
