@@ -27,7 +27,7 @@ use crate::kitti::raw::ELEVATION_CORRECTION_FILE;
 use crate::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
 use crate::kitti::velodyne::encode_bin;
 use crate::kitti::{KittiError, detections::LidarBox};
-use limot_sim::imu::ImuSimulator;
+use limot_sim::sensors::ImuSimulator;
 use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;

@@ -27,14 +27,14 @@ mod params;
 mod validate;
 
 pub use params::{EgoSpec, Family, GroundParams, HighwayParams, UrbanParams};
-use validate::{
-    positive_finite, validate_ego, validate_ground, validate_highway, validate_lidar,
-    validate_urban,
-};
 pub(crate) use validate::{
     HIGHWAY_EGO_FREE_SLOTS, HIGHWAY_TRUCK_LENGTH_M, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M,
     URBAN_CYCLIST_SPACING_M, URBAN_PEDESTRIAN_SPACING_M, highway_min_spacing_m,
     urban_spawn_length_m,
+};
+use validate::{
+    positive_finite, validate_ego, validate_ground, validate_highway, validate_lidar,
+    validate_urban,
 };
 
 /// A complete scenario description, the contents of one scenario file.

@@ -2,8 +2,8 @@
 //! parked agents, and the ego vehicle. Built by `scenario`, consumed by
 //! `world` (ray casting), `imu`, `detector` and `record`.
 
-use crate::roughness::Roughness;
-use crate::trajectory::Trajectory;
+pub use crate::roughness::Roughness;
+pub use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 

@@ -127,7 +127,11 @@ impl Row<'_> {
     }
 
     /// A time stamp strictly after `previous` (streams never go backwards).
-    pub(super) fn increasing_time(&self, i: usize, previous: Option<f64>) -> Result<f64, RecordError> {
+    pub(super) fn increasing_time(
+        &self,
+        i: usize,
+        previous: Option<f64>,
+    ) -> Result<f64, RecordError> {
         let t_s = self.f64(i)?;
         match previous {
             Some(prev) if t_s <= prev => {
@@ -161,4 +165,3 @@ impl Row<'_> {
         format_err(self.path, self.line, self.columns[i], message)
     }
 }
-

@@ -134,4 +134,3 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
     };
     Ok((scan, labels))
 }
-

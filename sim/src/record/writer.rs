@@ -1,8 +1,8 @@
 //! [`DatasetWriter`]: writes a dataset directory frame by frame.
 
 use super::{
-    BiasTruth, BoxTruth, EgoTruth, Meta, RecordError, RecordedFrame, encode_scan, format_err, io_err,
-    pose_to_array, scan_path,
+    BiasTruth, BoxTruth, EgoTruth, Meta, RecordError, RecordedFrame, encode_scan, format_err,
+    io_err, pose_to_array, scan_path,
 };
 use limot_estimator::input::ImuSample;
 use std::fmt::Write as _;

@@ -32,8 +32,8 @@ use crate::traffic::{
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::Point2;
-use rand::seq::SliceRandom;
 use rand::RngExt;
+use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
@@ -437,7 +437,6 @@ fn layout(
     })
 }
 
-
 /// Moving cars, cyclists and pedestrians in spawn slots: every lane of a kind
 /// is cut into slots of the kind's spacing over the spawn zone; each agent
 /// takes a random slot (jittered inside it), half of each kind in each
@@ -590,11 +589,10 @@ fn cross_traffic(
     }
 }
 
-
 #[cfg(test)]
 mod tests {
-    use super::*;
     use super::signals::{red_intervals, signal_plan, walk_clearance_s};
+    use super::*;
     use crate::scenario::URBAN_ALL_RED_S;
     use crate::scene::Shape;
     use rand::SeedableRng;

@@ -27,7 +27,12 @@ pub(super) fn in_range(field: &str, value: f64, min: f64, max: f64) -> Result<()
     }
 }
 
-pub(super) fn count_in_range(field: &str, value: usize, min: usize, max: usize) -> Result<(), ScenarioError> {
+pub(super) fn count_in_range(
+    field: &str,
+    value: usize,
+    min: usize,
+    max: usize,
+) -> Result<(), ScenarioError> {
     if (min..=max).contains(&value) {
         Ok(())
     } else {
@@ -406,4 +411,3 @@ pub(crate) const URBAN_PEDESTRIAN_SPACING_M: f64 = 6.0;
 pub(crate) fn urban_spawn_length_m(u: &UrbanParams, _duration_s: f64) -> f64 {
     4.0 * u.block_length_min_m
 }
-

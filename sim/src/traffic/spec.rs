@@ -381,4 +381,3 @@ pub(super) fn validate(spec: &TrafficSpec) -> Result<(), TrafficError> {
     }
     Ok(())
 }
-

@@ -164,4 +164,3 @@ fn cylinder_entry(
     };
     Some((t_in, normal))
 }
-

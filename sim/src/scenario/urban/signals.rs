@@ -2,8 +2,8 @@
 //! the cross streets and the walk lines, and the stop lines they apply to.
 
 use super::{
-    EARLIEST_RED_S, EGO_RED_LEAD_S, LaneKind, PEDESTRIAN_LENGTH_MAX_M, STOP_LINE_SETBACK_M,
-    Street, WALK_STOP_SETBACK_M,
+    EARLIEST_RED_S, EGO_RED_LEAD_S, LaneKind, PEDESTRIAN_LENGTH_MAX_M, STOP_LINE_SETBACK_M, Street,
+    WALK_STOP_SETBACK_M,
 };
 use crate::scenario::common::uniform;
 use crate::scenario::{ScenarioSpec, URBAN_ALL_RED_S, UrbanParams};
@@ -132,7 +132,12 @@ pub(super) fn walk_clearance_s(u: &UrbanParams) -> f64 {
 }
 
 /// Red intervals [first + j cycle, first + j cycle + red) inside [0, duration].
-pub(super) fn red_intervals(first_s: f64, red_s: f64, cycle_s: f64, duration_s: f64) -> Vec<(f64, f64)> {
+pub(super) fn red_intervals(
+    first_s: f64,
+    red_s: f64,
+    cycle_s: f64,
+    duration_s: f64,
+) -> Vec<(f64, f64)> {
     if red_s <= 0.0 {
         return Vec::new();
     }

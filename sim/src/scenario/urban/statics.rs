@@ -3,9 +3,9 @@
 
 use super::{
     BUILDING_DEPTH_M, BUILDING_GAP_M, BUILDING_HEIGHT_M, BUILDING_LENGTH_M, BUILDING_LOT_STREAM,
-    BUILDING_SETBACK_M, BUILDING_SINK_M, CORNER_CLEARANCE_M, CROWN_RADIUS_M,
-    FURNITURE_FROM_KERB_M, PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M,
-    Street, TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
+    BUILDING_SETBACK_M, BUILDING_SINK_M, CORNER_CLEARANCE_M, CROWN_RADIUS_M, FURNITURE_FROM_KERB_M,
+    PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M, Street,
+    TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
 use crate::scenario::common::{draw_body, parked_agent, tree, uniform, upright_static};
 use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
@@ -130,7 +130,11 @@ pub(super) fn buildings(
 
 /// Signal poles at every corner, light poles at a regular spacing and trees
 /// in between, all in the furniture strip next to the kerb.
-pub(super) fn furniture(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<StaticObject> {
+pub(super) fn furniture(
+    street: &Street,
+    ground: &Ground,
+    rng: &mut ChaCha8Rng,
+) -> Vec<StaticObject> {
     let u = &street.u;
     let from_axis = street.kerb_m() + FURNITURE_FROM_KERB_M;
     let half = 0.5 * u.cross_street_width_m;
