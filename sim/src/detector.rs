@@ -37,6 +37,7 @@ pub struct ClassNoise {
     pub position_sigma_m: f64,
     /// Standard deviation of the length/width/height error, m.
     pub size_sigma_m: f64,
+    /// Standard deviation of the yaw error, rad.
     pub yaw_sigma_rad: f64,
     /// Probability that the heading comes out reversed (yaw + pi).
     pub heading_flip_probability: f64,
@@ -57,9 +58,13 @@ impl Default for ClassNoise {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DetectorConfig {
+    /// Noise of detected cars.
     pub car: ClassNoise,
+    /// Noise of detected trucks.
     pub truck: ClassNoise,
+    /// Noise of detected cyclists.
     pub cyclist: ClassNoise,
+    /// Noise of detected pedestrians.
     pub pedestrian: ClassNoise,
     /// Objects farther than this are never detected, m.
     pub max_range_m: f64,
@@ -133,14 +138,23 @@ const MIN_SIZE_M: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DetectorError {
     #[error("detector config field `{field}` = {value} is invalid: {why}")]
+    /// A config field outside its valid range.
     BadConfig {
+        /// Dotted name of the field, e.g. `car.position_sigma_m`.
         field: String,
+        /// The rejected value.
         value: f64,
+        /// What the field must satisfy.
         why: &'static str,
     },
     #[error("scan time {t_s} is not finite")]
-    BadScanTime { t_s: f64 },
+    /// The scan time handed to the detector is NaN or infinite.
+    BadScanTime {
+        /// The rejected time, s.
+        t_s: f64,
+    },
     #[error("generated detection is invalid (bad scene or LiDAR config?): {0}")]
+    /// A generated detection failed the estimator input's checks.
     BadDetection(#[from] InputError),
 }
 
@@ -179,6 +193,10 @@ fn bad_config(table: &str, field: &str, value: f64, why: &'static str) -> Detect
 }
 
 impl DetectorConfig {
+    /// Checks every field's range.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadConfig`] naming the first invalid field.
     pub fn validate(&self) -> Result<(), DetectorError> {
         for class in ObjectClass::ALL {
             self.noise(class)
@@ -222,6 +240,7 @@ impl DetectorConfig {
         Ok(())
     }
 
+    /// The noise settings of `class`.
     pub fn noise(&self, class: ObjectClass) -> &ClassNoise {
         match class {
             ObjectClass::Car => &self.car,
@@ -266,7 +285,9 @@ impl DetectorConfig {
 /// A detection with its ground truth instance id (None: false positive).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectionWithTruth {
+    /// The noisy detection, LiDAR frame at the sweep start.
     pub detection: Detection,
+    /// Instance id of the agent it came from; `None` for a false positive.
     pub truth_id: Option<u32>,
 }
 
@@ -279,11 +300,16 @@ pub struct Detector {
 }
 
 impl Detector {
+    /// A detector with a validated `config` whose noise is drawn from `seed`.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadConfig`] if `config` is invalid.
     pub fn new(config: DetectorConfig, seed: u64) -> Result<Detector, DetectorError> {
         config.validate()?;
         Ok(Detector { config, seed })
     }
 
+    /// The configuration this detector was built with.
     pub fn config(&self) -> &DetectorConfig {
         &self.config
     }

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ImuConfig {
+    /// Sample rate, Hz.
     pub rate_hz: f64,
     /// Accelerometer white noise density, m/s^2/sqrt(Hz).
     pub accel_noise_density: f64,
@@ -49,13 +50,23 @@ impl Default for ImuConfig {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ImuError {
     #[error("IMU config field `{field}` = {value} is invalid: {why}")]
+    /// A config field outside its valid range.
     BadConfig {
+        /// Name of the field.
         field: &'static str,
+        /// The rejected value.
         value: f64,
+        /// What the field must satisfy.
         why: &'static str,
     },
     #[error("IMU time range [{t0_s}, {t1_s}] is not finite")]
-    BadTimeRange { t0_s: f64, t1_s: f64 },
+    /// A query's time range has a NaN or infinite end.
+    BadTimeRange {
+        /// Start of the range, s.
+        t0_s: f64,
+        /// End of the range, s.
+        t1_s: f64,
+    },
 }
 
 impl ImuConfig {
@@ -143,11 +154,16 @@ pub struct ImuSimulator {
 const GRID_EPSILON: f64 = 1e-6;
 
 impl ImuSimulator {
+    /// An IMU with a validated `config` whose noise and biases are drawn from `seed`.
+    ///
+    /// # Errors
+    /// [`ImuError::BadConfig`] if `config` is invalid.
     pub fn new(config: ImuConfig, seed: u64) -> Result<ImuSimulator, ImuError> {
         config.validate()?;
         Ok(ImuSimulator { config, seed })
     }
 
+    /// The configuration this IMU was built with.
     pub fn config(&self) -> &ImuConfig {
         &self.config
     }

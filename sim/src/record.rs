@@ -46,23 +46,31 @@ use csv::Csv;
 pub use scan::{decode_scan, encode_scan, scan_path};
 pub use writer::DatasetWriter;
 
+/// Version of the dataset format written to `meta.toml` and every scan header.
 pub const FORMAT_VERSION: u32 = 1;
 
 /// A problem with a dataset file, naming where it is.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
     #[error("{path}: {source}")]
+    /// A file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The I/O error.
         source: std::io::Error,
     },
     #[error("{path}:{line}: field `{field}`: {message}")]
+    /// A file's contents are invalid.
     Format {
+        /// The file.
         path: PathBuf,
         /// 1-based line for text files; 0 for binary files.
         line: usize,
+        /// The field (CSV column or TOML key) at fault.
         field: String,
+        /// What is wrong with it.
         message: String,
     },
 }
@@ -87,20 +95,30 @@ fn format_err(path: &Path, line: usize, field: &str, message: impl Into<String>)
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Meta {
+    /// [`FORMAT_VERSION`] of the writer.
     pub format_version: u32,
+    /// Scenario name.
     pub name: String,
+    /// Scenario family, `highway` or `urban`.
     pub family: String,
+    /// Scenario seed.
     pub seed: u64,
+    /// Scenario duration, s.
     pub duration_s: f64,
+    /// Number of frames (scans) in the dataset.
     pub frame_count: usize,
+    /// IMU sample rate, Hz.
     pub imu_rate_hz: f64,
+    /// Duration of one sweep, s; frame `k` starts at `k · sweep_duration_s`.
     pub sweep_duration_s: f64,
+    /// Rings (lasers) of the LiDAR.
     pub num_rings: u16,
     /// T_lidar_imu as [x, y, z, qx, qy, qz, qw].
     pub t_lidar_imu: [f64; 7],
 }
 
 impl Meta {
+    /// `t_lidar_imu` as a pose: maps IMU-frame points into the LiDAR frame.
     pub fn t_lidar_imu(&self) -> Isometry3<f64> {
         pose_from_array(&self.t_lidar_imu)
     }
@@ -149,38 +167,54 @@ fn line_of_key(text: &str, key: &str) -> usize {
 /// Ground-truth ego state at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoTruth {
+    /// Time, s.
     pub t_s: f64,
+    /// LiDAR pose in the world.
     pub t_world_lidar: Isometry3<f64>,
+    /// LiDAR velocity, world frame, m/s.
     pub velocity_world_mps: Vector3<f64>,
 }
 
 /// Ground-truth IMU biases at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BiasTruth {
+    /// Time, s.
     pub t_s: f64,
+    /// Accelerometer bias, IMU frame, m/s².
     pub accel_bias: Vector3<f64>,
+    /// Gyroscope bias, IMU frame, rad/s.
     pub gyro_bias: Vector3<f64>,
 }
 
 /// One ground-truth object box, world frame, at the scan start.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxTruth {
+    /// Frame index.
     pub frame: usize,
+    /// Scan start time of the frame, s.
     pub t_s: f64,
+    /// Instance id of the agent (>= 1).
     pub id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// Box pose in the world (centre, x along the heading).
     pub t_world_box: Isometry3<f64>,
+    /// Box length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
+    /// Box-centre velocity, world frame, m/s.
     pub velocity_world_mps: Vector3<f64>,
+    /// True for a vehicle that never moves in the scenario.
     pub parked: bool,
 }
 
 /// One recorded frame: the sweep with per-point labels and the detections.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordedFrame {
+    /// The sweep, LiDAR frame (points at their own firing time).
     pub scan: LidarScan,
     /// Ground-truth instance id per point (0 = static scene).
     pub labels: Vec<u32>,
+    /// Detections of the sweep with their truth ids.
     pub detections: Vec<DetectionWithTruth>,
 }
 
@@ -193,12 +227,14 @@ pub fn points_per_instance(labels: &[u32]) -> BTreeMap<u32, usize> {
     counts
 }
 
+/// A pose as `[x, y, z, qx, qy, qz, qw]`, the dataset's pose layout.
 pub fn pose_to_array(pose: &Isometry3<f64>) -> [f64; 7] {
     let t = pose.translation.vector;
     let q = pose.rotation.quaternion();
     [t.x, t.y, t.z, q.i, q.j, q.k, q.w]
 }
 
+/// The pose of a `[x, y, z, qx, qy, qz, qw]` array (the quaternion is normalised).
 pub fn pose_from_array(a: &[f64; 7]) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(a[0], a[1], a[2]),
@@ -210,14 +246,23 @@ pub fn pose_from_array(a: &[f64; 7]) -> Isometry3<f64> {
 /// scans, which are read one at a time.
 #[derive(Debug, Clone)]
 pub struct Dataset {
+    /// The dataset directory.
     pub dir: PathBuf,
+    /// `meta.toml`.
     pub meta: Meta,
+    /// `imu.csv`, in time order.
     pub imu: Vec<ImuSample>,
     /// Detections per frame.
     pub detections: Vec<Vec<DetectionWithTruth>>,
 }
 
 impl Dataset {
+    /// Opens the dataset in `dir`: reads and checks `meta.toml`, `imu.csv` and
+    /// `detections.csv` (scans are read by [`Dataset::frame`]).
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] for a missing or unreadable file;
+    /// [`RecordError::Format`], with file, line and field, for invalid contents.
     pub fn open(dir: &Path) -> Result<Dataset, RecordError> {
         let meta_path = dir.join("meta.toml");
         let meta_text = fs::read_to_string(&meta_path).map_err(io_err(&meta_path))?;
@@ -266,11 +311,16 @@ impl Dataset {
         })
     }
 
+    /// Number of frames, from `meta.toml`.
     pub fn frame_count(&self) -> usize {
         self.meta.frame_count
     }
 
     /// Reads frame `index` (scan, labels, detections).
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing or invalid scan file, or one that is not
+    /// the sweep `meta.toml` describes.
     pub fn frame(&self, index: usize) -> Result<RecordedFrame, RecordError> {
         let path = scan_path(&self.dir, index);
         let bytes = fs::read(&path).map_err(io_err(&path))?;
@@ -285,6 +335,9 @@ impl Dataset {
 
     /// Frame `index` as the estimator sees it: the sweep and the detections,
     /// without any ground truth (labels and truth ids stay here).
+    ///
+    /// # Errors
+    /// As [`Dataset::frame`].
     pub fn input_frame(&self, index: usize) -> Result<Frame, RecordError> {
         let recorded = self.frame(index)?;
         Ok(Frame {
@@ -293,6 +346,7 @@ impl Dataset {
         })
     }
 
+    /// The sensor extrinsics the estimator needs (`T_lidar_imu`).
     pub fn extrinsics(&self) -> Extrinsics {
         Extrinsics {
             t_lidar_imu: self.meta.t_lidar_imu(),
@@ -344,6 +398,10 @@ impl Dataset {
         Ok(())
     }
 
+    /// Ground-truth ego states, `gt/ego.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn ego_truth(&self) -> Result<Vec<EgoTruth>, RecordError> {
         let columns = [
             "t_s", "x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz",
@@ -361,6 +419,10 @@ impl Dataset {
         Ok(out)
     }
 
+    /// Ground-truth IMU biases, `gt/imu_bias.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn bias_truth(&self) -> Result<Vec<BiasTruth>, RecordError> {
         let columns = ["t_s", "bax", "bay", "baz", "bgx", "bgy", "bgz"];
         let csv = Csv::open(self.dir.join("gt/imu_bias.csv"), &columns.join(","))?;
@@ -376,7 +438,10 @@ impl Dataset {
         Ok(out)
     }
 
-    /// Ground-truth boxes per frame.
+    /// Ground-truth boxes per frame, `gt/boxes.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn box_truth(&self) -> Result<Vec<Vec<BoxTruth>>, RecordError> {
         let columns = [
             "frame", "t_s", "id", "class", "x", "y", "z", "qx", "qy", "qz", "qw", "l", "w", "h",

@@ -38,8 +38,11 @@ use shapes::{intersect_cuboid, intersect_shape};
 /// What a ray hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Surface {
+    /// The ground height field.
     Ground,
+    /// A static object of this kind.
     Static(StaticKind),
+    /// An agent of this class.
     Agent(ObjectClass),
 }
 
@@ -52,6 +55,7 @@ pub struct RayHit {
     pub normal_world: Unit<Vector3<f64>>,
     /// Ground-truth instance id: 0 for ground and statics, the agent id otherwise.
     pub instance_id: u32,
+    /// What was hit.
     pub surface: Surface,
 }
 
@@ -126,6 +130,7 @@ fn to_glam_pose(pose: &Isometry3<f64>) -> rapier3d::math::Pose {
 }
 
 impl World {
+    /// The ray-cast world of `scene`, at time 0.
     pub fn new(scene: &Scene) -> World {
         let mut bodies = RigidBodySet::new();
         let mut colliders = ColliderSet::new();
@@ -244,10 +249,12 @@ impl World {
         self.time_s
     }
 
+    /// The agents' kinematic rigid bodies (rapier).
     pub fn rigid_bodies(&self) -> &RigidBodySet {
         &self.bodies
     }
 
+    /// The colliders: statics (user data 0) and agent boxes (user data = agent id).
     pub fn colliders(&self) -> &ColliderSet {
         &self.colliders
     }

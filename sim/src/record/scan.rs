@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 const SCAN_MAGIC: &[u8; 4] = b"LMTS";
 pub(super) const SCAN_HEADER_BYTES: usize = 4 + 4 + 8 + 8 + 2 + 2 + 4;
 const POINT_BYTES: usize = 28;
+/// Path of scan `index` in dataset `dir`: `scans/NNNNNN.bin`.
 pub fn scan_path(dir: &Path, index: usize) -> PathBuf {
     dir.join("scans").join(format!("{index:06}.bin"))
 }
@@ -38,6 +39,9 @@ pub fn encode_scan(scan: &LidarScan, labels: &[u32]) -> Vec<u8> {
 
 /// Decodes [`encode_scan`]'s bytes; `path` only names the file in errors.
 /// Rejects short files, a wrong magic or version, and non-finite values.
+///
+/// # Errors
+/// [`RecordError::Format`] (line 0) naming the field at fault.
 pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), RecordError> {
     let bad = |field: &str, message: String| format_err(path, 0, field, message);
     if bytes.len() < SCAN_HEADER_BYTES {

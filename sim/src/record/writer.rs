@@ -20,6 +20,9 @@ pub struct DatasetWriter {
 
 impl DatasetWriter {
     /// Creates the directory (and parents) and writes `scenario.toml`.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the directory or file cannot be written.
     pub fn begin(dir: &Path, scenario_toml: &str) -> Result<DatasetWriter, RecordError> {
         for sub in ["", "scans", "gt"] {
             let d = dir.join(sub);
@@ -35,11 +38,15 @@ impl DatasetWriter {
         })
     }
 
+    /// The dataset directory being written.
     pub fn dir(&self) -> &Path {
         &self.dir
     }
 
     /// Appends the next frame with its ground-truth boxes.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the scan file cannot be written.
     pub fn write_frame(
         &mut self,
         frame: &RecordedFrame,
@@ -74,6 +81,9 @@ impl DatasetWriter {
 
     /// Writes the per-dataset streams and `meta.toml`. `meta.frame_count` is
     /// set from the frames written.
+    ///
+    /// # Errors
+    /// [`RecordError`] if a file cannot be written or `meta` not serialised.
     pub fn finish(
         self,
         mut meta: Meta,

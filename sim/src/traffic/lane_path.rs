@@ -29,12 +29,17 @@ pub struct LanePath {
 /// One piece of a lane built by [`LanePath::from_pieces`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PathPiece {
+    /// A straight segment.
     Straight {
+        /// Length, m.
         length_m: f64,
     },
     /// +curvature = left turn.
+    /// A circular arc.
     Arc {
+        /// Length, m.
         length_m: f64,
+        /// Signed curvature, 1/m.
         curvature_1pm: f64,
     },
 }
@@ -223,6 +228,7 @@ impl LanePath {
         }
     }
 
+    /// Total arc length of the path, m.
     pub fn length_m(&self) -> f64 {
         *self.s_m.last().unwrap_or(&0.0)
     }
