@@ -1,22 +1,7 @@
 //! Detector model: noisy 3D boxes from ground truth, with misses, heading
 //! flips and false positives; default figures close to CenterPoint's.
 //!
-//! # Default figures
-//!
-//! CenterPoint (Yin et al., CVPR 2021) on the nuScenes test set reports mATE
-//! ~0.26 m averaged over classes (cars lower, roughly 0.15-0.2 m), mASE ~0.24
-//! (1 - IoU of aligned boxes, i.e. a few per cent of each dimension) and mAOE
-//! ~0.36 rad averaged over classes, most of it from heading flips and from
-//! pedestrians/cyclists whose heading is ambiguous; for cars the orientation
-//! error without flips is a few degrees. Hence per-axis centre sigmas of
-//! 0.12-0.3 m (cars 0.15 m, trucks 0.3 m), size sigmas of 5-30 cm, yaw sigmas
-//! of 0.03 rad for vehicles up to 0.3 rad for pedestrians, and flip
-//! probabilities of 2-10%. CenterPoint's car recall on Waymo/nuScenes is
-//! ~0.9-0.95 at short range and falls with range and sparsity: max_recall 0.95,
-//! half recall at 70 m, nothing beyond 80 m or with fewer than 5 points, full
-//! recall from ~60 points. At a confidence threshold giving that recall it
-//! emits a few false boxes per scene, most with low scores: 0.3 per frame by
-//! default.
+//! Where the default figures come from: `docs/simulator-notes.md`.
 
 use crate::lidar::LidarConfig;
 use crate::scene::{Agent, Ego, Scene};
@@ -350,6 +335,11 @@ impl Detector {
     /// `recall(range, points_per_instance[id])` and its sighted box noised
     /// per class; then a Poisson number of false positives. Agents come in
     /// scene order, false positives last.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadScanTime`] for a non-finite `t_scan_s`;
+    /// [`DetectorError::BadDetection`] if a generated box fails the
+    /// estimator input's checks (a bad scene or LiDAR config).
     pub fn detect(
         &self,
         frame_index: u64,

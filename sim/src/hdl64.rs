@@ -198,6 +198,9 @@ pub fn ring_of_beam(beam: usize) -> u16 {
 /// files use: top-level `key: value` lines and a `lasers:` list of flat
 /// `- key: value` maps). Unknown keys are skipped; known numeric keys must
 /// parse and be finite. Lasers are returned in file order.
+///
+/// # Errors
+/// [`Hdl64Error`] with the 1-based line of the first problem.
 pub fn parse_calibration(text: &str) -> Result<Vec<LaserCalib>, Hdl64Error> {
     let mut lasers = Vec::new();
     let mut current: Option<PartialLaser> = None;
@@ -284,6 +287,9 @@ pub fn parse_calibration(text: &str) -> Result<Vec<LaserCalib>, Hdl64Error> {
 }
 
 /// Elevation table (beam index 0 = highest) from parsed calibration lasers.
+///
+/// # Errors
+/// [`Hdl64Error::WrongLaserCount`] unless there are [`NUM_LASERS`] lasers.
 pub fn elevation_table_from(lasers: &[LaserCalib]) -> Result<[f64; NUM_LASERS], Hdl64Error> {
     if lasers.len() != NUM_LASERS {
         return Err(Hdl64Error::WrongLaserCount {

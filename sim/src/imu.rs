@@ -86,6 +86,9 @@ impl ImuConfig {
 
     /// Rejects rates that are not positive and noise figures that are
     /// negative or not finite.
+    ///
+    /// # Errors
+    /// [`ImuError::BadConfig`] naming the first invalid field.
     pub fn validate(&self) -> Result<(), ImuError> {
         let bad = |field, value, why| Err(ImuError::BadConfig { field, value, why });
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
@@ -135,8 +138,11 @@ impl ImuConfig {
 /// `samples[k]` was measured with biases `accel_bias[k]`, `gyro_bias[k]`.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ImuStream {
+    /// The noisy samples (specific force and angular rate, IMU frame), in time order.
     pub samples: Vec<ImuSample>,
+    /// True accelerometer bias of each sample, IMU frame, m/s².
     pub accel_bias: Vec<Vector3<f64>>,
+    /// True gyroscope bias of each sample, IMU frame, rad/s.
     pub gyro_bias: Vec<Vector3<f64>>,
 }
 
@@ -212,6 +218,9 @@ impl ImuSimulator {
     /// Samples at every t = k / rate_hz in [t0_s, t1_s] (empty if t1_s < t0_s).
     /// Sample k carries the current biases and fresh white noise; the biases
     /// then take one random-walk step. The noise sequence starts at `t0_s`.
+    ///
+    /// # Errors
+    /// [`ImuError::BadTimeRange`] if `t0_s` or `t1_s` is not finite.
     pub fn simulate(&self, ego: &Ego, t0_s: f64, t1_s: f64) -> Result<ImuStream, ImuError> {
         if !(t0_s.is_finite() && t1_s.is_finite()) {
             return Err(ImuError::BadTimeRange { t0_s, t1_s });

@@ -41,23 +41,34 @@ use validate::{
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScenarioSpec {
+    /// Scenario name (written to the dataset's `meta.toml`).
     pub name: String,
+    /// Which generator builds the scene.
     pub family: Family,
+    /// Seed of every random draw (generator and sensors).
     pub seed: u64,
+    /// Simulated time span, s (at most 3600).
     pub duration_s: f64,
     #[serde(default)]
+    /// The `[lidar]` table.
     pub lidar: LidarConfig,
     #[serde(default)]
+    /// The `[imu]` table.
     pub imu: ImuConfig,
     #[serde(default)]
+    /// The `[detector]` table.
     pub detector: DetectorConfig,
     #[serde(default)]
+    /// The `[ego]` table.
     pub ego: EgoSpec,
     #[serde(default)]
+    /// The `[ground]` table.
     pub ground: GroundParams,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// The `[highway]` table (highway family only; defaults if absent).
     pub highway: Option<HighwayParams>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// The `[urban]` table (urban family only; defaults if absent).
     pub urban: Option<UrbanParams>,
 }
 
@@ -65,36 +76,55 @@ pub struct ScenarioSpec {
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     #[error("{}: cannot read scenario file: {source}", path.display())]
+    /// The scenario file could not be read.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The I/O error.
         source: std::io::Error,
     },
     #[error("{}:{line}:{column}: TOML syntax error: {message}", path.display())]
+    /// The file is not valid TOML.
     Syntax {
+        /// The file.
         path: PathBuf,
+        /// 1-based line of the error.
         line: usize,
+        /// 1-based column of the error.
         column: usize,
+        /// The parser's message.
         message: String,
     },
     #[error("{}field `{field}`: {message}", location(path.as_deref(), *line))]
+    /// A field is unknown, of the wrong type or out of range.
     Invalid {
+        /// The file, when the spec came from one.
         path: Option<PathBuf>,
+        /// 1-based line of the field, when known.
         line: Option<usize>,
         /// Dotted path of the offending field, e.g. `highway.speed_max_mps`.
         field: String,
+        /// What is wrong with the field.
         message: String,
     },
     /// The generated road or traffic was rejected by the traffic model.
     #[error("scenario `{scenario}`: traffic: {source}")]
     Traffic {
+        /// Scenario name.
         scenario: String,
         #[source]
+        /// The traffic model's error.
         source: crate::traffic::TrafficError,
     },
     /// A generator invariant failed (a bug, not bad input).
     #[error("scenario `{scenario}`: {message}")]
-    Build { scenario: String, message: String },
+    Build {
+        /// Scenario name.
+        scenario: String,
+        /// The failed invariant.
+        message: String,
+    },
 }
 
 fn location(path: Option<&Path>, line: Option<usize>) -> String {
@@ -205,11 +235,17 @@ impl ScenarioSpec {
         }
     }
 
+    /// Names accepted by [`ScenarioSpec::builtin`].
     pub fn builtin_names() -> &'static [&'static str] {
         BUILTIN_NAMES
     }
 
     /// Parses and validates a scenario; `origin` names the file in errors.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Syntax`] for invalid TOML; [`ScenarioError::Invalid`]
+    /// with file, line and dotted field for unknown, mistyped or out-of-range
+    /// fields.
     pub fn parse(text: &str, origin: &Path) -> Result<ScenarioSpec, ScenarioError> {
         let spec: ScenarioSpec = match toml::from_str(text) {
             Ok(spec) => spec,
@@ -227,6 +263,11 @@ impl ScenarioSpec {
         Ok(spec)
     }
 
+    /// Reads, parses and validates the scenario file at `path`.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Io`] if the file cannot be read; otherwise as
+    /// [`ScenarioSpec::parse`].
     pub fn load(path: &Path) -> Result<ScenarioSpec, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
             path: path.to_path_buf(),
@@ -244,6 +285,11 @@ impl ScenarioSpec {
 
     /// Builds the scene: validates, then runs the family's generator with a
     /// `ChaCha8Rng` seeded by `seed` (same spec, same scene).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] for an invalid spec;
+    /// [`ScenarioError::Traffic`] or [`ScenarioError::Build`] if the
+    /// generated traffic is rejected.
     pub fn build(&self) -> Result<Scene, ScenarioError> {
         self.validate()?;
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
@@ -258,6 +304,7 @@ impl ScenarioSpec {
         self.highway.clone().unwrap_or_default()
     }
 
+    /// The urban parameters in effect (the table, or its defaults).
     pub fn urban_params(&self) -> UrbanParams {
         self.urban.clone().unwrap_or_default()
     }
@@ -278,6 +325,9 @@ impl ScenarioSpec {
 
     /// Checks every field; errors name the dotted field (no line: `parse`
     /// adds file and line).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] for the first invalid field.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         if self.name.trim().is_empty() {
             return Err(invalid("name", "must not be empty"));

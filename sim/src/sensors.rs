@@ -7,7 +7,7 @@
 pub use crate::detector::{
     ClassNoise, DetectionWithTruth, Detector, DetectorConfig, DetectorError, wrap_angle,
 };
-pub use crate::imu::{ImuConfig, ImuError, ImuSimulator};
+pub use crate::imu::{ImuConfig, ImuError, ImuSimulator, ImuStream};
 pub use crate::lidar::LidarConfig;
 pub use crate::lidar_scan::{LidarError, LidarSimulator, SimulatedScan};
 pub use crate::world::{RayHit, Surface, World};

@@ -58,7 +58,25 @@ pub struct SimulatedFrame {
     pub boxes: Vec<BoxTruth>,
 }
 
-/// A scenario ready to be simulated.
+/// A scenario ready to be simulated: its scene, the ray-cast world and the
+/// seeded sensors. Frames are pure functions of (spec, frame index).
+///
+/// ```
+/// use limot_sim::{ScenarioSpec, Simulation};
+///
+/// let mut spec = ScenarioSpec::builtin("highway").expect("a built-in scenario");
+/// spec.duration_s = 0.2;
+/// spec.ego.depart_s = 0.0;
+/// let sim = Simulation::new(&spec)?;
+/// assert_eq!(sim.frame_count(), 2); // 0.1 s sweeps
+/// let frame = sim.frame(1)?;
+/// assert_eq!(frame.t_s, sim.frame_start_s(1));
+/// assert!(!frame.recorded.scan.points.is_empty());
+/// assert_eq!(frame.recorded.labels.len(), frame.recorded.scan.points.len());
+/// // ground truth: one box per agent at the sweep start
+/// assert_eq!(frame.boxes.len(), sim.scene().agents.len());
+/// # Ok::<(), limot_sim::SimulationError>(())
+/// ```
 pub struct Simulation {
     spec: ScenarioSpec,
     scene: Scene,

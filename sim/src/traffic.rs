@@ -64,9 +64,11 @@ const INTERACTION_RANGE_M: f64 = 250.0;
 /// Simulates all vehicles over [0, duration_s]; tracks in `spec.vehicles` order,
 /// each starting at t = 0 with one sample every 0.01 s (end included).
 ///
-/// Errors: invalid fields (named with the vehicle id / stop-line index), and
-/// vehicles that start overlapping or closer behind another body in their
-/// corridor than min gap + (v_f^2 - v_l^2) / (2 max_decel) + v_f * accel_lag.
+/// # Errors
+/// [`TrafficError`] for invalid fields (named with the vehicle id /
+/// stop-line index), for vehicles that start overlapping or closer behind
+/// another body in their corridor than min gap + (v_f^2 - v_l^2) /
+/// (2 max_decel) + v_f * accel_lag, and for a diverging state.
 pub fn simulate_traffic(spec: &TrafficSpec) -> Result<Vec<PlanarTrack>, TrafficError> {
     simulate(spec, RECORD_EVERY)
 }

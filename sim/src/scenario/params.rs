@@ -7,7 +7,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Family {
+    /// Multi-lane highway with trucks, guard rails and roadside structures.
     Highway,
+    /// City street with intersections, parked cars, cyclists and pedestrians.
     Urban,
 }
 
@@ -55,12 +57,17 @@ impl Default for EgoSpec {
 pub struct GroundParams {
     /// Slope of the plane, per cent (1 % = 1 m rise per 100 m), drawn uniformly.
     pub slope_min_percent: f64,
+    /// Upper end of the slope range, per cent.
     pub slope_max_percent: f64,
     /// Number of sinusoidal undulations.
     pub undulations: usize,
+    /// Smallest undulation amplitude, m.
     pub amplitude_min_m: f64,
+    /// Largest undulation amplitude, m.
     pub amplitude_max_m: f64,
+    /// Shortest undulation wavelength, m.
     pub wavelength_min_m: f64,
+    /// Longest undulation wavelength, m.
     pub wavelength_max_m: f64,
     /// Each undulation's amplitude is capped so that its own grade stays below
     /// this (keeps roads driveable for short wavelengths), per cent.
@@ -70,6 +77,7 @@ pub struct GroundParams {
     pub roughness_psd_m3: f64,
     /// Wavelength band of the roughness, m (0.25..=64).
     pub roughness_wavelength_min_m: f64,
+    /// Longest roughness wavelength, m.
     pub roughness_wavelength_max_m: f64,
     /// Camber: the road's centre line is this much above the terrain far
     /// to its sides (a Gaussian ridge); 0 = none.
@@ -105,11 +113,13 @@ impl Default for GroundParams {
 pub struct HighwayParams {
     /// Lanes in the ego's direction, 3..=5.
     pub lanes: usize,
+    /// Lane width, m.
     pub lane_width_m: f64,
     /// Other vehicles (cars and trucks).
     pub vehicles: usize,
     /// Desired speeds are drawn uniformly from [speed_min_mps, speed_max_mps].
     pub speed_min_mps: f64,
+    /// Upper end of the desired-speed range, m/s.
     pub speed_max_mps: f64,
     /// Fraction of the vehicles that are trucks.
     pub truck_fraction: f64,
@@ -121,9 +131,11 @@ pub struct HighwayParams {
     pub straight_length_m: f64,
     /// Radii of the gentle curves that follow, drawn uniformly.
     pub curve_radius_min_m: f64,
+    /// Largest curve radius, m.
     pub curve_radius_max_m: f64,
     /// Vehicles start between this far behind and `spawn_ahead_m` ahead of the ego.
     pub spawn_behind_m: f64,
+    /// How far ahead of the ego vehicles may start, m.
     pub spawn_ahead_m: f64,
     /// Length of one straight guard rail segment.
     pub guard_rail_segment_m: f64,
@@ -138,6 +150,7 @@ pub struct HighwayParams {
     /// wall and with a cutting (an earth slope rising 2-6 m); the rest is
     /// open verge. Their sum is at most 1.
     pub noise_wall_fraction: f64,
+    /// Share of the right roadside in a cutting.
     pub cutting_fraction: f64,
     /// Mean spacing of bushes and trees on the verges and in the median; 0 = none.
     pub vegetation_spacing_m: f64,
@@ -147,7 +160,9 @@ pub struct HighwayParams {
     /// Mean distance between overpasses, between sign gantries and between
     /// roadside sign boards (distance and speed signs); 0 = none.
     pub overpass_spacing_m: f64,
+    /// Mean distance between sign gantries, m; 0 = none.
     pub gantry_spacing_m: f64,
+    /// Mean distance between roadside sign boards, m; 0 = none.
     pub sign_spacing_m: f64,
 }
 
@@ -188,36 +203,50 @@ impl Default for HighwayParams {
 pub struct UrbanParams {
     /// Lanes per direction on the main street, 1..=2.
     pub lanes_per_direction: usize,
+    /// Lane width, m.
     pub lane_width_m: f64,
     /// Bike lane between the traffic lanes and the parking strip, each side.
     pub bike_lane_width_m: f64,
     /// Parking strip along each kerb.
     pub parking_width_m: f64,
+    /// Sidewalk width, each side, m.
     pub sidewalk_width_m: f64,
     /// Distance between cross streets, drawn uniformly.
     pub block_length_min_m: f64,
+    /// Longest block, m.
     pub block_length_max_m: f64,
+    /// Width of a cross street, m.
     pub cross_street_width_m: f64,
     /// Moving cars, both directions together.
     pub moving_cars: usize,
+    /// Slowest desired car speed, m/s.
     pub car_speed_min_mps: f64,
+    /// Fastest desired car speed, m/s.
     pub car_speed_max_mps: f64,
+    /// Cyclists in the bike lanes, both directions together.
     pub cyclists: usize,
+    /// Slowest desired cyclist speed, m/s.
     pub cyclist_speed_min_mps: f64,
+    /// Fastest desired cyclist speed, m/s.
     pub cyclist_speed_max_mps: f64,
+    /// Pedestrians on the sidewalks, both directions together.
     pub pedestrians: usize,
+    /// Slowest desired walking speed, m/s.
     pub pedestrian_speed_min_mps: f64,
+    /// Fastest desired walking speed, m/s.
     pub pedestrian_speed_max_mps: f64,
     /// Fraction of the parking places that hold a car.
     pub parking_occupancy: f64,
     /// Traffic signal period and the red part of it, at every intersection.
     pub signal_cycle_s: f64,
+    /// Red part of the signal cycle for the main street, s.
     pub red_s: f64,
     /// Cars on the cross streets of every intersection the ego's LiDAR can
     /// see (both directions together); they cross while the main street is red.
     pub cross_cars_per_intersection: usize,
     /// Mean spacing of trees and of light poles along each sidewalk.
     pub tree_spacing_m: f64,
+    /// Mean spacing of light poles along each sidewalk, m.
     pub pole_spacing_m: f64,
     /// Probability that a building lot holds a building, in [0, 1]; each lot
     /// decides independently. Below 1 the parked cars become the main

@@ -8,7 +8,9 @@ use nalgebra::Vector3;
 /// A lane change request; executed at the first moment after `t_s` when it is safe.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneChange {
+    /// Earliest time of the change, s.
     pub t_s: f64,
+    /// Index of the target lane in `TrafficSpec::lanes`.
     pub to_lane: usize,
 }
 
@@ -16,21 +18,26 @@ pub struct LaneChange {
 /// a later departure starts at rest and is held there until `depart_s`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VehicleSpec {
+    /// Vehicle id (unique in the spec).
     pub id: u32,
     /// Car, Truck, Cyclist, Pedestrian all use this model.
     pub class: ObjectClass,
+    /// Box length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
     /// Index into `TrafficSpec::lanes`.
     pub lane: usize,
     /// Arc length of the box centre on the lane at t = 0.
     pub start_s_m: f64,
+    /// Speed at t = 0, m/s.
     pub start_speed_mps: f64,
+    /// IDM desired speed v0, m/s.
     pub desired_speed_mps: f64,
     /// Held at rest (speed 0) until this time.
     pub depart_s: f64,
     /// Processed in order: a request is considered once the previous one has
     /// finished its transition.
     pub lane_changes: Vec<LaneChange>,
+    /// Driver and dynamics parameters.
     pub driver: DriverParams,
 }
 
@@ -45,6 +52,7 @@ pub struct DriverParams {
     pub time_headway_s: f64,
     /// IDM standstill gap s0 (bumper to bumper along the lane).
     pub min_gap_m: f64,
+    /// Duration of a lane change's lateral transition, s.
     pub lane_change_duration_s: f64,
     /// Hard limit of the commanded deceleration.
     pub max_decel_mps2: f64,
@@ -56,11 +64,14 @@ pub struct DriverParams {
     pub steer_lag_s: f64,
     /// Pure-pursuit lookahead = max(min_lookahead_m, lookahead_time_s * speed).
     pub lookahead_time_s: f64,
+    /// Shortest pure-pursuit lookahead, m.
     pub min_lookahead_m: f64,
+    /// Steering angle limit, rad (< 1.5).
     pub max_steer_rad: f64,
 }
 
 impl DriverParams {
+    /// Typical passenger-car parameters.
     pub fn car() -> Self {
         DriverParams {
             max_accel_mps2: 2.0,
@@ -78,6 +89,7 @@ impl DriverParams {
         }
     }
 
+    /// Typical truck parameters (slower, longer gaps).
     pub fn truck() -> Self {
         DriverParams {
             max_accel_mps2: 1.0,
@@ -95,6 +107,7 @@ impl DriverParams {
         }
     }
 
+    /// Typical cyclist parameters.
     pub fn cyclist() -> Self {
         DriverParams {
             max_accel_mps2: 1.0,
@@ -112,6 +125,7 @@ impl DriverParams {
         }
     }
 
+    /// Typical pedestrian parameters.
     pub fn pedestrian() -> Self {
         DriverParams {
             max_accel_mps2: 0.8,
@@ -177,7 +191,9 @@ impl DriverParams {
 /// A stop line with red phases (stop-and-go at intersections).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StopLine {
+    /// Index of the lane in `TrafficSpec::lanes`.
     pub lane: usize,
+    /// Arc length of the line on the lane, m.
     pub s_m: f64,
     /// Half-open red intervals [start, end) in seconds.
     pub red_intervals_s: Vec<(f64, f64)>,
@@ -191,20 +207,29 @@ impl StopLine {
     }
 }
 
+/// The input of the traffic simulation: lanes, vehicles on them, stop lines.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrafficSpec {
+    /// Lane paths, world frame.
     pub lanes: Vec<LanePath>,
+    /// Road users, simulated in this order.
     pub vehicles: Vec<VehicleSpec>,
+    /// Stop lines with their red phases.
     pub stop_lines: Vec<StopLine>,
+    /// Simulated time span [0, duration_s], s (at most one hour).
     pub duration_s: f64,
 }
 
 /// Planar motion of one vehicle's box centre, sampled every `dt_s` (0.01 s).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanarTrack {
+    /// Vehicle id, as in the spec.
     pub id: u32,
+    /// Time of the first sample, s.
     pub t0_s: f64,
+    /// Sample spacing, s.
     pub dt_s: f64,
+    /// Samples at `t0_s + k dt_s`.
     pub samples: Vec<PlanarSample>,
 }
 
@@ -214,6 +239,7 @@ pub struct PlanarTrack {
 pub struct PlanarSample {
     /// Box centre, world frame.
     pub x: f64,
+    /// Box centre y, world frame, m.
     pub y: f64,
     /// Heading, unwrapped (continuous over the track).
     pub yaw: f64,
@@ -221,47 +247,83 @@ pub struct PlanarSample {
     pub speed_mps: f64,
     /// d speed / dt.
     pub accel_mps2: f64,
+    /// Yaw rate, rad/s.
     pub yaw_rate_radps: f64,
+    /// Yaw acceleration, rad/s².
     pub yaw_accel_radps2: f64,
     /// Box-centre velocity and acceleration, world frame.
     pub vx_mps: f64,
+    /// Box-centre velocity y, m/s.
     pub vy_mps: f64,
+    /// Box-centre acceleration x, m/s².
     pub ax_mps2: f64,
+    /// Box-centre acceleration y, m/s².
     pub ay_mps2: f64,
     /// Reference lane at this instant (the target lane during a lane change).
     pub lane: usize,
 }
 
+/// Why a traffic spec was rejected or its simulation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum TrafficError {
     #[error("invalid lane path: {reason}")]
-    InvalidPath { reason: String },
+    /// A lane path cannot be built.
+    InvalidPath {
+        /// What is wrong with it.
+        reason: String,
+    },
     #[error("traffic spec: {field}: {reason}")]
-    InvalidSpec { field: String, reason: String },
-    #[error("vehicle id {id}: {field}: {reason}")]
-    InvalidVehicle {
-        id: u32,
+    /// A spec-wide field is invalid.
+    InvalidSpec {
+        /// The field.
         field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    #[error("vehicle id {id}: {field}: {reason}")]
+    /// A vehicle's field is invalid.
+    InvalidVehicle {
+        /// The vehicle's id.
+        id: u32,
+        /// The field, e.g. `driver.min_gap_m`.
+        field: String,
+        /// What is wrong with it.
         reason: String,
     },
     #[error("stop line {index}: {field}: {reason}")]
+    /// A stop line's field is invalid.
     InvalidStopLine {
+        /// Index of the stop line in the spec.
         index: usize,
+        /// The field.
         field: String,
+        /// What is wrong with it.
         reason: String,
     },
     #[error(
         "vehicle id {follower} starts {gap_m:.2} m behind vehicle id {leader} on lane {lane}; at least {required_m:.2} m needed"
     )]
+    /// A vehicle starts closer behind another body than it can handle.
     StartTooClose {
+        /// Id of the following vehicle.
         follower: u32,
+        /// Id of the vehicle ahead.
         leader: u32,
+        /// Lane of the follower.
         lane: usize,
+        /// Bumper-to-bumper gap at t = 0, m.
         gap_m: f64,
+        /// Smallest gap the follower can handle, m.
         required_m: f64,
     },
     #[error("vehicle id {id}: state became non-finite at t = {t_s} s")]
-    Diverged { id: u32, t_s: f64 },
+    /// A vehicle's state became NaN or infinite.
+    Diverged {
+        /// The vehicle's id.
+        id: u32,
+        /// Time of the failure, s.
+        t_s: f64,
+    },
 }
 
 fn vehicle_error(id: u32, field: &str, reason: String) -> TrafficError {

@@ -1,4 +1,3 @@
-
 use super::*;
 use crate::scene::{Agent, Ego, Ground, Scene, Undulation};
 use crate::trajectory::{Jet, Knot, Trajectory};

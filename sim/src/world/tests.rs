@@ -1,4 +1,3 @@
-
 use super::*;
 use crate::scene::{Ego, StaticObject, Undulation};
 use crate::trajectory::{Jet, Knot};
