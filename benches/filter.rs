@@ -11,7 +11,7 @@ use limot::simulate::resolve_scenario;
 use limot_estimator::object_removal::{
     BoxAtTime, ConstantVelocityBox, FilterConfig, OrientedBox, dynamic_feature_mask,
 };
-use limot_sim::simulation::Simulation;
+use limot_sim::Simulation;
 use nalgebra::{Isometry3, Vector3};
 use std::time::{Duration, Instant};
 

@@ -8,7 +8,7 @@
 use limot::simulate::resolve_scenario;
 use limot_estimator::input::Frame;
 use limot_estimator::pipeline::{Estimator, EstimatorConfig, FrameEstimate};
-use limot_sim::simulation::Simulation;
+use limot_sim::Simulation;
 use std::time::{Duration, Instant};
 
 fn percentile(sorted: &[Duration], p: f64) -> Duration {

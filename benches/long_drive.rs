@@ -10,7 +10,7 @@
 use limot::simulate::resolve_scenario;
 use limot_estimator::input::Frame;
 use limot_estimator::pipeline::{Estimator, EstimatorConfig, Footprint, Variant};
-use limot_sim::simulation::Simulation;
+use limot_sim::Simulation;
 use std::time::Instant;
 
 /// `VmRSS` / `VmHWM` of this process in MiB (Linux), or NaN elsewhere.

@@ -12,10 +12,10 @@ use crate::eval::iou::{Box3, IouKind};
 use crate::report::plot::Series2D;
 use crate::report::table::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
-use limot_sim::detector::Detector;
 use limot_sim::record::points_per_instance;
 use limot_sim::scenario::ScenarioSpec;
-use limot_sim::simulation::{SimulatedFrame, Simulation, SimulationError};
+use limot_sim::sensors::Detector;
+use limot_sim::{SimulatedFrame, Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]

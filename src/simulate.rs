@@ -4,7 +4,7 @@
 use crate::kitti_export::{self, ExportError};
 use indicatif::{ProgressBar, ProgressStyle};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
-use limot_sim::simulation::{Simulation, SimulationError};
+use limot_sim::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

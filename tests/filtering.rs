@@ -8,8 +8,8 @@ use limot::report::Variant;
 use limot::run::{RunOptions, Source, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::pipeline::EstimatorConfig;
+use limot_sim::Simulation;
 use limot_sim::record::Dataset;
-use limot_sim::simulation::Simulation;
 use std::path::Path;
 
 #[test]

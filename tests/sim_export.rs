@@ -10,8 +10,8 @@ use limot::kitti::oxts::{oxts_to_poses, read_oxts};
 use limot::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
 use limot::kitti::velodyne::read_bin;
 use limot::simulate::{resolve_scenario, simulate};
-use limot_sim::imu::ImuSimulator;
 use limot_sim::record::Dataset;
+use limot_sim::sensors::ImuSimulator;
 use std::fs;
 
 #[test]

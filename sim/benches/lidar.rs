@@ -4,14 +4,14 @@
 //! `cargo bench -p limot-sim --bench lidar`.
 
 use limot_estimator::input::ObjectClass;
-use limot_sim::hdl64::NUM_LASERS;
-use limot_sim::lidar::LidarConfig;
-use limot_sim::lidar_scan::LidarSimulator;
 use limot_sim::scene::{
     Agent, Ego, Ground, STATIC_INSTANCE_ID, Scene, Shape, StaticKind, StaticObject, Undulation,
 };
-use limot_sim::trajectory::{Jet, Knot, Trajectory};
-use limot_sim::world::World;
+use limot_sim::scene::{Jet, Knot, Trajectory};
+use limot_sim::sensors::LidarConfig;
+use limot_sim::sensors::LidarSimulator;
+use limot_sim::sensors::World;
+use limot_sim::sensors::hdl64::NUM_LASERS;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use std::time::Instant;
 

@@ -1,22 +1,7 @@
 //! Detector model: noisy 3D boxes from ground truth, with misses, heading
 //! flips and false positives; default figures close to CenterPoint's.
 //!
-//! # Default figures
-//!
-//! CenterPoint (Yin et al., CVPR 2021) on the nuScenes test set reports mATE
-//! ~0.26 m averaged over classes (cars lower, roughly 0.15-0.2 m), mASE ~0.24
-//! (1 - IoU of aligned boxes, i.e. a few per cent of each dimension) and mAOE
-//! ~0.36 rad averaged over classes, most of it from heading flips and from
-//! pedestrians/cyclists whose heading is ambiguous; for cars the orientation
-//! error without flips is a few degrees. Hence per-axis centre sigmas of
-//! 0.12-0.3 m (cars 0.15 m, trucks 0.3 m), size sigmas of 5-30 cm, yaw sigmas
-//! of 0.03 rad for vehicles up to 0.3 rad for pedestrians, and flip
-//! probabilities of 2-10%. CenterPoint's car recall on Waymo/nuScenes is
-//! ~0.9-0.95 at short range and falls with range and sparsity: max_recall 0.95,
-//! half recall at 70 m, nothing beyond 80 m or with fewer than 5 points, full
-//! recall from ~60 points. At a confidence threshold giving that recall it
-//! emits a few false boxes per scene, most with low scores: 0.3 per frame by
-//! default.
+//! Where the default figures come from: `docs/simulator-notes.md`.
 
 use crate::lidar::LidarConfig;
 use crate::scene::{Agent, Ego, Scene};
@@ -37,6 +22,7 @@ pub struct ClassNoise {
     pub position_sigma_m: f64,
     /// Standard deviation of the length/width/height error, m.
     pub size_sigma_m: f64,
+    /// Standard deviation of the yaw error, rad.
     pub yaw_sigma_rad: f64,
     /// Probability that the heading comes out reversed (yaw + pi).
     pub heading_flip_probability: f64,
@@ -57,9 +43,13 @@ impl Default for ClassNoise {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DetectorConfig {
+    /// Noise of detected cars.
     pub car: ClassNoise,
+    /// Noise of detected trucks.
     pub truck: ClassNoise,
+    /// Noise of detected cyclists.
     pub cyclist: ClassNoise,
+    /// Noise of detected pedestrians.
     pub pedestrian: ClassNoise,
     /// Objects farther than this are never detected, m.
     pub max_range_m: f64,
@@ -133,14 +123,23 @@ const MIN_SIZE_M: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DetectorError {
     #[error("detector config field `{field}` = {value} is invalid: {why}")]
+    /// A config field outside its valid range.
     BadConfig {
+        /// Dotted name of the field, e.g. `car.position_sigma_m`.
         field: String,
+        /// The rejected value.
         value: f64,
+        /// What the field must satisfy.
         why: &'static str,
     },
     #[error("scan time {t_s} is not finite")]
-    BadScanTime { t_s: f64 },
+    /// The scan time handed to the detector is NaN or infinite.
+    BadScanTime {
+        /// The rejected time, s.
+        t_s: f64,
+    },
     #[error("generated detection is invalid (bad scene or LiDAR config?): {0}")]
+    /// A generated detection failed the estimator input's checks.
     BadDetection(#[from] InputError),
 }
 
@@ -179,6 +178,10 @@ fn bad_config(table: &str, field: &str, value: f64, why: &'static str) -> Detect
 }
 
 impl DetectorConfig {
+    /// Checks every field's range.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadConfig`] naming the first invalid field.
     pub fn validate(&self) -> Result<(), DetectorError> {
         for class in ObjectClass::ALL {
             self.noise(class)
@@ -222,6 +225,7 @@ impl DetectorConfig {
         Ok(())
     }
 
+    /// The noise settings of `class`.
     pub fn noise(&self, class: ObjectClass) -> &ClassNoise {
         match class {
             ObjectClass::Car => &self.car,
@@ -266,7 +270,9 @@ impl DetectorConfig {
 /// A detection with its ground truth instance id (None: false positive).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectionWithTruth {
+    /// The noisy detection, LiDAR frame at the sweep start.
     pub detection: Detection,
+    /// Instance id of the agent it came from; `None` for a false positive.
     pub truth_id: Option<u32>,
 }
 
@@ -279,11 +285,16 @@ pub struct Detector {
 }
 
 impl Detector {
+    /// A detector with a validated `config` whose noise is drawn from `seed`.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadConfig`] if `config` is invalid.
     pub fn new(config: DetectorConfig, seed: u64) -> Result<Detector, DetectorError> {
         config.validate()?;
         Ok(Detector { config, seed })
     }
 
+    /// The configuration this detector was built with.
     pub fn config(&self) -> &DetectorConfig {
         &self.config
     }
@@ -324,6 +335,11 @@ impl Detector {
     /// `recall(range, points_per_instance[id])` and its sighted box noised
     /// per class; then a Poisson number of false positives. Agents come in
     /// scene order, false positives last.
+    ///
+    /// # Errors
+    /// [`DetectorError::BadScanTime`] for a non-finite `t_scan_s`;
+    /// [`DetectorError::BadDetection`] if a generated box fails the
+    /// estimator input's checks (a bad scene or LiDAR config).
     pub fn detect(
         &self,
         frame_index: u64,

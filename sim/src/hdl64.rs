@@ -27,13 +27,17 @@ pub const NUM_LASERS: usize = 64;
 /// One laser of a calibration file. Angles in radians, offsets in metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LaserCalib {
+    /// Laser index in the calibration file (0..64).
     pub laser_id: u32,
     /// Elevation of the beam (positive up).
     pub vert_correction_rad: f64,
     /// Azimuth offset of the beam (ignored by the simulator).
     pub rot_correction_rad: f64,
+    /// Range correction, m (parsed, ignored by the simulator).
     pub dist_correction_m: f64,
+    /// Vertical offset of the beam origin, m (parsed, ignored).
     pub vert_offset_correction_m: f64,
+    /// Horizontal offset of the beam origin, m (parsed, ignored).
     pub horiz_offset_correction_m: f64,
 }
 
@@ -41,30 +45,73 @@ pub struct LaserCalib {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Hdl64Error {
     #[error("line {line}: field `{field}`: cannot parse `{text}` as a number")]
+    /// A value that is not a number.
     BadNumber {
+        /// 1-based line of the value.
         line: usize,
+        /// Key of the value.
         field: String,
+        /// The text that did not parse.
         text: String,
     },
     #[error("line {line}: field `{field}` = {value} is out of range ({why})")]
+    /// A number outside the field's valid range.
     OutOfRange {
+        /// 1-based line of the value.
         line: usize,
+        /// Key of the value.
         field: String,
+        /// The rejected value.
         value: f64,
+        /// What the field must satisfy.
         why: &'static str,
     },
     #[error("line {line}: expected `key: value`, found `{text}`")]
-    Syntax { line: usize, text: String },
+    /// A line that is not `key: value`.
+    Syntax {
+        /// 1-based line.
+        line: usize,
+        /// The offending line.
+        text: String,
+    },
     #[error("line {line}: laser entry before the `lasers:` list")]
-    LaserOutsideList { line: usize },
+    /// A laser entry outside the `lasers:` list.
+    LaserOutsideList {
+        /// 1-based line of the entry.
+        line: usize,
+    },
     #[error("laser entry starting at line {line}: missing field `{field}`")]
-    MissingField { line: usize, field: &'static str },
+    /// A laser entry lacks a required field.
+    MissingField {
+        /// 1-based line where the entry starts.
+        line: usize,
+        /// The missing key.
+        field: &'static str,
+    },
     #[error("line {line}: laser_id {laser_id} appears twice")]
-    DuplicateLaserId { line: usize, laser_id: u32 },
+    /// Two entries with the same laser id.
+    DuplicateLaserId {
+        /// 1-based line of the second entry.
+        line: usize,
+        /// The repeated id.
+        laser_id: u32,
+    },
     #[error("`num_lasers: {declared}` but {found} laser entries were found")]
-    CountMismatch { declared: usize, found: usize },
+    /// `num_lasers` disagrees with the number of entries.
+    CountMismatch {
+        /// The `num_lasers` value.
+        declared: usize,
+        /// Entries found.
+        found: usize,
+    },
     #[error("expected {expected} lasers, found {found}")]
-    WrongLaserCount { expected: usize, found: usize },
+    /// The file does not describe exactly [`NUM_LASERS`] lasers.
+    WrongLaserCount {
+        /// [`NUM_LASERS`].
+        expected: usize,
+        /// Lasers found.
+        found: usize,
+    },
 }
 
 /// Beam elevations (radians, positive up), beam index 0 = highest,
@@ -151,6 +198,9 @@ pub fn ring_of_beam(beam: usize) -> u16 {
 /// files use: top-level `key: value` lines and a `lasers:` list of flat
 /// `- key: value` maps). Unknown keys are skipped; known numeric keys must
 /// parse and be finite. Lasers are returned in file order.
+///
+/// # Errors
+/// [`Hdl64Error`] with the 1-based line of the first problem.
 pub fn parse_calibration(text: &str) -> Result<Vec<LaserCalib>, Hdl64Error> {
     let mut lasers = Vec::new();
     let mut current: Option<PartialLaser> = None;
@@ -237,6 +287,9 @@ pub fn parse_calibration(text: &str) -> Result<Vec<LaserCalib>, Hdl64Error> {
 }
 
 /// Elevation table (beam index 0 = highest) from parsed calibration lasers.
+///
+/// # Errors
+/// [`Hdl64Error::WrongLaserCount`] unless there are [`NUM_LASERS`] lasers.
 pub fn elevation_table_from(lasers: &[LaserCalib]) -> Result<[f64; NUM_LASERS], Hdl64Error> {
     if lasers.len() != NUM_LASERS {
         return Err(Hdl64Error::WrongLaserCount {

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ImuConfig {
+    /// Sample rate, Hz.
     pub rate_hz: f64,
     /// Accelerometer white noise density, m/s^2/sqrt(Hz).
     pub accel_noise_density: f64,
@@ -49,13 +50,23 @@ impl Default for ImuConfig {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ImuError {
     #[error("IMU config field `{field}` = {value} is invalid: {why}")]
+    /// A config field outside its valid range.
     BadConfig {
+        /// Name of the field.
         field: &'static str,
+        /// The rejected value.
         value: f64,
+        /// What the field must satisfy.
         why: &'static str,
     },
     #[error("IMU time range [{t0_s}, {t1_s}] is not finite")]
-    BadTimeRange { t0_s: f64, t1_s: f64 },
+    /// A query's time range has a NaN or infinite end.
+    BadTimeRange {
+        /// Start of the range, s.
+        t0_s: f64,
+        /// End of the range, s.
+        t1_s: f64,
+    },
 }
 
 impl ImuConfig {
@@ -75,6 +86,9 @@ impl ImuConfig {
 
     /// Rejects rates that are not positive and noise figures that are
     /// negative or not finite.
+    ///
+    /// # Errors
+    /// [`ImuError::BadConfig`] naming the first invalid field.
     pub fn validate(&self) -> Result<(), ImuError> {
         let bad = |field, value, why| Err(ImuError::BadConfig { field, value, why });
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
@@ -124,8 +138,11 @@ impl ImuConfig {
 /// `samples[k]` was measured with biases `accel_bias[k]`, `gyro_bias[k]`.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ImuStream {
+    /// The noisy samples (specific force and angular rate, IMU frame), in time order.
     pub samples: Vec<ImuSample>,
+    /// True accelerometer bias of each sample, IMU frame, m/s².
     pub accel_bias: Vec<Vector3<f64>>,
+    /// True gyroscope bias of each sample, IMU frame, rad/s.
     pub gyro_bias: Vec<Vector3<f64>>,
 }
 
@@ -143,11 +160,16 @@ pub struct ImuSimulator {
 const GRID_EPSILON: f64 = 1e-6;
 
 impl ImuSimulator {
+    /// An IMU with a validated `config` whose noise and biases are drawn from `seed`.
+    ///
+    /// # Errors
+    /// [`ImuError::BadConfig`] if `config` is invalid.
     pub fn new(config: ImuConfig, seed: u64) -> Result<ImuSimulator, ImuError> {
         config.validate()?;
         Ok(ImuSimulator { config, seed })
     }
 
+    /// The configuration this IMU was built with.
     pub fn config(&self) -> &ImuConfig {
         &self.config
     }
@@ -196,6 +218,9 @@ impl ImuSimulator {
     /// Samples at every t = k / rate_hz in [t0_s, t1_s] (empty if t1_s < t0_s).
     /// Sample k carries the current biases and fresh white noise; the biases
     /// then take one random-walk step. The noise sequence starts at `t0_s`.
+    ///
+    /// # Errors
+    /// [`ImuError::BadTimeRange`] if `t0_s` or `t1_s` is not finite.
     pub fn simulate(&self, ego: &Ego, t0_s: f64, t1_s: f64) -> Result<ImuStream, ImuError> {
         if !(t0_s.is_finite() && t1_s.is_finite()) {
             return Err(ImuError::BadTimeRange { t0_s, t1_s });

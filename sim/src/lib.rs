@@ -1,18 +1,37 @@
 //! LIMOT simulation testbed: scenario generation, traffic, a rolling 64-beam
 //! LiDAR ray-cast against a rapier3d world, a noisy IMU, a detector model and
 //! exact ground truth. Knows nothing about estimation.
+//!
+//! The entry points are at the crate root: a [`ScenarioSpec`] (a TOML file or
+//! a built-in scenario) becomes a [`Simulation`], which renders frames or
+//! writes a dataset directory; a [`Dataset`] reads one back. The concept
+//! modules hold the rest:
+//!
+//! - [`scenario`]: the spec and its tables, with validation;
+//! - [`scene`]: what a generated scenario contains (ground, statics, agents,
+//!   ego) and the trajectories they follow;
+//! - [`traffic`]: the vehicle model that moves the agents;
+//! - [`sensors`]: LiDAR, IMU and detector models;
+//! - [`record`]: the dataset format (writer, reader, scan codec).
 
-pub mod detector;
+#![warn(missing_docs)]
+
+mod detector;
 mod fast_trig;
-pub mod hdl64;
-pub mod imu;
-pub mod lidar;
-pub mod lidar_scan;
+mod hdl64;
+mod imu;
+mod lidar;
+mod lidar_scan;
 pub mod record;
-pub mod roughness;
+mod roughness;
 pub mod scenario;
 pub mod scene;
-pub mod simulation;
+pub mod sensors;
+mod simulation;
 pub mod traffic;
-pub mod trajectory;
-pub mod world;
+mod trajectory;
+mod world;
+
+pub use record::{Dataset, DatasetWriter, RecordError};
+pub use scenario::{Family, ScenarioError, ScenarioSpec};
+pub use simulation::{SimulatedFrame, Simulation, SimulationError};

@@ -10,10 +10,13 @@ use std::f64::consts::{PI, TAU};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LidarConfig {
+    /// Revolutions per second, Hz (one sweep per revolution).
     pub rotation_hz: f64,
     /// Columns (firings of all lasers) per revolution.
     pub azimuth_steps: usize,
+    /// Returns beyond this range are lost, m.
     pub max_range_m: f64,
+    /// Returns closer than this are lost (the ego's own body), m.
     pub min_range_m: f64,
     /// Standard deviation of the additive range noise.
     pub range_noise_sigma_m: f64,
@@ -35,6 +38,7 @@ impl Default for LidarConfig {
 }
 
 impl LidarConfig {
+    /// Duration of one sweep, `1 / rotation_hz`, s.
     pub fn sweep_duration_s(&self) -> f64 {
         1.0 / self.rotation_hz
     }

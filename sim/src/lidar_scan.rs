@@ -36,23 +36,51 @@ use rayon::prelude::*;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LidarError {
     #[error("lidar.{field} = {value} is not finite")]
-    NotFinite { field: &'static str, value: f64 },
+    /// A field is NaN or infinite.
+    NotFinite {
+        /// Name of the field.
+        field: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
     #[error("lidar.{field} = {value} must be > 0")]
-    NotPositive { field: &'static str, value: f64 },
+    /// A field that must be positive is not.
+    NotPositive {
+        /// Name of the field.
+        field: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
     #[error("lidar.{field} = {value} must be >= 0")]
-    Negative { field: &'static str, value: f64 },
+    /// A field that must not be negative is.
+    Negative {
+        /// Name of the field.
+        field: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
     #[error("lidar.dropout_probability = {0} must be in [0, 1)")]
+    /// `dropout_probability` outside [0, 1).
     BadProbability(f64),
     #[error("lidar.min_range_m = {min_range_m} must be below lidar.max_range_m = {max_range_m}")]
-    RangeOrder { min_range_m: f64, max_range_m: f64 },
+    /// `min_range_m` is not below `max_range_m`.
+    RangeOrder {
+        /// The configured minimum range, m.
+        min_range_m: f64,
+        /// The configured maximum range, m.
+        max_range_m: f64,
+    },
     #[error("lidar.azimuth_steps = {0} must be in 1..=1000000")]
+    /// `azimuth_steps` outside 1..=1000000.
     BadAzimuthSteps(usize),
 }
 
 /// One simulated sweep and the instance id of every point (same order).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedScan {
+    /// The sweep: points in the LiDAR frame at their own firing time.
     pub scan: LidarScan,
+    /// Instance id of each point's surface ([`crate::scene::STATIC_INSTANCE_ID`] for the ground and statics).
     pub labels: Vec<u32>,
 }
 
@@ -78,6 +106,10 @@ const SPECKLE_SIGMA: f64 = 0.35;
 const COLUMNS_PER_TASK: usize = 16;
 
 impl LidarSimulator {
+    /// A LiDAR with a validated `config`; `seed` draws the per-laser gains and every sweep's noise.
+    ///
+    /// # Errors
+    /// [`LidarError`] naming the first invalid field of `config`.
     pub fn new(config: LidarConfig, seed: u64) -> Result<LidarSimulator, LidarError> {
         validate(&config)?;
         let table = elevation_table_rad();
@@ -96,6 +128,7 @@ impl LidarSimulator {
         })
     }
 
+    /// The configuration this LiDAR was built with.
     pub fn config(&self) -> &LidarConfig {
         &self.config
     }

@@ -30,35 +30,47 @@
 
 use crate::detector::DetectionWithTruth;
 use limot_estimator::input::{
-    Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint, LidarScan, ObjectClass,
+    Detection, Extrinsics, Frame, ImuSample, InputError, LidarScan, ObjectClass,
 };
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
+mod csv;
+mod scan;
+mod writer;
+
+use csv::Csv;
+pub use scan::{decode_scan, encode_scan, scan_path};
+pub use writer::DatasetWriter;
+
+/// Version of the dataset format written to `meta.toml` and every scan header.
 pub const FORMAT_VERSION: u32 = 1;
-const SCAN_MAGIC: &[u8; 4] = b"LMTS";
-const SCAN_HEADER_BYTES: usize = 4 + 4 + 8 + 8 + 2 + 2 + 4;
-const POINT_BYTES: usize = 28;
 
 /// A problem with a dataset file, naming where it is.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
     #[error("{path}: {source}")]
+    /// A file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The I/O error.
         source: std::io::Error,
     },
     #[error("{path}:{line}: field `{field}`: {message}")]
+    /// A file's contents are invalid.
     Format {
+        /// The file.
         path: PathBuf,
         /// 1-based line for text files; 0 for binary files.
         line: usize,
+        /// The field (CSV column or TOML key) at fault.
         field: String,
+        /// What is wrong with it.
         message: String,
     },
 }
@@ -83,20 +95,30 @@ fn format_err(path: &Path, line: usize, field: &str, message: impl Into<String>)
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Meta {
+    /// [`FORMAT_VERSION`] of the writer.
     pub format_version: u32,
+    /// Scenario name.
     pub name: String,
+    /// Scenario family, `highway` or `urban`.
     pub family: String,
+    /// Scenario seed.
     pub seed: u64,
+    /// Scenario duration, s.
     pub duration_s: f64,
+    /// Number of frames (scans) in the dataset.
     pub frame_count: usize,
+    /// IMU sample rate, Hz.
     pub imu_rate_hz: f64,
+    /// Duration of one sweep, s; frame `k` starts at `k · sweep_duration_s`.
     pub sweep_duration_s: f64,
+    /// Rings (lasers) of the LiDAR.
     pub num_rings: u16,
     /// T_lidar_imu as [x, y, z, qx, qy, qz, qw].
     pub t_lidar_imu: [f64; 7],
 }
 
 impl Meta {
+    /// `t_lidar_imu` as a pose: maps IMU-frame points into the LiDAR frame.
     pub fn t_lidar_imu(&self) -> Isometry3<f64> {
         pose_from_array(&self.t_lidar_imu)
     }
@@ -145,38 +167,54 @@ fn line_of_key(text: &str, key: &str) -> usize {
 /// Ground-truth ego state at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoTruth {
+    /// Time, s.
     pub t_s: f64,
+    /// LiDAR pose in the world.
     pub t_world_lidar: Isometry3<f64>,
+    /// LiDAR velocity, world frame, m/s.
     pub velocity_world_mps: Vector3<f64>,
 }
 
 /// Ground-truth IMU biases at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BiasTruth {
+    /// Time, s.
     pub t_s: f64,
+    /// Accelerometer bias, IMU frame, m/s².
     pub accel_bias: Vector3<f64>,
+    /// Gyroscope bias, IMU frame, rad/s.
     pub gyro_bias: Vector3<f64>,
 }
 
 /// One ground-truth object box, world frame, at the scan start.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxTruth {
+    /// Frame index.
     pub frame: usize,
+    /// Scan start time of the frame, s.
     pub t_s: f64,
+    /// Instance id of the agent (>= 1).
     pub id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// Box pose in the world (centre, x along the heading).
     pub t_world_box: Isometry3<f64>,
+    /// Box length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
+    /// Box-centre velocity, world frame, m/s.
     pub velocity_world_mps: Vector3<f64>,
+    /// True for a vehicle that never moves in the scenario.
     pub parked: bool,
 }
 
 /// One recorded frame: the sweep with per-point labels and the detections.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordedFrame {
+    /// The sweep, LiDAR frame (points at their own firing time).
     pub scan: LidarScan,
     /// Ground-truth instance id per point (0 = static scene).
     pub labels: Vec<u32>,
+    /// Detections of the sweep with their truth ids.
     pub detections: Vec<DetectionWithTruth>,
 }
 
@@ -189,12 +227,14 @@ pub fn points_per_instance(labels: &[u32]) -> BTreeMap<u32, usize> {
     counts
 }
 
+/// A pose as `[x, y, z, qx, qy, qz, qw]`, the dataset's pose layout.
 pub fn pose_to_array(pose: &Isometry3<f64>) -> [f64; 7] {
     let t = pose.translation.vector;
     let q = pose.rotation.quaternion();
     [t.x, t.y, t.z, q.i, q.j, q.k, q.w]
 }
 
+/// The pose of a `[x, y, z, qx, qy, qz, qw]` array (the quaternion is normalised).
 pub fn pose_from_array(a: &[f64; 7]) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(a[0], a[1], a[2]),
@@ -202,418 +242,27 @@ pub fn pose_from_array(a: &[f64; 7]) -> Isometry3<f64> {
     )
 }
 
-/// Writes a dataset directory incrementally: `begin`, then frames in order,
-/// then `finish` with the streams known only at the end.
-pub struct DatasetWriter {
-    dir: PathBuf,
-    detections_csv: String,
-    boxes_csv: String,
-    frames_written: usize,
-}
-
-impl DatasetWriter {
-    /// Creates the directory (and parents) and writes `scenario.toml`.
-    pub fn begin(dir: &Path, scenario_toml: &str) -> Result<DatasetWriter, RecordError> {
-        for sub in ["", "scans", "gt"] {
-            let d = dir.join(sub);
-            fs::create_dir_all(&d).map_err(io_err(&d))?;
-        }
-        let path = dir.join("scenario.toml");
-        fs::write(&path, scenario_toml).map_err(io_err(&path))?;
-        Ok(DatasetWriter {
-            dir: dir.to_path_buf(),
-            detections_csv: "frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id\n".into(),
-            boxes_csv: "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked\n".into(),
-            frames_written: 0,
-        })
-    }
-
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    /// Appends the next frame with its ground-truth boxes.
-    pub fn write_frame(
-        &mut self,
-        frame: &RecordedFrame,
-        boxes: &[BoxTruth],
-    ) -> Result<(), RecordError> {
-        let index = self.frames_written;
-        let path = scan_path(&self.dir, index);
-        fs::write(&path, encode_scan(&frame.scan, &frame.labels)).map_err(io_err(&path))?;
-        for d in &frame.detections {
-            let det = &d.detection;
-            let c = det.center_lidar;
-            let s = det.size_lwh;
-            let truth = d.truth_id.map_or(-1, i64::from);
-            let _ = writeln!(
-                self.detections_csv,
-                "{index},{},{},{},{},{},{},{},{},{},{},{truth}",
-                det.time_offset_s, det.class, c.x, c.y, c.z, s.x, s.y, s.z, det.yaw_rad, det.score
-            );
-        }
-        for b in boxes {
-            let [x, y, z, qx, qy, qz, qw] = pose_to_array(&b.t_world_box);
-            let (s, v) = (b.size_lwh_m, b.velocity_world_mps);
-            let _ = writeln!(
-                self.boxes_csv,
-                "{index},{},{},{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{},{},{},{},{}",
-                b.t_s, b.id, b.class, s.x, s.y, s.z, v.x, v.y, v.z, b.parked as u8
-            );
-        }
-        self.frames_written += 1;
-        Ok(())
-    }
-
-    /// Writes the per-dataset streams and `meta.toml`. `meta.frame_count` is
-    /// set from the frames written.
-    pub fn finish(
-        self,
-        mut meta: Meta,
-        imu: &[ImuSample],
-        biases: &[BiasTruth],
-        ego: &[EgoTruth],
-    ) -> Result<PathBuf, RecordError> {
-        meta.frame_count = self.frames_written;
-        let mut imu_csv = String::from("t_s,ax,ay,az,gx,gy,gz\n");
-        for s in imu {
-            let (a, g) = (s.accel_mps2, s.gyro_radps);
-            let _ = writeln!(
-                imu_csv,
-                "{},{},{},{},{},{},{}",
-                s.t_s, a.x, a.y, a.z, g.x, g.y, g.z
-            );
-        }
-        let mut bias_csv = String::from("t_s,bax,bay,baz,bgx,bgy,bgz\n");
-        for b in biases {
-            let (a, g) = (b.accel_bias, b.gyro_bias);
-            let _ = writeln!(
-                bias_csv,
-                "{},{},{},{},{},{},{}",
-                b.t_s, a.x, a.y, a.z, g.x, g.y, g.z
-            );
-        }
-        let mut ego_csv = String::from("t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz\n");
-        for e in ego {
-            let [x, y, z, qx, qy, qz, qw] = pose_to_array(&e.t_world_lidar);
-            let v = e.velocity_world_mps;
-            let _ = writeln!(
-                ego_csv,
-                "{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{}",
-                e.t_s, v.x, v.y, v.z
-            );
-        }
-        let meta_toml = toml::to_string(&meta)
-            .map_err(|e| format_err(&self.dir.join("meta.toml"), 0, "meta", e.to_string()))?;
-        let files = [
-            ("imu.csv", imu_csv),
-            ("detections.csv", self.detections_csv),
-            ("gt/boxes.csv", self.boxes_csv),
-            ("gt/imu_bias.csv", bias_csv),
-            ("gt/ego.csv", ego_csv),
-            ("meta.toml", meta_toml),
-        ];
-        for (name, text) in files {
-            let path = self.dir.join(name);
-            fs::write(&path, text).map_err(io_err(&path))?;
-        }
-        Ok(self.dir)
-    }
-}
-
-pub fn scan_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join("scans").join(format!("{index:06}.bin"))
-}
-
-/// Encodes one sweep (little endian): magic, version, t_s, sweep duration,
-/// ring count, reserved, point count, then per point x, y, z, intensity,
-/// time_offset (f32), label (u32), ring (u16), padding (u16).
-pub fn encode_scan(scan: &LidarScan, labels: &[u32]) -> Vec<u8> {
-    assert_eq!(scan.points.len(), labels.len(), "one label per point");
-    let mut out = Vec::with_capacity(SCAN_HEADER_BYTES + POINT_BYTES * scan.points.len());
-    out.extend_from_slice(SCAN_MAGIC);
-    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out.extend_from_slice(&scan.t_s.to_le_bytes());
-    out.extend_from_slice(&scan.sweep_duration_s.to_le_bytes());
-    out.extend_from_slice(&scan.num_rings.to_le_bytes());
-    out.extend_from_slice(&0u16.to_le_bytes());
-    out.extend_from_slice(&(scan.points.len() as u32).to_le_bytes());
-    for (p, label) in scan.points.iter().zip(labels) {
-        for v in [p.x, p.y, p.z, p.intensity, p.time_offset_s] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-        out.extend_from_slice(&label.to_le_bytes());
-        out.extend_from_slice(&p.ring.to_le_bytes());
-        out.extend_from_slice(&0u16.to_le_bytes());
-    }
-    out
-}
-
-/// Decodes [`encode_scan`]'s bytes; `path` only names the file in errors.
-/// Rejects short files, a wrong magic or version, and non-finite values.
-pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), RecordError> {
-    let bad = |field: &str, message: String| format_err(path, 0, field, message);
-    if bytes.len() < SCAN_HEADER_BYTES {
-        return Err(bad(
-            "header",
-            format!(
-                "{} bytes, shorter than the {SCAN_HEADER_BYTES}-byte header",
-                bytes.len()
-            ),
-        ));
-    }
-    if &bytes[0..4] != SCAN_MAGIC {
-        return Err(bad("magic", "not a limot scan file".into()));
-    }
-    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
-    let f64_at = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
-    let u16_at = |o: usize| u16::from_le_bytes(bytes[o..o + 2].try_into().expect("2 bytes"));
-    let version = u32_at(4);
-    if version != FORMAT_VERSION {
-        return Err(bad(
-            "version",
-            format!("version {version}, this build reads {FORMAT_VERSION}"),
-        ));
-    }
-    let t_s = f64_at(8);
-    let sweep_duration_s = f64_at(16);
-    let num_rings = u16_at(24);
-    let count = u32_at(28) as usize;
-    if !t_s.is_finite() {
-        return Err(bad("t_s", "not finite".into()));
-    }
-    if !(sweep_duration_s.is_finite() && sweep_duration_s > 0.0) {
-        return Err(bad(
-            "sweep_duration_s",
-            format!("{sweep_duration_s} is not a positive duration"),
-        ));
-    }
-    let expected = SCAN_HEADER_BYTES + count * POINT_BYTES;
-    if bytes.len() != expected {
-        return Err(bad(
-            "point_count",
-            format!(
-                "header says {count} points ({expected} bytes) but the file has {} bytes",
-                bytes.len()
-            ),
-        ));
-    }
-    let mut points = Vec::with_capacity(count);
-    let mut labels = Vec::with_capacity(count);
-    for i in 0..count {
-        let o = SCAN_HEADER_BYTES + i * POINT_BYTES;
-        let [x, y, z, intensity, time_offset_s] = [0, 4, 8, 12, 16].map(|d| f32_at(o + d));
-        for (name, v) in [
-            ("x", x),
-            ("y", y),
-            ("z", z),
-            ("intensity", intensity),
-            ("time_offset_s", time_offset_s),
-        ] {
-            if !v.is_finite() {
-                return Err(bad(name, format!("point {i}: {v} is not finite")));
-            }
-        }
-        // f32 rounding of an offset near the sweep end may exceed it slightly
-        if time_offset_s < 0.0 || f64::from(time_offset_s) > sweep_duration_s * (1.0 + 1e-6) {
-            return Err(bad(
-                "time_offset_s",
-                format!("point {i}: {time_offset_s} s is outside the {sweep_duration_s} s sweep"),
-            ));
-        }
-        let ring = u16_at(o + 24);
-        if ring >= num_rings {
-            return Err(bad(
-                "ring",
-                format!("point {i}: ring {ring} but the sensor has {num_rings}"),
-            ));
-        }
-        points.push(LidarPoint {
-            x,
-            y,
-            z,
-            intensity,
-            ring,
-            time_offset_s,
-        });
-        labels.push(u32_at(o + 20));
-    }
-    let scan = LidarScan {
-        t_s,
-        sweep_duration_s,
-        num_rings,
-        points,
-    };
-    Ok((scan, labels))
-}
-
-/// A CSV file split into numbered rows with a checked header.
-struct Csv {
-    path: PathBuf,
-    text: String,
-}
-
-impl Csv {
-    fn open(path: PathBuf, header: &str) -> Result<Csv, RecordError> {
-        let text = fs::read_to_string(&path).map_err(io_err(&path))?;
-        let first = text.lines().next().unwrap_or("");
-        if first.trim() != header {
-            return Err(format_err(
-                &path,
-                1,
-                "header",
-                format!("expected `{header}`, found `{first}`"),
-            ));
-        }
-        Ok(Csv { path, text })
-    }
-
-    /// Rows after the header as (1-based line, fields), each with exactly
-    /// `columns` fields.
-    fn rows<'a>(&'a self, columns: &[&'a str]) -> Result<Vec<Row<'a>>, RecordError> {
-        let mut rows = Vec::new();
-        for (i, line) in self.text.lines().enumerate().skip(1) {
-            if line.trim().is_empty() {
-                continue;
-            }
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            if fields.len() != columns.len() {
-                return Err(format_err(
-                    &self.path,
-                    i + 1,
-                    "columns",
-                    format!(
-                        "{} fields, expected {} ({})",
-                        fields.len(),
-                        columns.len(),
-                        columns.join(",")
-                    ),
-                ));
-            }
-            rows.push(Row {
-                path: &self.path,
-                line: i + 1,
-                fields,
-                columns: columns.to_vec(),
-            });
-        }
-        Ok(rows)
-    }
-}
-
-struct Row<'a> {
-    path: &'a Path,
-    line: usize,
-    fields: Vec<&'a str>,
-    columns: Vec<&'a str>,
-}
-
-impl Row<'_> {
-    fn f64(&self, i: usize) -> Result<f64, RecordError> {
-        let v: f64 = self.fields[i].parse().map_err(|_| {
-            format_err(
-                self.path,
-                self.line,
-                self.columns[i],
-                format!("`{}` is not a number", self.fields[i]),
-            )
-        })?;
-        if !v.is_finite() {
-            return Err(format_err(
-                self.path,
-                self.line,
-                self.columns[i],
-                format!("{v} is not finite"),
-            ));
-        }
-        Ok(v)
-    }
-
-    fn int<T: std::str::FromStr>(&self, i: usize) -> Result<T, RecordError> {
-        self.fields[i].parse().map_err(|_| {
-            format_err(
-                self.path,
-                self.line,
-                self.columns[i],
-                format!("`{}` is not a valid integer", self.fields[i]),
-            )
-        })
-    }
-
-    fn vec3(&self, i: usize) -> Result<Vector3<f64>, RecordError> {
-        Ok(Vector3::new(
-            self.f64(i)?,
-            self.f64(i + 1)?,
-            self.f64(i + 2)?,
-        ))
-    }
-
-    fn pose(&self, i: usize) -> Result<Isometry3<f64>, RecordError> {
-        let mut a = [0.0; 7];
-        for (k, v) in a.iter_mut().enumerate() {
-            *v = self.f64(i + k)?;
-        }
-        let qn = (a[3] * a[3] + a[4] * a[4] + a[5] * a[5] + a[6] * a[6]).sqrt();
-        if (qn - 1.0).abs() > 1e-3 {
-            return Err(format_err(
-                self.path,
-                self.line,
-                self.columns[i + 3],
-                format!("quaternion norm {qn} is not 1"),
-            ));
-        }
-        Ok(pose_from_array(&a))
-    }
-
-    /// A time stamp strictly after `previous` (streams never go backwards).
-    fn increasing_time(&self, i: usize, previous: Option<f64>) -> Result<f64, RecordError> {
-        let t_s = self.f64(i)?;
-        match previous {
-            Some(prev) if t_s <= prev => {
-                Err(self.error(i, format!("time {t_s} does not increase (previous {prev})")))
-            }
-            _ => Ok(t_s),
-        }
-    }
-
-    /// Three finite, positive box dimensions.
-    fn size(&self, i: usize) -> Result<Vector3<f64>, RecordError> {
-        let size = self.vec3(i)?;
-        if let Some(k) = (0..3).find(|&k| size[k] <= 0.0) {
-            return Err(self.error(i + k, format!("{} is not a positive size", size[k])));
-        }
-        Ok(size)
-    }
-
-    fn class(&self, i: usize) -> Result<ObjectClass, RecordError> {
-        ObjectClass::parse(self.fields[i]).ok_or_else(|| {
-            format_err(
-                self.path,
-                self.line,
-                self.columns[i],
-                format!("unknown class `{}`", self.fields[i]),
-            )
-        })
-    }
-
-    fn error(&self, i: usize, message: impl Into<String>) -> RecordError {
-        format_err(self.path, self.line, self.columns[i], message)
-    }
-}
-
 /// A dataset opened for reading. Sensor streams are loaded eagerly except the
 /// scans, which are read one at a time.
 #[derive(Debug, Clone)]
 pub struct Dataset {
+    /// The dataset directory.
     pub dir: PathBuf,
+    /// `meta.toml`.
     pub meta: Meta,
+    /// `imu.csv`, in time order.
     pub imu: Vec<ImuSample>,
     /// Detections per frame.
     pub detections: Vec<Vec<DetectionWithTruth>>,
 }
 
 impl Dataset {
+    /// Opens the dataset in `dir`: reads and checks `meta.toml`, `imu.csv` and
+    /// `detections.csv` (scans are read by [`Dataset::frame`]).
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] for a missing or unreadable file;
+    /// [`RecordError::Format`], with file, line and field, for invalid contents.
     pub fn open(dir: &Path) -> Result<Dataset, RecordError> {
         let meta_path = dir.join("meta.toml");
         let meta_text = fs::read_to_string(&meta_path).map_err(io_err(&meta_path))?;
@@ -662,11 +311,16 @@ impl Dataset {
         })
     }
 
+    /// Number of frames, from `meta.toml`.
     pub fn frame_count(&self) -> usize {
         self.meta.frame_count
     }
 
     /// Reads frame `index` (scan, labels, detections).
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing or invalid scan file, or one that is not
+    /// the sweep `meta.toml` describes.
     pub fn frame(&self, index: usize) -> Result<RecordedFrame, RecordError> {
         let path = scan_path(&self.dir, index);
         let bytes = fs::read(&path).map_err(io_err(&path))?;
@@ -681,6 +335,9 @@ impl Dataset {
 
     /// Frame `index` as the estimator sees it: the sweep and the detections,
     /// without any ground truth (labels and truth ids stay here).
+    ///
+    /// # Errors
+    /// As [`Dataset::frame`].
     pub fn input_frame(&self, index: usize) -> Result<Frame, RecordError> {
         let recorded = self.frame(index)?;
         Ok(Frame {
@@ -689,6 +346,7 @@ impl Dataset {
         })
     }
 
+    /// The sensor extrinsics the estimator needs (`T_lidar_imu`).
     pub fn extrinsics(&self) -> Extrinsics {
         Extrinsics {
             t_lidar_imu: self.meta.t_lidar_imu(),
@@ -740,6 +398,10 @@ impl Dataset {
         Ok(())
     }
 
+    /// Ground-truth ego states, `gt/ego.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn ego_truth(&self) -> Result<Vec<EgoTruth>, RecordError> {
         let columns = [
             "t_s", "x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz",
@@ -757,6 +419,10 @@ impl Dataset {
         Ok(out)
     }
 
+    /// Ground-truth IMU biases, `gt/imu_bias.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn bias_truth(&self) -> Result<Vec<BiasTruth>, RecordError> {
         let columns = ["t_s", "bax", "bay", "baz", "bgx", "bgy", "bgz"];
         let csv = Csv::open(self.dir.join("gt/imu_bias.csv"), &columns.join(","))?;
@@ -772,7 +438,10 @@ impl Dataset {
         Ok(out)
     }
 
-    /// Ground-truth boxes per frame.
+    /// Ground-truth boxes per frame, `gt/boxes.csv`.
+    ///
+    /// # Errors
+    /// [`RecordError`] for a missing file or invalid contents.
     pub fn box_truth(&self) -> Result<Vec<Vec<BoxTruth>>, RecordError> {
         let columns = [
             "frame", "t_s", "id", "class", "x", "y", "z", "qx", "qy", "qz", "qw", "l", "w", "h",
@@ -900,6 +569,8 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
 #[cfg(test)]
 mod tests {
     use super::*;
+    use limot_estimator::input::LidarPoint;
+    use scan::SCAN_HEADER_BYTES;
 
     fn sample_scan() -> (LidarScan, Vec<u32>) {
         let points = (0..5)

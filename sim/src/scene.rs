@@ -2,8 +2,8 @@
 //! parked agents, and the ego vehicle. Built by `scenario`, consumed by
 //! `world` (ray casting), `imu`, `detector` and `record`.
 
-use crate::roughness::Roughness;
-use crate::trajectory::Trajectory;
+pub use crate::roughness::Roughness;
+pub use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 
@@ -20,17 +20,22 @@ pub struct Ground {
     pub base_height_m: f64,
     /// Constant slope (dz/dx, dz/dy).
     pub slope: Vector2<f64>,
+    /// Sinusoidal undulations added to the plane.
     pub undulations: Vec<Undulation>,
+    /// Road crown (camber), if any.
     pub crown: Option<Crown>,
+    /// Road roughness texture, if any.
     pub roughness: Option<Roughness>,
 }
 
 /// One term `amplitude * sin(k . (x, y) + phase)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Undulation {
+    /// Amplitude, m.
     pub amplitude_m: f64,
     /// Wave vector, rad/m.
     pub wave_vector: Vector2<f64>,
+    /// Phase, rad.
     pub phase_rad: f64,
 }
 
@@ -45,7 +50,9 @@ pub struct Crown {
     pub axis_point: Vector2<f64>,
     /// Unit normal of the axis in the plane (the lateral direction).
     pub lateral: Vector2<f64>,
+    /// Depth of the terrain far from the axis below the axis, m.
     pub height_m: f64,
+    /// Lateral length scale, m.
     pub width_m: f64,
 }
 
@@ -63,6 +70,7 @@ impl Crown {
 }
 
 impl Ground {
+    /// Level ground at `height_m`, no detail.
     pub fn flat(height_m: f64) -> Ground {
         Ground {
             base_height_m: height_m,
@@ -73,6 +81,7 @@ impl Ground {
         }
     }
 
+    /// Height of the ground at (x, y), world frame, m.
     pub fn height(&self, x: f64, y: f64) -> f64 {
         self.height_and_gradient(x, y).0
     }
@@ -165,15 +174,22 @@ impl Ground {
 /// Collision/ray-cast geometry, in the object's local frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Shape {
+    /// A box.
     Cuboid {
+        /// Half length, width, height, m.
         half_extents_m: Vector3<f64>,
     },
     /// Axis along local z.
+    /// A cylinder.
     Cylinder {
+        /// Radius, m.
         radius_m: f64,
+        /// Half the height, m.
         half_height_m: f64,
     },
+    /// A sphere.
     Ball {
+        /// Radius, m.
         radius_m: f64,
     },
 }
@@ -181,18 +197,26 @@ pub enum Shape {
 /// What a static object is, for intensity and reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum StaticKind {
+    /// A building's block.
     Building,
+    /// A highway guard rail.
     GuardRail,
+    /// A pole (street light, signal, sign post).
     Pole,
+    /// A tree trunk.
     TreeTrunk,
+    /// A tree crown.
     TreeCrown,
+    /// A wall (noise barrier, retaining wall).
     Wall,
+    /// A traffic sign's plate.
     Sign,
     /// Raised sidewalk slabs (their sides are the kerbs).
     Kerb,
     /// Detail on a building's street face: pilasters, sills, balconies,
     /// awnings, canopies, steps, cornices.
     Facade,
+    /// A fence.
     Fence,
     /// Bushes and hedges.
     Shrub,
@@ -202,10 +226,14 @@ pub enum StaticKind {
     Embankment,
 }
 
+/// A piece of static geometry: what it is, its shape and where.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StaticObject {
+    /// What the object is.
     pub kind: StaticKind,
+    /// Geometry in the object's frame.
     pub shape: Shape,
+    /// Object pose in the world.
     pub t_world_object: Isometry3<f64>,
 }
 
@@ -215,14 +243,18 @@ pub struct StaticObject {
 pub struct Agent {
     /// Instance id, >= 1 (0 is the static scene).
     pub id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// Box length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
     /// True for vehicles that never move in this scenario.
     pub parked: bool,
+    /// Pose of the box centre over time (world frame).
     pub trajectory: Trajectory,
 }
 
 impl Agent {
+    /// The agent's ground-truth box at `t_s`.
     pub fn box_at(&self, t_s: f64) -> GroundTruthBox {
         GroundTruthBox {
             id: self.id,
@@ -237,10 +269,15 @@ impl Agent {
 /// One ground-truth object box at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundTruthBox {
+    /// Instance id of the agent.
     pub id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// Box length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
+    /// Box pose in the world (centre, x along the heading).
     pub t_world_box: Isometry3<f64>,
+    /// Box-centre velocity, world frame, m/s.
     pub velocity_world_mps: Vector3<f64>,
 }
 
@@ -257,7 +294,9 @@ impl GroundTruthBox {
 /// ego frame); the car body box is placed relative to it for overlap checks.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ego {
+    /// `t_world_lidar` over time.
     pub trajectory: Trajectory,
+    /// Car body length, width, height, m.
     pub size_lwh_m: Vector3<f64>,
     /// Box centre of the ego car in the LiDAR frame.
     pub box_center_lidar_m: Vector3<f64>,
@@ -268,14 +307,20 @@ pub struct Ego {
 /// A generated world: everything the sensors can see, over `[0, duration_s]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
+    /// End of the scene's time span, s.
     pub duration_s: f64,
+    /// The ground height field.
     pub ground: Ground,
+    /// Static geometry.
     pub statics: Vec<StaticObject>,
+    /// Moving and parked agents.
     pub agents: Vec<Agent>,
+    /// The ego vehicle.
     pub ego: Ego,
 }
 
 impl Scene {
+    /// Every agent's ground-truth box at `t_s`, in `agents` order.
     pub fn boxes_at(&self, t_s: f64) -> Vec<GroundTruthBox> {
         self.agents.iter().map(|a| a.box_at(t_s)).collect()
     }

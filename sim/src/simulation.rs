@@ -18,33 +18,65 @@ use crate::world::World;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
+/// Why a scenario could not be simulated or written.
 pub enum SimulationError {
     #[error(transparent)]
+    /// The spec is invalid or its scene could not be built.
     Scenario(#[from] ScenarioError),
     #[error("lidar: {0}")]
+    /// The `[lidar]` settings are invalid.
     Lidar(#[from] LidarError),
     #[error("imu: {0}")]
+    /// The `[imu]` settings are invalid.
     Imu(#[from] ImuError),
     #[error("detector: {0}")]
+    /// The `[detector]` settings are invalid, or it produced an invalid detection.
     Detector(#[from] DetectorError),
     #[error(transparent)]
+    /// Writing the dataset failed.
     Record(#[from] RecordError),
     #[error("frame {index} does not exist (the scenario has {count} frames)")]
-    NoSuchFrame { index: usize, count: usize },
+    /// A frame index at or beyond [`Simulation::frame_count`].
+    NoSuchFrame {
+        /// The requested frame.
+        index: usize,
+        /// Frames in the scenario.
+        count: usize,
+    },
 }
 
 /// One simulated frame with the ground truth that goes with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedFrame {
+    /// Frame index, 0-based.
     pub index: usize,
     /// Sweep start time, s.
     pub t_s: f64,
+    /// The sweep, its per-point labels and the detections, as written to a dataset.
     pub recorded: RecordedFrame,
     /// World-frame boxes of all agents at the sweep start.
     pub boxes: Vec<BoxTruth>,
 }
 
-/// A scenario ready to be simulated.
+/// A scenario ready to be simulated: its scene, the ray-cast world and the
+/// seeded sensors. Frames are pure functions of (spec, frame index).
+///
+/// ```
+/// use limot_sim::{ScenarioSpec, Simulation};
+///
+/// let mut spec = ScenarioSpec::builtin("highway").expect("a built-in scenario");
+/// spec.duration_s = 0.2;
+/// spec.ego.depart_s = 0.0;
+/// let sim = Simulation::new(&spec)?;
+/// assert_eq!(sim.frame_count(), 2); // 0.1 s sweeps
+/// let frame = sim.frame(1)?;
+/// assert_eq!(frame.t_s, sim.frame_start_s(1));
+/// assert!(!frame.recorded.scan.points.is_empty());
+/// assert_eq!(frame.recorded.labels.len(), frame.recorded.scan.points.len());
+/// // ground truth: one box per agent at the sweep start
+/// assert_eq!(frame.boxes.len(), sim.scene().agents.len());
+/// # Ok::<(), limot_sim::SimulationError>(())
+/// ```
 pub struct Simulation {
     spec: ScenarioSpec,
     scene: Scene,
@@ -66,6 +98,12 @@ fn sub_seed(seed: u64, stream: u64) -> u64 {
 }
 
 impl Simulation {
+    /// Validates `spec`, builds its scene and ray-cast world, and sets up the
+    /// sensors with seeds derived from `spec.seed`.
+    ///
+    /// # Errors
+    /// [`SimulationError::Scenario`] for an invalid spec or a scene that cannot be
+    /// built, and the sensor variants for invalid sensor settings.
     pub fn new(spec: &ScenarioSpec) -> Result<Simulation, SimulationError> {
         spec.validate()?;
         let scene = spec.build()?;
@@ -80,18 +118,22 @@ impl Simulation {
         })
     }
 
+    /// The validated spec.
     pub fn spec(&self) -> &ScenarioSpec {
         &self.spec
     }
 
+    /// The generated scene (ground, statics, agents, ego).
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
 
+    /// The ray-cast world of the scene.
     pub fn world(&self) -> &World {
         &self.world
     }
 
+    /// Duration of one LiDAR sweep, s.
     pub fn sweep_duration_s(&self) -> f64 {
         self.spec.lidar.sweep_duration_s()
     }
@@ -102,12 +144,17 @@ impl Simulation {
         (self.scene.duration_s / self.sweep_duration_s() + 1e-9).floor() as usize
     }
 
+    /// Start time of frame `index` (`index` sweeps after t = 0), s.
     pub fn frame_start_s(&self, index: usize) -> f64 {
         index as f64 * self.sweep_duration_s()
     }
 
     /// Simulates frame `index`: the rolling sweep, its labels, the detections
     /// and the ground-truth boxes at the sweep start.
+    ///
+    /// # Errors
+    /// [`SimulationError::NoSuchFrame`] for `index >= frame_count()`;
+    /// [`SimulationError::Detector`] if a generated detection is invalid.
     pub fn frame(&self, index: usize) -> Result<SimulatedFrame, SimulationError> {
         let count = self.frame_count();
         if index >= count {
@@ -154,6 +201,9 @@ impl Simulation {
 
     /// The IMU stream over the whole scenario (one call: the bias random walk
     /// is one continuous process).
+    ///
+    /// # Errors
+    /// [`SimulationError::Imu`] if the scenario's time range is not finite.
     pub fn imu_stream(&self) -> Result<ImuStream, SimulationError> {
         Ok(self
             .imu
@@ -175,6 +225,7 @@ impl Simulation {
             .collect()
     }
 
+    /// Ground-truth IMU biases at the IMU sample times of `imu`.
     pub fn bias_truth(imu: &ImuStream) -> Vec<BiasTruth> {
         imu.samples
             .iter()
@@ -187,6 +238,7 @@ impl Simulation {
             .collect()
     }
 
+    /// The dataset's `meta.toml` contents for this scenario.
     pub fn meta(&self) -> Meta {
         Meta {
             format_version: FORMAT_VERSION,
@@ -206,8 +258,13 @@ impl Simulation {
         }
     }
 
-    /// Simulates every frame into a dataset directory. `on_frame(done, total)`
-    /// is called after each frame (progress bars).
+    /// Simulates every frame into a dataset directory and returns it.
+    /// `on_frame(frame, total)` is called after each frame is simulated
+    /// (progress bars).
+    ///
+    /// # Errors
+    /// The first [`SimulationError`] of any frame, and
+    /// [`SimulationError::Record`] when a file cannot be written.
     pub fn write_dataset(
         &self,
         dir: &Path,

@@ -10,12 +10,16 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 /// A scalar value with its first and second time derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Jet {
+    /// The value.
     pub value: f64,
+    /// First time derivative, per s.
     pub rate: f64,
+    /// Second time derivative, per s².
     pub accel: f64,
 }
 
 impl Jet {
+    /// A jet from its value and two derivatives.
     pub const fn new(value: f64, rate: f64, accel: f64) -> Jet {
         Jet { value, rate, accel }
     }
@@ -25,6 +29,7 @@ impl Jet {
 /// intrinsic z-y-x Euler angles (yaw, pitch, roll), each with derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Knot {
+    /// [x, y, z] of the body origin, world frame, m.
     pub position: [Jet; 3],
     /// [yaw, pitch, roll]; R = Rz(yaw) * Ry(pitch) * Rx(roll).
     pub euler: [Jet; 3],
@@ -45,12 +50,19 @@ pub struct KinematicState {
 /// clamped to the end knots (the body holds still there).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
+    /// Time of the first knot, s.
     pub t0_s: f64,
+    /// Knot spacing, s.
     pub dt_s: f64,
+    /// The knots at `t0_s + k dt_s`.
     pub knots: Vec<Knot>,
 }
 
 impl Trajectory {
+    /// A trajectory from its knots.
+    ///
+    /// # Panics
+    /// If `dt_s <= 0` or `knots` is empty.
     pub fn new(t0_s: f64, dt_s: f64, knots: Vec<Knot>) -> Trajectory {
         assert!(dt_s > 0.0 && !knots.is_empty());
         Trajectory { t0_s, dt_s, knots }
@@ -75,10 +87,12 @@ impl Trajectory {
         Trajectory::new(t0_s, (t1_s - t0_s).max(1e-3), vec![knot, knot])
     }
 
+    /// Time of the first knot, s.
     pub fn start_s(&self) -> f64 {
         self.t0_s
     }
 
+    /// Time of the last knot, s.
     pub fn end_s(&self) -> f64 {
         self.t0_s + (self.knots.len() - 1) as f64 * self.dt_s
     }
@@ -106,11 +120,13 @@ impl Trajectory {
         out
     }
 
+    /// The body pose `t_world_body` at `t_s` (clamped to the trajectory).
     pub fn pose_at(&self, t_s: f64) -> Isometry3<f64> {
         let k = self.knot_at(t_s);
         pose_of(&k)
     }
 
+    /// Pose, velocities and accelerations at `t_s` (clamped to the trajectory).
     pub fn state_at(&self, t_s: f64) -> KinematicState {
         let k = self.knot_at(t_s);
         let [yaw, pitch, roll] = k.euler;

@@ -3,10 +3,10 @@
 //! trucks, cyclists and pedestrians driving along with it, plus parked cars.
 
 use limot_estimator::input::{Detection, ObjectClass};
-use limot_sim::detector::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig, wrap_angle};
-use limot_sim::lidar::LidarConfig;
 use limot_sim::scene::{Agent, Ego, Ground, Scene, Undulation};
-use limot_sim::trajectory::{Jet, Knot, Trajectory};
+use limot_sim::scene::{Jet, Knot, Trajectory};
+use limot_sim::sensors::LidarConfig;
+use limot_sim::sensors::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig, wrap_angle};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;

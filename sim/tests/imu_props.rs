@@ -3,9 +3,9 @@
 //! ground), and the noise has the Kalibr statistics it is configured with.
 
 use limot_estimator::input::ImuSample;
-use limot_sim::imu::{ImuConfig, ImuSimulator};
 use limot_sim::scene::Ego;
-use limot_sim::trajectory::{Jet, Knot, Trajectory};
+use limot_sim::scene::{Jet, Knot, Trajectory};
+use limot_sim::sensors::{ImuConfig, ImuSimulator};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 

@@ -3,9 +3,9 @@
 //! line for text files) or be read back faithfully; it must never panic and
 //! never be silently misread.
 
+use limot_sim::Simulation;
 use limot_sim::record::{Dataset, RecordError, RecordedFrame, decode_scan, encode_scan, scan_path};
 use limot_sim::scenario::ScenarioSpec;
-use limot_sim::simulation::Simulation;
 use proptest::prelude::*;
 use std::fs;
 use std::path::{Path, PathBuf};

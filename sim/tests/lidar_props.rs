@@ -4,14 +4,14 @@
 //! sweep by exactly the distance driven.
 
 use limot_estimator::input::{LidarScan, ObjectClass};
-use limot_sim::hdl64::NUM_LASERS;
-use limot_sim::lidar::LidarConfig;
-use limot_sim::lidar_scan::{LidarSimulator, SimulatedScan};
 use limot_sim::scene::{
     Agent, Ego, Ground, STATIC_INSTANCE_ID, Scene, Shape, StaticKind, StaticObject, Undulation,
 };
-use limot_sim::trajectory::{Jet, Knot, Trajectory};
-use limot_sim::world::World;
+use limot_sim::scene::{Jet, Knot, Trajectory};
+use limot_sim::sensors::LidarConfig;
+use limot_sim::sensors::World;
+use limot_sim::sensors::hdl64::NUM_LASERS;
+use limot_sim::sensors::{LidarSimulator, SimulatedScan};
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use proptest::prelude::*;
 use std::collections::HashMap;
@@ -456,7 +456,7 @@ fn culled_sweep_matches_a_brute_force_reference() {
     let lidar = LidarSimulator::new(config.clone(), 0).unwrap();
     let t_start = 0.25;
     let sweep = lidar.scan(&scene, &world, 0, t_start);
-    let table = limot_sim::hdl64::elevation_table_rad();
+    let table = limot_sim::sensors::hdl64::elevation_table_rad();
     let mut reference = Vec::new();
     for column in 0..config.azimuth_steps {
         let tau = lidar.column_time_offset_s(column);
@@ -471,7 +471,7 @@ fn culled_sweep_matches_a_brute_force_reference() {
                 && hit.range_m >= config.min_range_m
             {
                 reference.push((
-                    limot_sim::hdl64::ring_of_beam(beam),
+                    limot_sim::sensors::hdl64::ring_of_beam(beam),
                     tau as f32,
                     dir_lidar * hit.range_m,
                     hit.instance_id,

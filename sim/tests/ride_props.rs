@@ -3,9 +3,9 @@
 //! gradients, the road's roughness makes it vibrate, and the IMU (derived
 //! from the same motion) sees all of it.
 
-use limot_sim::imu::{ImuConfig, ImuSimulator};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;
+use limot_sim::sensors::{ImuConfig, ImuSimulator};
 use limot_sim::traffic::Suspension;
 
 /// Pitch (nose down positive) and roll (left up) of a rotation R = Rz Ry Rx.

@@ -1,9 +1,9 @@
 //! End-to-end properties of the simulator: determinism of whole datasets and
 //! ground-truth labels of LiDAR points on moving objects.
 
+use limot_sim::Simulation;
 use limot_sim::record::Dataset;
 use limot_sim::scenario::ScenarioSpec;
-use limot_sim::simulation::Simulation;
 use proptest::prelude::*;
 use std::collections::BTreeMap;
 use std::fs;

@@ -3,12 +3,12 @@
 //! never reverse, and keep the acceleration continuous.
 
 use limot_estimator::input::ObjectClass;
+use limot_sim::scene::Trajectory;
 use limot_sim::scene::{Agent, Ego, Ground, Scene};
 use limot_sim::traffic::{
     DriverParams, LaneChange, LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec,
     first_overlap, lift_to_ground, simulate_traffic,
 };
-use limot_sim::trajectory::Trajectory;
 use nalgebra::{Isometry3, Point2, Vector3};
 use proptest::prelude::*;
 

@@ -47,7 +47,7 @@ pub fn kitti_training(data: &std::path::Path) -> PathBuf {
 pub fn simulate(spec: &limot_sim::scenario::ScenarioSpec, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("limot-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    limot_sim::simulation::Simulation::new(spec)
+    limot_sim::Simulation::new(spec)
         .unwrap()
         .write_dataset(&dir, |_, _| {})
         .unwrap()

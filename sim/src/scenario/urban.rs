@@ -19,26 +19,29 @@
 //! Sidewalk: street furniture (poles, tree trunks) in a strip next to the kerb;
 //! pedestrians walk in two lines further out, one per walking direction.
 
-use super::common::{
-    draw_body, ego_vehicle, generate_ground, parked_agent, run_traffic, tree, uniform,
-    upright_static,
-};
+use super::common::{draw_body, ego_vehicle, generate_ground, run_traffic, uniform};
 use super::streetscape::{StreetLayout, streetscape};
 use super::{
-    ScenarioError, ScenarioSpec, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
+    ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
     URBAN_PEDESTRIAN_SPACING_M, UrbanParams, traffic_error, urban_spawn_length_m,
 };
-use crate::scene::{Agent, Ground, Scene, Shape, StaticKind, StaticObject};
+use crate::scene::{Agent, Ground, Scene};
 use crate::traffic::{
     LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec, lift_to_ground,
     simulate_traffic,
 };
 use limot_estimator::input::ObjectClass;
-use nalgebra::{Point2, Vector3};
+use nalgebra::Point2;
+use rand::RngExt;
 use rand::seq::SliceRandom;
-use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
+
+mod signals;
+mod statics;
+
+use signals::{SignalPlan, earliest_travel_time_s, signals};
+use statics::{building_lot_rng, buildings, furniture, parked_cars};
 
 /// Street beyond the farthest point any agent can reach (agents brake for
 /// the end of their lane), m.
@@ -434,149 +437,6 @@ fn layout(
     })
 }
 
-/// Signal plans of all intersections (in `crossings` order) and the stop
-/// lines before them on the main street's lanes. Phases are random, except
-/// at the ego's first intersection, which turns red shortly before the ego
-/// could arrive there at the earliest and stays red for `red_s`, so every run
-/// has a stop-and-go of the ego. Pedestrians stop only where a cross street
-/// has traffic.
-fn signals(
-    street: &Street,
-    spec: &ScenarioSpec,
-    ego_speed_mps: f64,
-    rng: &mut ChaCha8Rng,
-) -> (Vec<SignalPlan>, Vec<StopLine>) {
-    let u = &street.u;
-    let half = 0.5 * u.cross_street_width_m;
-    let walk_clear = walk_clearance_s(u);
-    let mut plans = Vec::new();
-    let mut lines = Vec::new();
-    for (k, &c) in street.crossings.iter().enumerate() {
-        let first_red = if k == street.ego_crossing {
-            let distance = c - half - STOP_LINE_SETBACK_M - 0.5 * spec.ego.size_lwh_m[0];
-            let arrival = spec.ego.depart_s
-                + earliest_travel_time_s(
-                    distance,
-                    ego_speed_mps,
-                    crate::traffic::DriverParams::car().max_accel_mps2,
-                );
-            (arrival - EGO_RED_LEAD_S).max(EARLIEST_RED_S)
-        } else {
-            uniform(rng, EARLIEST_RED_S, EARLIEST_RED_S + u.signal_cycle_s)
-        };
-        let plan = signal_plan(first_red, u, spec.duration_s, walk_clear);
-        let has_cross_traffic = street.cross_streets.iter().any(|x| x.crossing == k);
-        for (index, lane) in street.lanes.iter().enumerate() {
-            let sign = if lane.forward { -1.0 } else { 1.0 };
-            let (line_x, red) = match lane.kind {
-                LaneKind::Car | LaneKind::Bike => {
-                    (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
-                }
-                // pedestrians wait at the cross street's carriageway while
-                // it has green
-                LaneKind::Walk if has_cross_traffic => (
-                    c + sign * (u.lane_width_m + WALK_STOP_SETBACK_M),
-                    &plan.walk_red,
-                ),
-                LaneKind::Walk => continue,
-            };
-            let s = street.s_of(lane.forward, line_x);
-            if !red.is_empty() && s > 0.0 && s < lane.path.length_m() {
-                lines.push(StopLine {
-                    lane: index,
-                    s_m: s,
-                    red_intervals_s: red.clone(),
-                });
-            }
-        }
-        plans.push(plan);
-    }
-    (plans, lines)
-}
-
-/// Red intervals of one intersection's approaches.
-#[derive(Debug, Clone, PartialEq)]
-struct SignalPlan {
-    /// Main-street car and bike lanes.
-    main_red: Vec<(f64, f64)>,
-    /// Cross-street lanes: green only inside each main red [T, T + red_s),
-    /// `URBAN_ALL_RED_S` after its start and before its end.
-    cross_red: Vec<(f64, f64)>,
-    /// Pedestrians along the main street (they cross the cross street): red
-    /// from `walk_clear_s` before each main red to its end, so those already
-    /// on the crossing leave it before the cross street's green.
-    walk_red: Vec<(f64, f64)>,
-}
-
-/// The signal plan of an intersection whose main street first turns red at
-/// `first_red_s`. The cross street is red until `walk_clear_s` +
-/// `URBAN_ALL_RED_S`: whoever stands inside the intersection at t = 0 has
-/// left it by then.
-fn signal_plan(
-    first_red_s: f64,
-    u: &UrbanParams,
-    duration_s: f64,
-    walk_clear_s: f64,
-) -> SignalPlan {
-    let main_red = red_intervals(first_red_s, u.red_s, u.signal_cycle_s, duration_s);
-    let earliest_green = walk_clear_s + URBAN_ALL_RED_S;
-    let mut cross_red = Vec::new();
-    let mut walk_red = Vec::new();
-    let mut red_from = 0.0;
-    for &(start, _) in &main_red {
-        let end = start + u.red_s;
-        walk_red.push(((start - walk_clear_s).max(0.0), end.min(duration_s)));
-        let green = (
-            (start + URBAN_ALL_RED_S).max(earliest_green),
-            (end - URBAN_ALL_RED_S).min(duration_s),
-        );
-        if green.1 - green.0 >= 1.0 {
-            if green.0 > red_from {
-                cross_red.push((red_from, green.0));
-            }
-            red_from = green.1;
-        }
-    }
-    // red to beyond the end of the run
-    cross_red.push((red_from, duration_s + URBAN_ALL_RED_S));
-    SignalPlan {
-        main_red,
-        cross_red,
-        walk_red,
-    }
-}
-
-/// How long a pedestrian who could not stop at the walk red needs to cross a
-/// cross street's carriageway: the slowest walking speed over the carriageway,
-/// both setbacks and a body length, plus the time to reach the line.
-fn walk_clearance_s(u: &UrbanParams) -> f64 {
-    let crossing = 2.0 * u.lane_width_m + 2.0 * WALK_STOP_SETBACK_M + PEDESTRIAN_LENGTH_MAX_M;
-    let decel = crate::traffic::DriverParams::pedestrian().comfortable_decel_mps2;
-    crossing / u.pedestrian_speed_min_mps + u.pedestrian_speed_max_mps / (2.0 * decel)
-}
-
-/// Red intervals [first + j cycle, first + j cycle + red) inside [0, duration].
-fn red_intervals(first_s: f64, red_s: f64, cycle_s: f64, duration_s: f64) -> Vec<(f64, f64)> {
-    if red_s <= 0.0 {
-        return Vec::new();
-    }
-    (0..)
-        .map(|j| first_s + j as f64 * cycle_s)
-        .take_while(|&t| t < duration_s)
-        .map(|t| (t, (t + red_s).min(duration_s)))
-        .collect()
-}
-
-/// Time to cover `distance_m` from rest accelerating at `accel` up to `speed`.
-fn earliest_travel_time_s(distance_m: f64, speed_mps: f64, accel_mps2: f64) -> f64 {
-    let accel_distance = speed_mps * speed_mps / (2.0 * accel_mps2);
-    if distance_m <= accel_distance {
-        (2.0 * distance_m / accel_mps2).sqrt()
-    } else {
-        speed_mps / accel_mps2 + (distance_m - accel_distance) / speed_mps
-    }
-}
-
 /// Moving cars, cyclists and pedestrians in spawn slots: every lane of a kind
 /// is cut into slots of the kind's spacing over the spawn zone; each agent
 /// takes a random slot (jittered inside it), half of each kind in each
@@ -729,188 +589,12 @@ fn cross_traffic(
     }
 }
 
-/// Parked cars in the parking strips on both sides, facing the traffic on
-/// their side, in places of `PARKING_PLACE_M` away from the crossings.
-fn parked_cars(
-    street: &Street,
-    ground: &Ground,
-    first_id: u32,
-    duration_s: f64,
-    rng: &mut ChaCha8Rng,
-) -> Vec<Agent> {
-    let u = &street.u;
-    let from_axis = street.kerb_m() - 0.5 * u.parking_width_m;
-    let mut cars = Vec::new();
-    for side in [-1.0, 1.0] {
-        let yaw = if side < 0.0 { 0.0 } else { PI };
-        let mut x = street.view_lo;
-        while x + PARKING_PLACE_M <= street.view_hi {
-            let (x0, x1) = (x, x + PARKING_PLACE_M);
-            x = x1;
-            if street.near_crossing(x0, x1, CORNER_CLEARANCE_M)
-                || !rng.random_bool(u.parking_occupancy)
-            {
-                continue;
-            }
-            let (size, _) = draw_body(rng, ObjectClass::Car);
-            let slack = 0.5 * (PARKING_PLACE_M - size.x - 0.6).max(0.0);
-            let cx = 0.5 * (x0 + x1) + uniform(rng, -slack, slack);
-            let lateral = uniform(rng, -0.1, 0.1);
-            cars.push(parked_agent(
-                ground,
-                first_id + cars.len() as u32,
-                ObjectClass::Car,
-                size,
-                street.at(cx, side, from_axis + lateral),
-                yaw,
-                duration_s,
-            ));
-        }
-    }
-    cars
-}
-
-/// The random stream that decides which building lots hold a building: the
-/// scenario seed on its own ChaCha stream, so the decisions never shift the
-/// generator's other draws: at `building_fraction` = 1 every lot is built
-/// and the scene is bit-identical to the one before this parameter existed;
-/// below 1 buildings disappear and nothing else changes.
-fn building_lot_rng(seed: u64) -> ChaCha8Rng {
-    let mut lots = ChaCha8Rng::seed_from_u64(seed);
-    lots.set_stream(BUILDING_LOT_STREAM);
-    lots
-}
-
-/// Rows of buildings behind both sidewalks, block by block. Every lot is
-/// drawn from `rng` whether it gets built or not (so the lots stay where they
-/// are); `lots` decides, with probability `building_fraction`, that it is.
-fn buildings(
-    street: &Street,
-    ground: &Ground,
-    rng: &mut ChaCha8Rng,
-    lots: &mut ChaCha8Rng,
-) -> Vec<StaticObject> {
-    let u = &street.u;
-    let back_of_sidewalk = street.kerb_m() + u.sidewalk_width_m;
-    let half = 0.5 * u.cross_street_width_m;
-    let mut out = Vec::new();
-    for side in [-1.0, 1.0] {
-        for pair in street.crossings.windows(2) {
-            let start = (pair[0] + half + 1.0).max(street.view_lo);
-            let end = (pair[1] - half - 1.0).min(street.view_hi);
-            let mut x = start;
-            while end - x >= BUILDING_LENGTH_M.0 {
-                let length = uniform(rng, BUILDING_LENGTH_M.0, BUILDING_LENGTH_M.1).min(end - x);
-                let depth = uniform(rng, BUILDING_DEPTH_M.0, BUILDING_DEPTH_M.1);
-                let height = uniform(rng, BUILDING_HEIGHT_M.0, BUILDING_HEIGHT_M.1);
-                let setback = uniform(rng, BUILDING_SETBACK_M.0, BUILDING_SETBACK_M.1);
-                let gap = uniform(rng, BUILDING_GAP_M.0, BUILDING_GAP_M.1);
-                // one draw per lot, also at fraction 1, so that a lot built
-                // at some fraction is built at every higher one
-                let built = lots.random::<f64>() < u.building_fraction;
-                if !built {
-                    x += length + gap;
-                    continue;
-                }
-                let near = back_of_sidewalk + setback;
-                let centre = street.at(x + 0.5 * length, side, near + 0.5 * depth);
-                // base below the lowest corner of the footprint
-                let lowest = [x, x + length]
-                    .iter()
-                    .flat_map(|&cx| [near, near + depth].map(|d| street.at(cx, side, d)))
-                    .map(|p| ground.height(p.x, p.y))
-                    .fold(f64::INFINITY, f64::min);
-                let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
-                out.push(upright_static(
-                    ground,
-                    StaticKind::Building,
-                    Shape::Cuboid {
-                        half_extents_m: Vector3::new(
-                            0.5 * length,
-                            0.5 * depth,
-                            0.5 * (height + BUILDING_SINK_M),
-                        ),
-                    },
-                    centre,
-                    base,
-                    0.0,
-                ));
-                x += length + gap;
-            }
-        }
-    }
-    out
-}
-
-/// Signal poles at every corner, light poles at a regular spacing and trees
-/// in between, all in the furniture strip next to the kerb.
-fn furniture(street: &Street, ground: &Ground, rng: &mut ChaCha8Rng) -> Vec<StaticObject> {
-    let u = &street.u;
-    let from_axis = street.kerb_m() + FURNITURE_FROM_KERB_M;
-    let half = 0.5 * u.cross_street_width_m;
-    let pole = |height_m: f64| Shape::Cylinder {
-        radius_m: POLE_RADIUS_M,
-        half_height_m: 0.5 * height_m,
-    };
-    let mut out = Vec::new();
-    for side in [-1.0, 1.0] {
-        let mut pole_xs = Vec::new();
-        for &c in &street.crossings {
-            for x in [c - half - 1.0, c + half + 1.0] {
-                if (street.view_lo..=street.view_hi).contains(&x) {
-                    pole_xs.push(x);
-                    let at = street.at(x, side, from_axis);
-                    out.push(upright_static(
-                        ground,
-                        StaticKind::Pole,
-                        pole(SIGNAL_POLE_HEIGHT_M),
-                        at,
-                        -0.2,
-                        0.0,
-                    ));
-                }
-            }
-        }
-        let mut x = street.view_lo + uniform(rng, 0.0, u.pole_spacing_m);
-        while x < street.view_hi {
-            if !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
-                pole_xs.push(x);
-                let at = street.at(x, side, from_axis);
-                out.push(upright_static(
-                    ground,
-                    StaticKind::Pole,
-                    pole(POLE_HEIGHT_M),
-                    at,
-                    -0.2,
-                    0.0,
-                ));
-            }
-            x += u.pole_spacing_m;
-        }
-        let mut x = street.view_lo + uniform(rng, 0.0, u.tree_spacing_m);
-        while x < street.view_hi {
-            let clear = pole_xs
-                .iter()
-                .all(|&p| (p - x).abs() >= TREE_POLE_CLEARANCE_M);
-            if clear && !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
-                out.extend(tree(
-                    ground,
-                    street.at(x, side, from_axis),
-                    TRUNK_HEIGHT_M,
-                    TRUNK_RADIUS_M,
-                    CROWN_RADIUS_M,
-                    rng,
-                ));
-            }
-            x += u.tree_spacing_m * uniform(rng, 0.7, 1.3);
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
+    use super::signals::{red_intervals, signal_plan, walk_clearance_s};
     use super::*;
+    use crate::scenario::URBAN_ALL_RED_S;
+    use crate::scene::Shape;
     use rand::SeedableRng;
 
     fn is_red(intervals: &[(f64, f64)], t_s: f64) -> bool {

@@ -29,12 +29,17 @@ pub struct LanePath {
 /// One piece of a lane built by [`LanePath::from_pieces`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PathPiece {
+    /// A straight segment.
     Straight {
+        /// Length, m.
         length_m: f64,
     },
     /// +curvature = left turn.
+    /// A circular arc.
     Arc {
+        /// Length, m.
         length_m: f64,
+        /// Signed curvature, 1/m.
         curvature_1pm: f64,
     },
 }
@@ -47,6 +52,11 @@ impl LanePath {
     /// Builds a lane from pieces along a reference line starting at `start` with
     /// `heading_rad`; `lateral_offset_m` (+ = left) shifts the whole lane sideways,
     /// so arcs get curvature k / (1 - k d) and length L (1 - k d).
+    ///
+    /// # Errors
+    /// [`TrafficError::InvalidPath`] for a non-finite start, heading, offset
+    /// or curvature, no pieces, a non-positive length, or an offset that
+    /// reaches an arc's centre of curvature.
     pub fn from_pieces(
         start: Point2<f64>,
         heading_rad: f64,
@@ -118,6 +128,10 @@ impl LanePath {
 
     /// Builds a lane through `points` (at least two, consecutive points distinct),
     /// with tangents from neighbouring points and densified to <= 0.5 m spacing.
+    ///
+    /// # Errors
+    /// [`TrafficError::InvalidPath`] for fewer than two points, non-finite
+    /// points or repeated consecutive points.
     pub fn from_points(points: &[Point2<f64>]) -> Result<LanePath, TrafficError> {
         if points.len() < 2 {
             return Err(invalid(format!(
@@ -223,6 +237,7 @@ impl LanePath {
         }
     }
 
+    /// Total arc length of the path, m.
     pub fn length_m(&self) -> f64 {
         *self.s_m.last().unwrap_or(&0.0)
     }

@@ -11,6 +11,7 @@ const SHRINK_M: f64 = 0.01;
 /// A body of a scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Body {
+    /// The ego vehicle.
     Ego,
     /// Agent id.
     Agent(u32),
@@ -21,8 +22,11 @@ pub enum Body {
 /// Two bodies overlapping at `t_s`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Overlap {
+    /// Time of the overlap, s.
     pub t_s: f64,
+    /// One body.
     pub a: Body,
+    /// The other body.
     pub b: Body,
 }
 

@@ -30,8 +30,11 @@ const MAX_SUBSTEPS: usize = 1000;
 /// One body's ride parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Suspension {
+    /// Natural frequency of the heave mode, Hz.
     pub heave_hz: f64,
+    /// Natural frequency of the pitch mode, Hz.
     pub pitch_hz: f64,
+    /// Natural frequency of the roll mode, Hz.
     pub roll_hz: f64,
     /// Damping ratio of every mode.
     pub damping_ratio: f64,
@@ -97,8 +100,11 @@ pub struct RideInput {
 /// [`RideInput`]: pitch nose down positive, roll left side up positive).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BodyAttitude {
+    /// Vertical displacement of the body, m.
     pub heave_m: f64,
+    /// Pitch, nose down positive, rad.
     pub pitch_rad: f64,
+    /// Roll, left side up positive, rad.
     pub roll_rad: f64,
 }
 

@@ -1,0 +1,139 @@
+//! [`DatasetWriter`]: writes a dataset directory frame by frame.
+
+use super::{
+    BiasTruth, BoxTruth, EgoTruth, Meta, RecordError, RecordedFrame, encode_scan, format_err,
+    io_err, pose_to_array, scan_path,
+};
+use limot_estimator::input::ImuSample;
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// Writes a dataset directory incrementally: `begin`, then frames in order,
+/// then `finish` with the streams known only at the end.
+pub struct DatasetWriter {
+    dir: PathBuf,
+    detections_csv: String,
+    boxes_csv: String,
+    frames_written: usize,
+}
+
+impl DatasetWriter {
+    /// Creates the directory (and parents) and writes `scenario.toml`.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the directory or file cannot be written.
+    pub fn begin(dir: &Path, scenario_toml: &str) -> Result<DatasetWriter, RecordError> {
+        for sub in ["", "scans", "gt"] {
+            let d = dir.join(sub);
+            fs::create_dir_all(&d).map_err(io_err(&d))?;
+        }
+        let path = dir.join("scenario.toml");
+        fs::write(&path, scenario_toml).map_err(io_err(&path))?;
+        Ok(DatasetWriter {
+            dir: dir.to_path_buf(),
+            detections_csv: "frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id\n".into(),
+            boxes_csv: "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked\n".into(),
+            frames_written: 0,
+        })
+    }
+
+    /// The dataset directory being written.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Appends the next frame with its ground-truth boxes.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the scan file cannot be written.
+    pub fn write_frame(
+        &mut self,
+        frame: &RecordedFrame,
+        boxes: &[BoxTruth],
+    ) -> Result<(), RecordError> {
+        let index = self.frames_written;
+        let path = scan_path(&self.dir, index);
+        fs::write(&path, encode_scan(&frame.scan, &frame.labels)).map_err(io_err(&path))?;
+        for d in &frame.detections {
+            let det = &d.detection;
+            let c = det.center_lidar;
+            let s = det.size_lwh;
+            let truth = d.truth_id.map_or(-1, i64::from);
+            let _ = writeln!(
+                self.detections_csv,
+                "{index},{},{},{},{},{},{},{},{},{},{},{truth}",
+                det.time_offset_s, det.class, c.x, c.y, c.z, s.x, s.y, s.z, det.yaw_rad, det.score
+            );
+        }
+        for b in boxes {
+            let [x, y, z, qx, qy, qz, qw] = pose_to_array(&b.t_world_box);
+            let (s, v) = (b.size_lwh_m, b.velocity_world_mps);
+            let _ = writeln!(
+                self.boxes_csv,
+                "{index},{},{},{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{},{},{},{},{}",
+                b.t_s, b.id, b.class, s.x, s.y, s.z, v.x, v.y, v.z, b.parked as u8
+            );
+        }
+        self.frames_written += 1;
+        Ok(())
+    }
+
+    /// Writes the per-dataset streams and `meta.toml`. `meta.frame_count` is
+    /// set from the frames written.
+    ///
+    /// # Errors
+    /// [`RecordError`] if a file cannot be written or `meta` not serialised.
+    pub fn finish(
+        self,
+        mut meta: Meta,
+        imu: &[ImuSample],
+        biases: &[BiasTruth],
+        ego: &[EgoTruth],
+    ) -> Result<PathBuf, RecordError> {
+        meta.frame_count = self.frames_written;
+        let mut imu_csv = String::from("t_s,ax,ay,az,gx,gy,gz\n");
+        for s in imu {
+            let (a, g) = (s.accel_mps2, s.gyro_radps);
+            let _ = writeln!(
+                imu_csv,
+                "{},{},{},{},{},{},{}",
+                s.t_s, a.x, a.y, a.z, g.x, g.y, g.z
+            );
+        }
+        let mut bias_csv = String::from("t_s,bax,bay,baz,bgx,bgy,bgz\n");
+        for b in biases {
+            let (a, g) = (b.accel_bias, b.gyro_bias);
+            let _ = writeln!(
+                bias_csv,
+                "{},{},{},{},{},{},{}",
+                b.t_s, a.x, a.y, a.z, g.x, g.y, g.z
+            );
+        }
+        let mut ego_csv = String::from("t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz\n");
+        for e in ego {
+            let [x, y, z, qx, qy, qz, qw] = pose_to_array(&e.t_world_lidar);
+            let v = e.velocity_world_mps;
+            let _ = writeln!(
+                ego_csv,
+                "{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{}",
+                e.t_s, v.x, v.y, v.z
+            );
+        }
+        let meta_toml = toml::to_string(&meta)
+            .map_err(|e| format_err(&self.dir.join("meta.toml"), 0, "meta", e.to_string()))?;
+        let files = [
+            ("imu.csv", imu_csv),
+            ("detections.csv", self.detections_csv),
+            ("gt/boxes.csv", self.boxes_csv),
+            ("gt/imu_bias.csv", bias_csv),
+            ("gt/ego.csv", ego_csv),
+            ("meta.toml", meta_toml),
+        ];
+        for (name, text) in files {
+            let path = self.dir.join(name);
+            fs::write(&path, text).map_err(io_err(&path))?;
+        }
+        Ok(self.dir)
+    }
+}

@@ -1,0 +1,290 @@
+//! The scenario spec's tables: family, ego, ground, `[highway]` and `[urban]`
+//! parameters, with their defaults.
+
+use serde::{Deserialize, Serialize};
+
+/// Scenario family: which generator builds the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Family {
+    /// Multi-lane highway with trucks, guard rails and roadside structures.
+    Highway,
+    /// City street with intersections, parked cars, cyclists and pedestrians.
+    Urban,
+}
+
+/// The ego vehicle: where it drives and how its sensors are mounted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EgoSpec {
+    /// Lane counted from the right edge of the ego's carriageway, 0 = rightmost.
+    pub lane: usize,
+    /// Desired cruising speed; unset = the family's typical speed (highway:
+    /// middle of the speed range, urban: middle of the car speed range).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub speed_mps: Option<f64>,
+    /// The ego stands still until this time so an estimator can initialise.
+    pub depart_s: f64,
+    /// Car body length, width, height.
+    pub size_lwh_m: [f64; 3],
+    /// LiDAR height above the ground (KITTI: 1.73 m).
+    pub lidar_height_m: f64,
+    /// How far the LiDAR sits ahead of the body box centre (KITTI: ~0.27 m).
+    pub lidar_ahead_of_center_m: f64,
+    /// Translation of T_lidar_imu: the IMU origin in the LiDAR frame (KITTI's
+    /// Tr_imu_velo: the OXTS unit is 0.81 m behind, 0.32 m left of and 0.80 m
+    /// below the Velodyne). The rotation is identity.
+    pub imu_in_lidar_m: [f64; 3],
+}
+
+impl Default for EgoSpec {
+    fn default() -> Self {
+        EgoSpec {
+            lane: 1,
+            speed_mps: None,
+            depart_s: 1.0,
+            size_lwh_m: [4.8, 1.8, 1.5],
+            lidar_height_m: 1.73,
+            lidar_ahead_of_center_m: 0.27,
+            imu_in_lidar_m: [-0.81, 0.32, -0.80],
+        }
+    }
+}
+
+/// Ground height field: a plane with a small slope plus a few gentle waves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroundParams {
+    /// Slope of the plane, per cent (1 % = 1 m rise per 100 m), drawn uniformly.
+    pub slope_min_percent: f64,
+    /// Upper end of the slope range, per cent.
+    pub slope_max_percent: f64,
+    /// Number of sinusoidal undulations.
+    pub undulations: usize,
+    /// Smallest undulation amplitude, m.
+    pub amplitude_min_m: f64,
+    /// Largest undulation amplitude, m.
+    pub amplitude_max_m: f64,
+    /// Shortest undulation wavelength, m.
+    pub wavelength_min_m: f64,
+    /// Longest undulation wavelength, m.
+    pub wavelength_max_m: f64,
+    /// Each undulation's amplitude is capped so that its own grade stays below
+    /// this (keeps roads driveable for short wavelengths), per cent.
+    pub undulation_grade_max_percent: f64,
+    /// Road roughness: ISO 8608 displacement PSD at 0.1 cycles/m, m³
+    /// (class A 16e-6, B 64e-6, C 256e-6); 0 = a smooth road.
+    pub roughness_psd_m3: f64,
+    /// Wavelength band of the roughness, m (0.25..=64).
+    pub roughness_wavelength_min_m: f64,
+    /// Longest roughness wavelength, m.
+    pub roughness_wavelength_max_m: f64,
+    /// Camber: the road's centre line is this much above the terrain far
+    /// to its sides (a Gaussian ridge); 0 = none.
+    pub crown_height_m: f64,
+    /// Standard deviation of the crown's ridge, m: the steepest cross slope
+    /// (0.61 height / width) is this far from the centre line.
+    pub crown_width_m: f64,
+}
+
+impl Default for GroundParams {
+    fn default() -> Self {
+        GroundParams {
+            slope_min_percent: 1.0,
+            slope_max_percent: 2.0,
+            undulations: 3,
+            amplitude_min_m: 0.2,
+            amplitude_max_m: 1.0,
+            wavelength_min_m: 100.0,
+            wavelength_max_m: 400.0,
+            undulation_grade_max_percent: 2.0,
+            roughness_psd_m3: 96e-6,
+            roughness_wavelength_min_m: 0.3,
+            roughness_wavelength_max_m: 20.0,
+            crown_height_m: 0.25,
+            crown_width_m: 7.0,
+        }
+    }
+}
+
+/// The `[highway]` table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HighwayParams {
+    /// Lanes in the ego's direction, 3..=5.
+    pub lanes: usize,
+    /// Lane width, m.
+    pub lane_width_m: f64,
+    /// Other vehicles (cars and trucks).
+    pub vehicles: usize,
+    /// Desired speeds are drawn uniformly from [speed_min_mps, speed_max_mps].
+    pub speed_min_mps: f64,
+    /// Upper end of the desired-speed range, m/s.
+    pub speed_max_mps: f64,
+    /// Fraction of the vehicles that are trucks.
+    pub truck_fraction: f64,
+    /// Trucks' desired speeds are capped at this.
+    pub truck_speed_max_mps: f64,
+    /// Number of lane-change requests spread over the run.
+    pub lane_changes: usize,
+    /// Length of the initial straight (the LiDAR-degenerate stretch).
+    pub straight_length_m: f64,
+    /// Radii of the gentle curves that follow, drawn uniformly.
+    pub curve_radius_min_m: f64,
+    /// Largest curve radius, m.
+    pub curve_radius_max_m: f64,
+    /// Vehicles start between this far behind and `spawn_ahead_m` ahead of the ego.
+    pub spawn_behind_m: f64,
+    /// How far ahead of the ego vehicles may start, m.
+    pub spawn_ahead_m: f64,
+    /// Length of one straight guard rail segment.
+    pub guard_rail_segment_m: f64,
+    /// Distance between light poles along the road.
+    pub pole_spacing_m: f64,
+    /// Distance between the posts under the rails' beams; 0 = solid rails
+    /// down to the ground, no posts.
+    pub rail_post_spacing_m: f64,
+    /// Distance between the reflector posts on the right shoulder's edge; 0 = none.
+    pub delineator_spacing_m: f64,
+    /// Shares of the right roadside (in stretches of 80-300 m) with a noise
+    /// wall and with a cutting (an earth slope rising 2-6 m); the rest is
+    /// open verge. Their sum is at most 1.
+    pub noise_wall_fraction: f64,
+    /// Share of the right roadside in a cutting.
+    pub cutting_fraction: f64,
+    /// Mean spacing of bushes and trees on the verges and in the median; 0 = none.
+    pub vegetation_spacing_m: f64,
+    /// Distance between the posts of the right-of-way fence beyond open
+    /// verges; 0 = no fence.
+    pub fence_post_spacing_m: f64,
+    /// Mean distance between overpasses, between sign gantries and between
+    /// roadside sign boards (distance and speed signs); 0 = none.
+    pub overpass_spacing_m: f64,
+    /// Mean distance between sign gantries, m; 0 = none.
+    pub gantry_spacing_m: f64,
+    /// Mean distance between roadside sign boards, m; 0 = none.
+    pub sign_spacing_m: f64,
+}
+
+impl Default for HighwayParams {
+    fn default() -> Self {
+        HighwayParams {
+            lanes: 4,
+            lane_width_m: 3.7,
+            vehicles: 40,
+            speed_min_mps: 20.0,
+            speed_max_mps: 33.0,
+            truck_fraction: 0.2,
+            truck_speed_max_mps: 25.0,
+            lane_changes: 10,
+            straight_length_m: 800.0,
+            curve_radius_min_m: 800.0,
+            curve_radius_max_m: 2500.0,
+            spawn_behind_m: 300.0,
+            spawn_ahead_m: 600.0,
+            guard_rail_segment_m: 12.0,
+            pole_spacing_m: 60.0,
+            rail_post_spacing_m: 2.0,
+            delineator_spacing_m: 50.0,
+            noise_wall_fraction: 0.3,
+            cutting_fraction: 0.3,
+            vegetation_spacing_m: 8.0,
+            fence_post_spacing_m: 3.0,
+            overpass_spacing_m: 800.0,
+            gantry_spacing_m: 1000.0,
+            sign_spacing_m: 200.0,
+        }
+    }
+}
+
+/// The `[urban]` table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct UrbanParams {
+    /// Lanes per direction on the main street, 1..=2.
+    pub lanes_per_direction: usize,
+    /// Lane width, m.
+    pub lane_width_m: f64,
+    /// Bike lane between the traffic lanes and the parking strip, each side.
+    pub bike_lane_width_m: f64,
+    /// Parking strip along each kerb.
+    pub parking_width_m: f64,
+    /// Sidewalk width, each side, m.
+    pub sidewalk_width_m: f64,
+    /// Distance between cross streets, drawn uniformly.
+    pub block_length_min_m: f64,
+    /// Longest block, m.
+    pub block_length_max_m: f64,
+    /// Width of a cross street, m.
+    pub cross_street_width_m: f64,
+    /// Moving cars, both directions together.
+    pub moving_cars: usize,
+    /// Slowest desired car speed, m/s.
+    pub car_speed_min_mps: f64,
+    /// Fastest desired car speed, m/s.
+    pub car_speed_max_mps: f64,
+    /// Cyclists in the bike lanes, both directions together.
+    pub cyclists: usize,
+    /// Slowest desired cyclist speed, m/s.
+    pub cyclist_speed_min_mps: f64,
+    /// Fastest desired cyclist speed, m/s.
+    pub cyclist_speed_max_mps: f64,
+    /// Pedestrians on the sidewalks, both directions together.
+    pub pedestrians: usize,
+    /// Slowest desired walking speed, m/s.
+    pub pedestrian_speed_min_mps: f64,
+    /// Fastest desired walking speed, m/s.
+    pub pedestrian_speed_max_mps: f64,
+    /// Fraction of the parking places that hold a car.
+    pub parking_occupancy: f64,
+    /// Traffic signal period and the red part of it, at every intersection.
+    pub signal_cycle_s: f64,
+    /// Red part of the signal cycle for the main street, s.
+    pub red_s: f64,
+    /// Cars on the cross streets of every intersection the ego's LiDAR can
+    /// see (both directions together); they cross while the main street is red.
+    pub cross_cars_per_intersection: usize,
+    /// Mean spacing of trees and of light poles along each sidewalk.
+    pub tree_spacing_m: f64,
+    /// Mean spacing of light poles along each sidewalk, m.
+    pub pole_spacing_m: f64,
+    /// Probability that a building lot holds a building, in [0, 1]; each lot
+    /// decides independently. Below 1 the parked cars become the main
+    /// structure along the street. 1 = a building on every lot.
+    pub building_fraction: f64,
+    /// Street furniture on the sidewalks: traffic signs, bollards, bins,
+    /// benches and bus shelters (the sidewalks and their kerbs are always there).
+    pub street_furniture: bool,
+}
+
+impl Default for UrbanParams {
+    fn default() -> Self {
+        UrbanParams {
+            lanes_per_direction: 2,
+            lane_width_m: 3.3,
+            bike_lane_width_m: 1.6,
+            parking_width_m: 2.4,
+            sidewalk_width_m: 4.0,
+            block_length_min_m: 80.0,
+            block_length_max_m: 120.0,
+            cross_street_width_m: 14.0,
+            moving_cars: 14,
+            car_speed_min_mps: 8.0,
+            car_speed_max_mps: 15.0,
+            cyclists: 4,
+            cyclist_speed_min_mps: 4.0,
+            cyclist_speed_max_mps: 6.0,
+            pedestrians: 12,
+            pedestrian_speed_min_mps: 1.2,
+            pedestrian_speed_max_mps: 1.5,
+            parking_occupancy: 0.6,
+            signal_cycle_s: 40.0,
+            red_s: 15.0,
+            cross_cars_per_intersection: 2,
+            tree_spacing_m: 15.0,
+            pole_spacing_m: 30.0,
+            building_fraction: 1.0,
+            street_furniture: true,
+        }
+    }
+}

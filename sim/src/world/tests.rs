@@ -1,0 +1,425 @@
+use super::*;
+use crate::scene::{Ego, StaticObject, Undulation};
+use crate::trajectory::{Jet, Knot};
+use nalgebra::{Translation3, UnitQuaternion, Vector2};
+
+pub(crate) fn scene_with(ground: Ground, statics: Vec<StaticObject>) -> Scene {
+    Scene {
+        duration_s: 1.0,
+        ground,
+        statics,
+        agents: Vec::new(),
+        ego: Ego {
+            trajectory: Trajectory::stationary(0.0, 1.0, &Isometry3::identity()),
+            size_lwh_m: Vector3::new(4.5, 1.8, 1.5),
+            box_center_lidar_m: Vector3::new(0.0, 0.0, -0.9),
+            t_lidar_imu: Isometry3::identity(),
+        },
+    }
+}
+
+fn unit(x: f64, y: f64, z: f64) -> Unit<Vector3<f64>> {
+    Unit::new_normalize(Vector3::new(x, y, z))
+}
+
+#[test]
+fn ray_against_flat_ground_returns_the_exact_range() {
+    let world = World::new(&scene_with(Ground::flat(0.0), Vec::new()));
+    let snap = world.snapshot(0.0);
+    let origin = Point3::new(12.0, -3.0, 1.73);
+    for elevation_deg in [-24.8_f64, -10.0, -2.0, -0.5] {
+        let el = elevation_deg.to_radians();
+        let az = 0.7_f64;
+        let dir = unit(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+        let hit = snap.cast_ray(&origin, &dir, 1000.0).expect("hit");
+        let expected = 1.73 / (-el).sin();
+        assert!((hit.range_m - expected).abs() < 1e-9, "{elevation_deg}");
+        assert_eq!(hit.surface, Surface::Ground);
+        assert_eq!(hit.instance_id, 0);
+        assert!((hit.normal_world.z - 1.0).abs() < 1e-12);
+        // max range respected
+        assert!(snap.cast_ray(&origin, &dir, expected - 1e-3).is_none());
+    }
+    // upward ray never hits a flat ground
+    assert!(snap.cast_ray(&origin, &unit(1.0, 0.0, 0.01), 1e4).is_none());
+}
+
+#[test]
+fn ray_against_undulating_ground_lands_on_the_surface() {
+    let ground = Ground {
+        base_height_m: 0.3,
+        slope: Vector2::new(0.01, -0.02),
+        undulations: vec![
+            Undulation {
+                amplitude_m: 0.6,
+                wave_vector: Vector2::new(0.05, 0.02),
+                phase_rad: 0.3,
+            },
+            Undulation {
+                amplitude_m: 0.2,
+                wave_vector: Vector2::new(-0.01, 0.2),
+                phase_rad: 1.0,
+            },
+        ],
+        ..Ground::flat(0.0)
+    };
+    let world = World::new(&scene_with(ground.clone(), Vec::new()));
+    let snap = world.snapshot(0.0);
+    let origin = Point3::new(5.0, 2.0, ground.height(5.0, 2.0) + 1.73);
+    let mut hits = 0;
+    for i in 0..400 {
+        let az = i as f64 * 0.157;
+        let el = -(0.005 + 0.4 * (i as f64 / 400.0));
+        let dir = unit(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+        let Some(hit) = snap.cast_ray(&origin, &dir, 200.0) else {
+            continue;
+        };
+        hits += 1;
+        let p = origin + dir.as_ref() * hit.range_m;
+        assert!((p.z - ground.height(p.x, p.y)).abs() < 1e-6);
+        // no earlier crossing: the ray stays above ground before the hit
+        for k in 1..200 {
+            let q = origin + dir.as_ref() * (hit.range_m * k as f64 / 200.0);
+            assert!(q.z - ground.height(q.x, q.y) > -1e-9);
+        }
+    }
+    assert!(hits > 300, "{hits}");
+}
+
+#[test]
+fn ray_against_crowned_rough_ground_lands_on_the_first_crossing() {
+    use crate::roughness::Roughness;
+    use crate::scene::Crown;
+    use rand::SeedableRng;
+    let ground = Ground {
+        base_height_m: 0.3,
+        slope: Vector2::new(0.01, -0.02),
+        undulations: vec![Undulation {
+            amplitude_m: 0.6,
+            wave_vector: Vector2::new(0.05, 0.02),
+            phase_rad: 0.3,
+        }],
+        crown: Some(Crown {
+            axis_point: Vector2::new(0.0, 1.0),
+            lateral: Vector2::new(0.0, 1.0),
+            height_m: 0.25,
+            width_m: 8.0,
+        }),
+        // ISO class C, rougher than any built-in road
+        roughness: Some(Roughness::iso8608(
+            &mut rand_chacha::ChaCha8Rng::seed_from_u64(4),
+            256e-6,
+            0.3,
+            20.0,
+        )),
+    };
+    let world = World::new(&scene_with(ground.clone(), Vec::new()));
+    let snap = world.snapshot(0.0);
+    let mut hits = 0;
+    let mut first_crossing_checked = 0;
+    for origin_xy in [(5.0, 2.0), (-40.0, -3.5), (2500.0, 4.0)] {
+        let origin = Point3::new(
+            origin_xy.0,
+            origin_xy.1,
+            ground.height(origin_xy.0, origin_xy.1) + 1.73,
+        );
+        for i in 0..600 {
+            let az = i as f64 * 0.157;
+            let el = -(0.01 + 0.42 * (i as f64 / 600.0));
+            let dir = unit(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+            let Some(hit) = snap.cast_ray(&origin, &dir, 120.0) else {
+                continue;
+            };
+            hits += 1;
+            let p = origin + dir.as_ref() * hit.range_m;
+            assert!(
+                (p.z - ground.height(p.x, p.y)).abs() < 1e-6,
+                "{el} {az} {origin_xy:?} range {} f {}",
+                hit.range_m,
+                p.z - ground.height(p.x, p.y)
+            );
+            // the normal of the surface there, up to the polish's last
+            // step (either side of a texture cell edge it may have crossed)
+            let normal_at = |q: Point3<f64>| {
+                let (_, gx, gy) = ground.height_and_gradient(q.x, q.y);
+                Vector3::new(-gx, -gy, 1.0).normalize()
+            };
+            let n = hit.normal_world.into_inner();
+            let q = p - dir.as_ref() * 1e-6;
+            assert!((n - normal_at(p)).norm() < 1e-3 || (n - normal_at(q)).norm() < 1e-3);
+            // steeper than every slope of the surface: nothing earlier
+            if dir.z < -0.12 {
+                first_crossing_checked += 1;
+                for k in 1..400 {
+                    let q = origin + dir.as_ref() * (hit.range_m * k as f64 / 400.0);
+                    assert!(q.z - ground.height(q.x, q.y) > -1e-9, "{el} {az} {k}");
+                }
+            }
+        }
+    }
+    assert!(
+        hits > 1500 && first_crossing_checked > 300,
+        "{hits} {first_crossing_checked}"
+    );
+}
+
+fn placed(kind: StaticKind, shape: Shape, x: f64, y: f64, z: f64, yaw: f64) -> StaticObject {
+    StaticObject {
+        kind,
+        shape,
+        t_world_object: Isometry3::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
+        ),
+    }
+}
+
+#[test]
+fn rays_against_box_cylinder_and_ball_return_exact_ranges() {
+    let statics = [
+        // wall facing the origin: front face at x = 20 - 0.5
+        placed(
+            StaticKind::Wall,
+            Shape::Cuboid {
+                half_extents_m: Vector3::new(0.5, 5.0, 2.0),
+            },
+            20.0,
+            0.0,
+            2.0,
+            0.0,
+        ),
+        placed(
+            StaticKind::Pole,
+            Shape::Cylinder {
+                radius_m: 0.3,
+                half_height_m: 3.0,
+            },
+            0.0,
+            15.0,
+            3.0,
+            0.4,
+        ),
+        placed(
+            StaticKind::TreeCrown,
+            Shape::Ball { radius_m: 2.0 },
+            -30.0,
+            0.0,
+            1.73,
+            0.0,
+        ),
+    ];
+    // far from the origin, as late in a long drive: f64 must keep exactness
+    let offset = Vector3::new(3000.0, -2500.0, 0.0);
+    let shifted: Vec<StaticObject> = statics
+        .iter()
+        .map(|s| StaticObject {
+            t_world_object: Isometry3::from_parts(
+                Translation3::from(s.t_world_object.translation.vector + offset),
+                s.t_world_object.rotation,
+            ),
+            ..*s
+        })
+        .collect();
+    let world = World::new(&scene_with(Ground::flat(-100.0), shifted));
+    let snap = world.snapshot(0.0);
+    let origin = Point3::new(0.0, 0.0, 1.73) + offset;
+    // box: oblique ray in the xz plane
+    let el = 0.05_f64;
+    let dir = unit(el.cos(), 0.0, el.sin());
+    let hit = snap.cast_ray(&origin, &dir, 120.0).expect("wall");
+    assert!((hit.range_m - 19.5 / el.cos()).abs() < 1e-9);
+    assert_eq!(hit.surface, Surface::Static(StaticKind::Wall));
+    assert!((hit.normal_world.x + 1.0).abs() < 1e-12);
+    assert!(snap.cast_ray(&origin, &dir, 19.0).is_none());
+    // cylinder: horizontal ray offset 0.1 m from the axis
+    let o2 = origin + Vector3::new(0.1, 0.0, 0.0);
+    let hit = snap
+        .cast_ray(&o2, &unit(0.0, 1.0, 0.0), 120.0)
+        .expect("pole");
+    let expected = 15.0 - (0.3f64 * 0.3 - 0.1 * 0.1).sqrt();
+    assert!((hit.range_m - expected).abs() < 1e-9, "{}", hit.range_m);
+    assert_eq!(hit.surface, Surface::Static(StaticKind::Pole));
+    assert!((hit.normal_world.z).abs() < 1e-12 && hit.normal_world.y < 0.0);
+    // cylinder top cap from above
+    let o3 = origin + Vector3::new(0.05, 15.0, 10.0);
+    let hit = snap
+        .cast_ray(&o3, &unit(0.0, 0.0, -1.0), 120.0)
+        .expect("cap");
+    assert!((hit.range_m - (10.0 + 1.73 - 6.0)).abs() < 1e-9);
+    assert!((hit.normal_world.z - 1.0).abs() < 1e-12);
+    // ball straight behind
+    let hit = snap
+        .cast_ray(&origin, &unit(-1.0, 0.0, 0.0), 120.0)
+        .expect("crown");
+    assert!((hit.range_m - 28.0).abs() < 1e-9);
+    assert_eq!(hit.instance_id, 0);
+    assert_eq!(hit.surface, Surface::Static(StaticKind::TreeCrown));
+    // nothing to the right
+    assert!(
+        snap.cast_ray(&origin, &unit(0.0, -1.0, 0.0), 120.0)
+            .is_none()
+    );
+}
+
+fn moving_agent(id: u32, x0: f64, speed_mps: f64) -> crate::scene::Agent {
+    let knots = (0..11)
+        .map(|i| {
+            let t = i as f64 * 0.1;
+            Knot {
+                position: [
+                    Jet::new(x0 + speed_mps * t, speed_mps, 0.0),
+                    Jet::new(0.0, 0.0, 0.0),
+                    Jet::new(0.75, 0.0, 0.0),
+                ],
+                euler: [Jet::default(); 3],
+            }
+        })
+        .collect();
+    crate::scene::Agent {
+        id,
+        class: ObjectClass::Car,
+        size_lwh_m: Vector3::new(4.0, 2.0, 1.5),
+        parked: false,
+        trajectory: Trajectory::new(0.0, 0.1, knots),
+    }
+}
+
+#[test]
+fn agents_are_hit_where_they_are_at_the_snapshot_time() {
+    let mut scene = scene_with(Ground::flat(0.0), Vec::new());
+    scene.agents.push(moving_agent(7, 10.0, 10.0));
+    let mut world = World::new(&scene);
+    let origin = Point3::new(0.0, 0.0, 0.75);
+    let dir = unit(1.0, 0.0, 0.0);
+    for t in [0.0, 0.3, 0.55] {
+        let hit = world.snapshot(t).cast_ray(&origin, &dir, 120.0).unwrap();
+        assert!((hit.range_m - (10.0 + 10.0 * t - 2.0)).abs() < 1e-9);
+        assert_eq!(hit.instance_id, 7);
+        assert_eq!(hit.surface, Surface::Agent(ObjectClass::Car));
+    }
+    // rapier body follows set_time
+    world.set_time(0.5);
+    let body = &world.rigid_bodies()[world.agents[0].body];
+    assert!((body.translation().x - 15.0).abs() < 1e-5);
+    let collider = &world.colliders()[world.agents[0].collider];
+    assert_eq!(collider.user_data, 7);
+}
+
+#[test]
+fn analytic_shapes_agree_with_parry() {
+    use parry3d::query::RayCast;
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let shapes = [
+        Shape::Cuboid {
+            half_extents_m: Vector3::new(1.0, 0.5, 2.0),
+        },
+        Shape::Cylinder {
+            radius_m: 0.8,
+            half_height_m: 1.5,
+        },
+        Shape::Ball { radius_m: 1.2 },
+    ];
+    let mut compared = 0;
+    let mut normals_agree = 0;
+    for _ in 0..3000 {
+        let shape = shapes[rng.random_range(0..3)];
+        let pose = Isometry3::from_parts(
+            Translation3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            ),
+            UnitQuaternion::from_euler_angles(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-3.0..3.0),
+            ),
+        );
+        let origin = Point3::new(
+            rng.random_range(-10.0..10.0),
+            rng.random_range(-10.0..10.0),
+            rng.random_range(-10.0..10.0),
+        );
+        // aim near the shape so most rays hit, some graze or miss
+        let target = Point3::from(pose.translation.vector)
+            + Vector3::new(
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-1.5..1.5),
+            );
+        let dir = Unit::new_normalize(target - origin);
+        let ours = intersect_shape(&shape, &pose, &origin, &dir, 100.0);
+        // parry in the local frame of the ray origin
+        let rel = Isometry3::from_parts(
+            Translation3::from(pose.translation.vector - origin.coords),
+            pose.rotation,
+        );
+        let ray = parry3d::query::Ray::new(
+            parry3d::math::Vector::ZERO,
+            parry3d::math::Vector::new(dir.x as f32, dir.y as f32, dir.z as f32),
+        );
+        let theirs = match shape {
+            Shape::Cuboid { half_extents_m: h } => parry3d::shape::Cuboid::new(
+                parry3d::math::Vector::new(h.x as f32, h.y as f32, h.z as f32),
+            )
+            .cast_ray_and_get_normal(&to_glam_pose(&rel), &ray, 100.0, false),
+            Shape::Cylinder {
+                radius_m,
+                half_height_m,
+            } => parry3d::shape::Cylinder::new(half_height_m as f32, radius_m as f32)
+                .cast_ray_and_get_normal(
+                    &to_glam_pose(
+                        &(rel * Isometry3::rotation(Vector3::x() * std::f64::consts::FRAC_PI_2)),
+                    ),
+                    &ray,
+                    100.0,
+                    false,
+                ),
+            Shape::Ball { radius_m } => parry3d::shape::Ball::new(radius_m as f32)
+                .cast_ray_and_get_normal(&to_glam_pose(&rel), &ray, 100.0, false),
+        };
+        match (ours, theirs) {
+            (Some((r, n)), Some(hit)) => {
+                compared += 1;
+                assert!(
+                    (r - hit.time_of_impact as f64).abs() < 2e-3,
+                    "{shape:?} {r} {hit:?}"
+                );
+                let pn = Vector3::new(
+                    hit.normal.x as f64,
+                    hit.normal.y as f64,
+                    hit.normal.z as f64,
+                );
+                // normals may differ on edges/rims (either face is right
+                // there); parry's GJK cylinder normals are off by ~5e-3
+                if (n.into_inner() - pn).norm() < 2e-2 {
+                    normals_agree += 1;
+                }
+            }
+            (None, None) => {}
+            (ours, theirs) => {
+                // parry (solid = false) reports the exit of a ray starting
+                // inside; we report nothing there
+                let local = pose.inverse_transform_point(&origin);
+                let inside = match shape {
+                    Shape::Cuboid { half_extents_m: h } => (0..3).all(|i| local[i].abs() <= h[i]),
+                    Shape::Cylinder {
+                        radius_m,
+                        half_height_m,
+                    } => local.xy().coords.norm() <= radius_m && local.z.abs() <= half_height_m,
+                    Shape::Ball { radius_m } => local.coords.norm() <= radius_m,
+                };
+                assert!(
+                    inside && ours.is_none(),
+                    "{shape:?} {local}: ours {ours:?}, parry {theirs:?}"
+                );
+            }
+        }
+    }
+    assert!(compared > 1000, "{compared}");
+    assert!(
+        normals_agree as f64 > 0.99 * compared as f64,
+        "{normals_agree}/{compared}"
+    );
+}
