@@ -3,8 +3,7 @@
 pub mod demo;
 pub mod eval;
 pub mod evaluate;
-pub mod kitti;
-pub mod kitti_export;
+pub mod io;
 pub mod kitti_report;
 pub mod kitti_suite;
 pub mod realism;

@@ -500,8 +500,8 @@ struct TrackKittiArgs {
     skip_missing: bool,
 }
 
-fn parse_score_map(name: &str) -> Result<limot::kitti::detections::ScoreMap, String> {
-    use limot::kitti::detections::ScoreMap;
+fn parse_score_map(name: &str) -> Result<limot::io::kitti::detections::ScoreMap, String> {
+    use limot::io::kitti::detections::ScoreMap;
     match name {
         "sigmoid" => Ok(ScoreMap::Sigmoid),
         "clamp01" => Ok(ScoreMap::Clamp01),
@@ -610,7 +610,7 @@ fn run_estimator(
             None if !variant.tracks_objects() => {}
             None => println!(
                 "tracks: no {} here, so no MOT score",
-                limot::kitti::sequence_file(&dataset.join("label_02"), sequence).display()
+                limot::io::kitti::sequence_file(&dataset.join("label_02"), sequence).display()
             ),
         }
         let scores_path = out.join("scores.json");
@@ -953,7 +953,7 @@ fn print_kitti_report(
 /// (tuned, with AB3DMOT's whole-track score gate; not causal).
 fn kitti_tracking_options(
     name: &str,
-    score_map: limot::kitti::detections::ScoreMap,
+    score_map: limot::io::kitti::detections::ScoreMap,
 ) -> Result<limot::track_kitti::TrackKittiOptions, String> {
     use limot::track_kitti::{TrackKittiOptions, kitti_val_offline_options};
     let options = match name {
@@ -1064,8 +1064,8 @@ fn print_suite_report(
 
 /// `limot track-kitti`: tracks, writes result files and prints the scores.
 fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error>> {
-    use limot::kitti::results::write_results_file;
-    use limot::kitti::seqmap::read_seqmap;
+    use limot::io::kitti::results::write_results_file;
+    use limot::io::kitti::seqmap::read_seqmap;
     use limot::track_kitti::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule};
     let training = &args.training;
@@ -1081,7 +1081,7 @@ fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error
         .ok_or("--detections or --score-only is required")?;
     if args.skip_missing {
         entries.retain(|e| {
-            let present = limot::kitti::sequence_file(&input_dir, e.sequence).is_file();
+            let present = limot::io::kitti::sequence_file(&input_dir, e.sequence).is_file();
             if !present {
                 eprintln!(
                     "skipping sequence {:04}: no file in {}",
@@ -1098,8 +1098,10 @@ fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error
         return Ok(());
     }
     let out = args.out.ok_or("--out is required when tracking")?;
-    let mut options =
-        kitti_tracking_options(&args.config, limot::kitti::detections::ScoreMap::Sigmoid)?;
+    let mut options = kitti_tracking_options(
+        &args.config,
+        limot::io::kitti::detections::ScoreMap::Sigmoid,
+    )?;
     let tracker = &mut options.tracker;
     if let Some(v) = args.min_score {
         tracker.min_score = v;

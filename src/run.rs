@@ -7,12 +7,12 @@
 //! poses, for evo / `limot eval ego`), `poses_kitti.txt` + `times.txt`,
 //! `estimates.csv` (velocity, biases, match diagnostics) and `timings.csv`.
 
-use crate::kitti::KittiError;
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
-use crate::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
-use crate::kitti::raw::{RawCalib, RawDrive};
-use crate::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
+use crate::io::kitti::KittiError;
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
+use crate::io::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
+use crate::io::kitti::raw::{RawCalib, RawDrive};
+use crate::io::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
 use crate::report::Variant;
 use crate::simulate::frame_progress_bar;
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
@@ -317,7 +317,7 @@ pub fn run(
     // A slower IMU (KITTI tracking's 10 Hz OXTS) has proportionally longer
     // steps between samples, which are no gaps.
     let times: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-    if let Some(period_s) = crate::kitti::raw::nominal_period_s(&times) {
+    if let Some(period_s) = crate::io::kitti::raw::nominal_period_s(&times) {
         config.max_imu_gap_s = config.max_imu_gap_s.max(1.5 * period_s);
     }
     let mut estimator =
@@ -552,7 +552,7 @@ pub struct LabelFrame {
 /// lines carrying the raw detector score (`score_map` inverted): boxes moved
 /// back into each frame's LiDAR frame with the estimated pose and projected
 /// through `calib` (the dataset's KITTI copy uses
-/// [`crate::kitti_export::synthetic_calib`]). Boxes outside the camera image
+/// [`crate::io::kitti::export::synthetic_calib`]). Boxes outside the camera image
 /// have no KITTI line. The tracker alone writes through the same
 /// [`ResultWriter`](crate::track_kitti::ResultWriter).
 ///
@@ -565,13 +565,13 @@ pub struct LabelFrame {
 /// A track id beyond the result format's 32 bits.
 pub fn kitti_track_labels(
     output: &RunOutput,
-    calib: &crate::kitti::calib::Calib,
+    calib: &crate::io::kitti::calib::Calib,
     label_frame: LabelFrame,
     result: &crate::track_kitti::ResultPolicy,
-    score_map: crate::kitti::detections::ScoreMap,
-) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
+    score_map: crate::io::kitti::detections::ScoreMap,
+) -> Result<Vec<crate::io::kitti::labels::TrackingLabel>, RunError> {
     let frame_delay_s = label_frame.delay_s;
-    use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
+    use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
     use crate::track_kitti::world_box_to_lidar;
     let mut writer = crate::track_kitti::ResultWriter::new(result.clone());
     let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
@@ -628,14 +628,14 @@ pub fn kitti_track_labels(
 pub fn write_dataset_kitti_tracks(
     dir: &Path,
     output: &RunOutput,
-    calib: &crate::kitti::calib::Calib,
+    calib: &crate::io::kitti::calib::Calib,
 ) -> Result<PathBuf, RunError> {
     let labels = kitti_track_labels(
         output,
         calib,
         LabelFrame::default(),
         &crate::track_kitti::ResultPolicy::default(),
-        crate::kitti::detections::ScoreMap::Clamp01,
+        crate::io::kitti::detections::ScoreMap::Clamp01,
     )?;
     write_kitti_tracks(dir, 0, &labels)
 }
@@ -645,13 +645,13 @@ pub fn write_dataset_kitti_tracks(
 pub fn write_kitti_tracks(
     dir: &Path,
     sequence: u32,
-    labels: &[crate::kitti::labels::TrackingLabel],
+    labels: &[crate::io::kitti::labels::TrackingLabel],
 ) -> Result<PathBuf, RunError> {
     fs::create_dir_all(dir).map_err(|source| RunError::Io {
         path: dir.to_path_buf(),
         source,
     })?;
-    Ok(crate::kitti::results::write_results_file(
+    Ok(crate::io::kitti::results::write_results_file(
         dir, sequence, labels,
     )?)
 }

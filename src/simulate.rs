@@ -1,7 +1,7 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
 
-use crate::kitti_export::{self, ExportError};
+use crate::io::kitti::export::{self, ExportError};
 use indicatif::{ProgressBar, ProgressStyle};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::simulation::{Simulation, SimulationError};
@@ -140,7 +140,7 @@ pub fn simulate(
     })?;
     bar.finish_and_clear();
     let kitti_dir = if kitti {
-        Some(kitti_export::export_dataset(
+        Some(export::export_dataset(
             &dataset_dir,
             sim.spec(),
             sim.scene(),

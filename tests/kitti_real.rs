@@ -6,7 +6,7 @@
 //! `../shared/data` is absent; a failed unpack or run fails the test.
 
 use limot::evaluate::kitti_sequence::TrackScores;
-use limot::kitti::detections::ScoreMap;
+use limot::io::kitti::detections::ScoreMap;
 use limot::kitti_report::write_kitti_report;
 use limot::kitti_suite::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::report::Variant;

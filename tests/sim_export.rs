@@ -3,12 +3,12 @@
 
 mod common;
 
-use limot::kitti::calib::Calib;
-use limot::kitti::detections::{ScoreMap, camera_box_to_lidar, read_ab3dmot_csv};
-use limot::kitti::labels::read_labels;
-use limot::kitti::oxts::{oxts_to_poses, read_oxts};
-use limot::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
-use limot::kitti::velodyne::read_bin;
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::{ScoreMap, camera_box_to_lidar, read_ab3dmot_csv};
+use limot::io::kitti::labels::read_labels;
+use limot::io::kitti::oxts::{oxts_to_poses, read_oxts};
+use limot::io::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
+use limot::io::kitti::velodyne::read_bin;
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::imu::ImuSimulator;
 use limot_sim::record::Dataset;

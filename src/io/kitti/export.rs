@@ -16,17 +16,17 @@
 //! devkit's Mercator projection around a point in Karlsruhe, chosen so the
 //! devkit's `oxts_to_poses` gives back our IMU poses relative to the first.
 
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
-use crate::kitti::labels::write_labels;
-use crate::kitti::oxts::{
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
+use crate::io::kitti::labels::write_labels;
+use crate::io::kitti::oxts::{
     EARTH_RADIUS_M, OxtsRecord, lat_lon_to_mercator, lat_to_scale, write_oxts,
 };
-use crate::kitti::poses::write_kitti_poses;
-use crate::kitti::raw::ELEVATION_CORRECTION_FILE;
-use crate::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
-use crate::kitti::velodyne::encode_bin;
-use crate::kitti::{KittiError, detections::LidarBox};
+use crate::io::kitti::poses::write_kitti_poses;
+use crate::io::kitti::raw::ELEVATION_CORRECTION_FILE;
+use crate::io::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
+use crate::io::kitti::velodyne::encode_bin;
+use crate::io::kitti::{KittiError, detections::LidarBox};
 use limot_sim::imu::ImuSimulator;
 use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::ScenarioSpec;

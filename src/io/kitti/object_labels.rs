@@ -165,8 +165,8 @@ pub fn write_object_labels(detections: &[CameraDetection]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::calib::Calib;
-    use crate::kitti::detections::ScoreMap;
+    use crate::io::kitti::calib::Calib;
+    use crate::io::kitti::detections::ScoreMap;
     use limot_estimator::input::ObjectClass;
     use nalgebra::Vector3;
 
@@ -189,7 +189,7 @@ Cyclist -1 -1 0.2 600 170 640 230 1.7 0.6 1.8 -1.2 1.65 17.5 1.45 0.41
         if path.exists() {
             Calib::read(&path).unwrap()
         } else {
-            crate::kitti::calib::tests::sample()
+            crate::io::kitti::calib::tests::sample()
         }
     }
 
@@ -243,7 +243,7 @@ Cyclist -1 -1 0.2 600 170 640 230 1.7 0.6 1.8 -1.2 1.65 17.5 1.45 0.41
         let object_line = SCORED.lines().next().unwrap();
         let tracking_text = format!("12 5 {object_line}\n");
         let via_tracking = detections_from_labels(
-            &crate::kitti::labels::parse_labels(&tracking_text, Path::new("t.txt")).unwrap(),
+            &crate::io::kitti::labels::parse_labels(&tracking_text, Path::new("t.txt")).unwrap(),
         );
         let via_object = parse_object_labels(object_line, Path::new("o.txt"), 12).unwrap();
         assert_eq!(via_object, via_tracking);

@@ -298,7 +298,7 @@ mod tests {
     use super::*;
 
     fn calib() -> Calib {
-        crate::kitti::calib::tests::sample()
+        crate::io::kitti::calib::tests::sample()
     }
 
     const CSV: &str = "\
@@ -402,7 +402,7 @@ mod tests {
 0 3 Van 0 0 -1.79 296.7 161.7 455.2 292.3 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12
 1 4 Tram 0 0 -1.79 296.7 161.7 455.2 292.3 3.0 2.5 14.0 -4.55 1.86 33.41 -2.12
 ";
-        let labels = crate::kitti::labels::parse_labels(text, Path::new("l.txt")).unwrap();
+        let labels = crate::io::kitti::labels::parse_labels(text, Path::new("l.txt")).unwrap();
         let dets = detections_from_labels(&labels);
         assert_eq!(dets.len(), 1);
         assert_eq!(dets[0].class, ObjectClass::Car);

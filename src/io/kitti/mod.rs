@@ -12,6 +12,7 @@
 
 pub mod calib;
 pub mod detections;
+pub mod export;
 pub mod labels;
 pub mod object_labels;
 pub mod oxts;
