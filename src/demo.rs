@@ -137,7 +137,7 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
 pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
-    let bar = crate::simulate::frame_progress_bar(total, progress, "simulate");
+    let bar = crate::cli::frame_progress_bar(total, progress, "simulate");
     let mut mot_frames = Vec::with_capacity(total);
     let mut points = 0usize;
     // the demo owns its output: a dataset left by an earlier demo is replaced

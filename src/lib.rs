@@ -1,5 +1,6 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 
+pub mod cli;
 pub mod demo;
 pub mod eval;
 pub mod evaluate;

@@ -7,6 +7,7 @@
 //! poses, for evo / `limot eval ego`), `poses_kitti.txt` + `times.txt`,
 //! `estimates.csv` (velocity, biases, match diagnostics) and `timings.csv`.
 
+use crate::cli::frame_progress_bar;
 use crate::io::kitti::KittiError;
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
@@ -14,7 +15,6 @@ use crate::io::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use crate::io::kitti::raw::{RawCalib, RawDrive};
 use crate::io::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
 use crate::report::Variant;
-use crate::simulate::frame_progress_bar;
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
 use limot_estimator::pipeline::{
     Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant as EstimatorVariant,

@@ -1,8 +1,8 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
 
+use crate::cli::frame_progress_bar;
 use crate::io::kitti::export::{self, ExportError};
-use indicatif::{ProgressBar, ProgressStyle};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::simulation::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
@@ -88,22 +88,6 @@ impl Overrides {
         spec.validate()?;
         Ok(())
     }
-}
-
-/// A per-frame progress bar over `total` frames labelled `label` (hidden unless `visible`).
-pub fn frame_progress_bar(total: usize, visible: bool, label: &str) -> ProgressBar {
-    if !visible {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(total as u64).with_style(
-        ProgressStyle::with_template(
-            "{msg:>10} [{bar:40}] {pos}/{len} frames  {per_sec}  eta {eta}",
-        )
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    bar.set_message(label.to_string());
-    bar
 }
 
 /// What a simulation run produced.
