@@ -161,7 +161,7 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
     let detector = [a?, b?];
 
     // The estimator on the dataset just written, scored against its truth.
-    let source = crate::run::Source::open(&dataset_dir)?;
+    let source = crate::io::Source::open(&dataset_dir).map_err(crate::run::RunError::from)?;
     let mut estimators = Vec::new();
     let mut estimated_xy = Vec::new();
     for variant in [crate::report::Variant::Lio, crate::report::Variant::Limot] {
@@ -393,7 +393,7 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
 /// Runs one variant on the demo dataset into `out/<variant>`, scores its ego
 /// trajectory and tracks; returns the summary and the aligned ego XY path.
 fn run_variant(
-    source: &crate::run::Source,
+    source: &crate::io::Source,
     dataset_dir: &Path,
     out: &Path,
     variant: crate::report::Variant,

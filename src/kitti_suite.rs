@@ -24,13 +24,14 @@ use crate::evaluate::kitti_sequence::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,
 };
+use crate::io::Source;
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::labels::read_labels;
 use crate::io::kitti::oxts::read_oxts;
 use crate::io::kitti::poses::parse_tum;
 use crate::io::kitti::{read_text, sequence_file};
 use crate::report::Variant;
-use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
+use crate::run::{RunOptions, kitti_tracking_config, run, write_output};
 use crate::suite::{SuiteError, error_chain, variant_name};
 use crate::track_kitti::{TrackKittiOptions, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};

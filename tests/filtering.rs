@@ -4,8 +4,9 @@
 //! stopped); `allfilt` removes both.
 
 use limot::evaluate::filtering::evaluate_filtering;
+use limot::io::Source;
 use limot::report::Variant;
-use limot::run::{RunOptions, Source, run};
+use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::record::Dataset;

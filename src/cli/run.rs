@@ -24,8 +24,9 @@ pub(super) fn run_estimator(
     kitti_tracking: KittiTracking,
     tracker: &str,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::io::Source;
     use crate::report::Variant;
-    use crate::run::{RunOptions, Source, run, write_output};
+    use crate::run::{RunOptions, run, write_output};
     let variant = Variant::ALL
         .into_iter()
         .find(|v| v.name() == variant)

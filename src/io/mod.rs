@@ -7,6 +7,16 @@
 //! - [`Source`]: a dataset opened for the estimator (a limot dataset, a KITTI
 //!   raw drive, bare scans or a KITTI tracking sequence), with [`ImuFeed`],
 //!   which hands the estimator the IMU samples due before each sweep.
+//! - [`write_run_files`]: the files of a run of the estimator (poses,
+//!   estimates, timings, tracks).
 #![warn(missing_docs)]
 
 pub mod kitti;
+mod run_files;
+mod source;
+
+pub use run_files::{WriteError, write_run_files};
+pub use source::{
+    IMU_GAP_PERIODS, IMU_LOOKBACK_S, ImuFeed, SWEEP_END_TOLERANCE_S, Source, SourceError,
+    imu_gap_limit_s,
+};
