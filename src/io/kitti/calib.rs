@@ -26,8 +26,11 @@ const ROTATION_TOLERANCE: f64 = 1e-3;
 pub struct Calib {
     /// Projection matrices of the four rectified cameras (P2 = left colour).
     pub p0: Matrix3x4<f64>,
+    /// P1 (right grey camera).
     pub p1: Matrix3x4<f64>,
+    /// P2 (left colour camera, the one labels are drawn in).
     pub p2: Matrix3x4<f64>,
+    /// P3 (right colour camera).
     pub p3: Matrix3x4<f64>,
     /// Rectifying rotation of camera 0, kept exactly as stored (it is not
     /// re-orthonormalised so that label boxes convert exactly as the devkit does).

@@ -40,6 +40,7 @@ pub struct LidarBox {
 }
 
 impl LidarBox {
+    /// The box of an estimator detection (its centre, size and heading).
     pub fn from_detection(det: &Detection) -> LidarBox {
         LidarBox {
             center_lidar: det.center_lidar,
@@ -88,6 +89,7 @@ pub enum ScoreMap {
 }
 
 impl ScoreMap {
+    /// Maps a raw detector score into [0, 1].
     pub fn apply(self, raw: f64) -> f64 {
         match self {
             ScoreMap::Sigmoid => 1.0 / (1.0 + (-raw).exp()),
@@ -110,13 +112,17 @@ impl ScoreMap {
 /// One camera-frame detection, as stored in a detection file.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CameraDetection {
+    /// Frame index.
     pub frame: u32,
+    /// Object class.
     pub class: ObjectClass,
     /// Left, top, right, bottom (pixels).
     pub bbox_2d: [f64; 4],
     /// Detector score as stored (not necessarily in [0, 1]).
     pub score_raw: f64,
+    /// The 3D box in the rectified camera frame.
     pub cam_box: CameraBox,
+    /// Observation angle (rad).
     pub alpha_rad: f64,
 }
 

@@ -43,15 +43,21 @@ const ORIGIN_ALT_M: f64 = 112.0;
 /// Ground-truth boxes farther than this are not labelled (KITTI labels ~80 m).
 const LABEL_RANGE_M: f64 = 80.0;
 
+/// Why the KITTI-style copy of a dataset could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The dataset could not be read.
     #[error(transparent)]
     Record(#[from] RecordError),
+    /// A KITTI file could not be written.
     #[error(transparent)]
     Kitti(#[from] KittiError),
+    /// A file or directory could not be written.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file or directory.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },

@@ -62,6 +62,7 @@ pub struct CameraBox {
 /// One line of a tracking label / result file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingLabel {
+    /// Frame index.
     pub frame: u32,
     /// -1 for `DontCare`.
     pub track_id: i64,
@@ -75,6 +76,7 @@ pub struct TrackingLabel {
     pub alpha_rad: f64,
     /// 2D box in the left colour image: left, top, right, bottom (pixels).
     pub bbox_2d: [f64; 4],
+    /// The 3D box in the rectified camera frame.
     pub cam_box: CameraBox,
     /// Present in results and detection files, absent in ground truth.
     pub score: Option<f64>,

@@ -10,7 +10,9 @@ use std::path::Path;
 /// A pose at a time (TUM files carry timestamps).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StampedPose {
+    /// Time (s).
     pub t_s: f64,
+    /// The pose (maps points of the body frame into the world).
     pub pose: Isometry3<f64>,
 }
 

@@ -19,7 +19,9 @@ use std::path::{Path, PathBuf};
 /// 1224..1242 × 370..376.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImageSize {
+    /// Width (pixels).
     pub width: f64,
+    /// Height (pixels).
     pub height: f64,
 }
 
@@ -34,10 +36,15 @@ impl ImageSize {
 /// One tracked object at one frame, in the LiDAR frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackBox {
+    /// Frame index.
     pub frame: u32,
+    /// Track id.
     pub track_id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// The box in the frame's LiDAR frame.
     pub lidar_box: LidarBox,
+    /// Score written in the result line.
     pub score: f64,
 }
 

@@ -8,17 +8,21 @@ use std::path::Path;
 /// One sequence of a sequence map.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SeqmapEntry {
+    /// Sequence number.
     pub sequence: u32,
+    /// First frame scored.
     pub first_frame: u32,
     /// One past the last frame (= frame count when `first_frame` is 0).
     pub end_frame: u32,
 }
 
 impl SeqmapEntry {
+    /// Number of frames scored.
     pub fn num_frames(&self) -> u32 {
         self.end_frame - self.first_frame
     }
 
+    /// The seqmap line of this entry (`SSSS empty FFFFFF EEEEEE`).
     pub fn to_line(&self) -> String {
         format!(
             "{:04} empty {:06} {:06}",

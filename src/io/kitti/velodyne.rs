@@ -45,7 +45,9 @@ pub enum RingSource {
 /// A scan with the provenance of its rings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VelodyneScan {
+    /// The points with rings and per-point times.
     pub scan: LidarScan,
+    /// How the rings were found.
     pub ring_source: RingSource,
 }
 

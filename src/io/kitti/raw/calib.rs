@@ -91,8 +91,11 @@ pub struct RawCalib {
 }
 
 impl RawCalib {
+    /// File of the IMU-to-Velodyne transform in a date directory.
     pub const IMU_TO_VELO: &'static str = "calib_imu_to_velo.txt";
+    /// File of the Velodyne-to-camera transform.
     pub const VELO_TO_CAM: &'static str = "calib_velo_to_cam.txt";
+    /// File of the camera intrinsics and rectification.
     pub const CAM_TO_CAM: &'static str = "calib_cam_to_cam.txt";
 
     /// Reads the three calibration files of a date directory.

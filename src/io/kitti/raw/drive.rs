@@ -22,7 +22,9 @@ pub const GAP_FACTOR: f64 = 3.0;
 /// One OXTS record with its own timestamp.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TimedOxts {
+    /// Time (s since the Unix epoch, or since the first frame for tracking sequences).
     pub t_s: f64,
+    /// The record.
     pub record: OxtsRecord,
 }
 
@@ -52,7 +54,9 @@ pub enum SweepStart {
 /// One Velodyne sweep of a drive (the points are loaded on demand).
 #[derive(Debug, Clone, PartialEq)]
 pub struct VelodyneFrame {
+    /// The scan file.
     pub path: PathBuf,
+    /// Its storage format.
     pub format: ScanFormat,
     /// Sweep start (laser facing backwards); the scan's `t_s`.
     pub t_start_s: f64,
@@ -60,6 +64,7 @@ pub struct VelodyneFrame {
     pub t_trigger_s: Option<f64>,
     /// Sweep end, when `timestamps_end.txt` exists.
     pub t_end_s: Option<f64>,
+    /// Where `t_start_s` came from.
     pub start_source: SweepStart,
 }
 
@@ -68,13 +73,16 @@ pub struct VelodyneFrame {
 pub struct ImuGap {
     /// Index of the last record before the gap (the next one is `index + 1`).
     pub index: usize,
+    /// Time of the record before the gap (s).
     pub t_before_s: f64,
+    /// Time of the record after the gap (s).
     pub t_after_s: f64,
     /// Nominal period of the stream (median step).
     pub period_s: f64,
 }
 
 impl ImuGap {
+    /// Length of the gap (s).
     pub fn duration_s(&self) -> f64 {
         self.t_after_s - self.t_before_s
     }
@@ -102,6 +110,7 @@ impl fmt::Display for ImuGap {
 /// A KITTI raw drive directory, its OXTS records and Velodyne frame list.
 #[derive(Debug, Clone)]
 pub struct RawDrive {
+    /// The drive directory.
     pub drive_dir: PathBuf,
     /// Every OXTS record at its own timestamp (100 Hz in `_extract`, 10 Hz in `_sync`).
     pub oxts: Vec<TimedOxts>,

@@ -51,6 +51,7 @@ pub(super) fn days_in_month(year: i64, month: u32) -> u32 {
 /// no precision is lost before the caller picks a representation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub struct UnixTime {
+    /// Whole seconds since the Unix epoch.
     pub secs: i64,
     /// In 0..1_000_000_000.
     pub nanos: u32,

@@ -13,6 +13,7 @@ pub struct TrackingFrameTimes {
     /// How long after its sweep start a frame's OXTS record, camera image
     /// and labels were taken.
     pub frame_delay_s: f64,
+    /// Where the sweep starts came from.
     pub start_source: SweepStart,
 }
 
