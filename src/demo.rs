@@ -134,6 +134,10 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
 }
 
 /// Runs the demo into `out` (dataset in `out/dataset`, report in `out/report`).
+///
+/// # Errors
+/// A scenario that cannot be simulated, a run or score that fails, or a report that cannot be
+/// written.
 pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();

@@ -339,6 +339,9 @@ pub fn kitti_track_labels(
 /// dataset (whose KITTI copy is sequence 0 with `calib`): the tracks
 /// [`kitti_track_labels`] writes by default; the simulated detector's scores
 /// are probabilities already. Returns the file.
+///
+/// # Errors
+/// A track id beyond 32 bits, or a result file that cannot be written.
 pub fn write_dataset_kitti_tracks(
     dir: &Path,
     output: &RunOutput,
@@ -356,6 +359,9 @@ pub fn write_dataset_kitti_tracks(
 
 /// Writes `labels` as the KITTI tracking result file `DIR/SSSS.txt` of
 /// `sequence`. Returns the file.
+///
+/// # Errors
+/// The directory or file cannot be written (named).
 pub fn write_kitti_tracks(
     dir: &Path,
     sequence: u32,

@@ -39,6 +39,10 @@ pub enum SimulateError {
 /// fine; an existing limot dataset (it has `meta.toml` or `scenario.toml`)
 /// is removed when `replace` is set, so no stale sweeps of a longer earlier
 /// run survive; anything else is refused rather than mixed or deleted.
+///
+/// # Errors
+/// A directory that cannot be read or removed, or one that is not empty and not a limot dataset (or
+/// `replace` is unset).
 pub fn prepare_output_dir(out: &Path, replace: bool) -> Result<(), SimulateError> {
     let io = |source| SimulateError::Io {
         path: out.to_path_buf(),
@@ -62,6 +66,9 @@ pub fn prepare_output_dir(out: &Path, replace: bool) -> Result<(), SimulateError
 
 /// A scenario given on the command line: a TOML file path, or the name of a
 /// built-in scenario when no such file exists.
+///
+/// # Errors
+/// A malformed scenario file, or a name that is neither a file nor a built-in scenario.
 pub fn resolve_scenario(arg: &str) -> Result<ScenarioSpec, SimulateError> {
     let path = Path::new(arg);
     if path.exists() {
@@ -78,6 +85,8 @@ pub struct Overrides {
 }
 
 impl Overrides {
+    /// # Errors
+    /// A scenario that is invalid after the overrides.
     pub fn apply(&self, spec: &mut ScenarioSpec) -> Result<(), SimulateError> {
         if let Some(seed) = self.seed {
             spec.seed = seed;
@@ -105,6 +114,10 @@ pub struct SimulateSummary {
 /// Simulates `spec` into `out` (limot format) and, unless `kitti` is false,
 /// `out/kitti` (KITTI tracking layout). Shows a progress bar when `progress`.
 /// `out` must be missing or empty (see [`prepare_output_dir`]).
+///
+/// # Errors
+/// An output directory that is not empty, a scenario the simulator refuses, or a file that cannot
+/// be written.
 pub fn simulate(
     spec: &ScenarioSpec,
     out: &Path,

@@ -43,11 +43,17 @@ pub struct Calib {
 
 impl Calib {
     /// Reads and parses a calibration file.
+    ///
+    /// # Errors
+    /// An unreadable file, a missing key or a malformed matrix (named with file and line).
     pub fn read(path: &Path) -> Result<Calib> {
         Calib::parse(&read_text(path)?, path)
     }
 
     /// Parses calibration text; `path` is only used in error messages.
+    ///
+    /// # Errors
+    /// A missing key or a malformed matrix (named with file and line).
     pub fn parse(text: &str, path: &Path) -> Result<Calib> {
         let mut p: [Option<Matrix3x4<f64>>; 4] = [None; 4];
         let mut r_rect: Option<Matrix3<f64>> = None;

@@ -238,6 +238,9 @@ fn parse_csv_line(line: &str, ctx: LineCtx<'_>) -> Result<CameraDetection> {
 }
 
 /// Parses an AB3DMOT detection CSV.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_ab3dmot_csv(text: &str, path: &Path) -> Result<Vec<CameraDetection>> {
     content_lines(text)
         .map(|(line_no, line)| parse_csv_line(line, LineCtx::new(path, line_no)))
@@ -245,6 +248,9 @@ pub fn parse_ab3dmot_csv(text: &str, path: &Path) -> Result<Vec<CameraDetection>
 }
 
 /// Reads an AB3DMOT detection CSV.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_ab3dmot_csv`]).
 pub fn read_ab3dmot_csv(path: &Path) -> Result<Vec<CameraDetection>> {
     parse_ab3dmot_csv(&read_text(path)?, path)
 }

@@ -187,6 +187,9 @@ fn oxts_records(scene: &Scene, spec: &ScenarioSpec, times_s: &[f64]) -> Vec<Oxts
 /// `spec` is the scenario the dataset was simulated from and `scene` its
 /// built scene (the caller has it: building it again, traffic included,
 /// would be a good part of the export's time).
+///
+/// # Errors
+/// An unreadable dataset or a file of the copy that cannot be written.
 pub fn export_dataset(
     dataset_dir: &Path,
     spec: &ScenarioSpec,

@@ -169,6 +169,9 @@ impl TrackingLabel {
 }
 
 /// Parses a tracking label file's text.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<TrackingLabel>> {
     content_lines(text)
         .map(|(line_no, line)| TrackingLabel::parse_line(line, LineCtx::new(path, line_no)))
@@ -176,6 +179,9 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<TrackingLabel>> {
 }
 
 /// Reads a tracking label file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_labels`]).
 pub fn read_labels(path: &Path) -> Result<Vec<TrackingLabel>> {
     parse_labels(&read_text(path)?, path)
 }

@@ -104,6 +104,9 @@ pub enum KittiError {
 pub type Result<T> = std::result::Result<T, KittiError>;
 
 /// Reads a whole text file, mapping I/O errors to [`KittiError::Io`].
+///
+/// # Errors
+/// The file cannot be read ([`KittiError::Io`]).
 pub fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),
@@ -112,6 +115,9 @@ pub fn read_text(path: &Path) -> Result<String> {
 }
 
 /// Writes a whole text file, mapping I/O errors to [`KittiError::Io`].
+///
+/// # Errors
+/// The file cannot be written ([`KittiError::Io`]).
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),

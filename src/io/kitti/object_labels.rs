@@ -56,6 +56,9 @@ fn parse_object_line(line: &str, frame: u32, ctx: LineCtx<'_>) -> Result<Trackin
 
 /// Parses one per-frame object label file; every detection gets `frame`.
 /// See the module docs for skipped lines and the missing-score rule.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_object_labels(text: &str, path: &Path, frame: u32) -> Result<Vec<CameraDetection>> {
     let labels = content_lines(text)
         .map(|(line_no, line)| parse_object_line(line, frame, LineCtx::new(path, line_no)))
@@ -64,6 +67,9 @@ pub fn parse_object_labels(text: &str, path: &Path, frame: u32) -> Result<Vec<Ca
 }
 
 /// Reads one per-frame object label file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_object_labels`]).
 pub fn read_object_labels(path: &Path, frame: u32) -> Result<Vec<CameraDetection>> {
     parse_object_labels(&read_text(path)?, path, frame)
 }
@@ -98,6 +104,9 @@ fn frame_of_file_name(path: &Path) -> Result<Option<u32>> {
 /// - A `.txt` file whose stem is not a number, or two files naming the same
 ///   frame (`1.txt` and `000001.txt`), are errors. Other entries
 ///   (subdirectories, files with other extensions) are ignored.
+///
+/// # Errors
+/// An unreadable directory or label file, or a malformed line.
 pub fn read_object_label_dir(dir: &Path) -> Result<Vec<Vec<CameraDetection>>> {
     let io_err = |source| KittiError::Io {
         path: dir.to_path_buf(),

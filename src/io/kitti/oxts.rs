@@ -239,6 +239,9 @@ impl OxtsRecord {
 }
 
 /// Parses an OXTS file's text (one record per non-blank line).
+///
+/// # Errors
+/// A line without 30 columns or a malformed field (file, line and column).
 pub fn parse_oxts(text: &str, path: &Path) -> Result<Vec<OxtsRecord>> {
     content_lines(text)
         .map(|(line_no, line)| OxtsRecord::parse_line(line, LineCtx::new(path, line_no)))
@@ -246,6 +249,9 @@ pub fn parse_oxts(text: &str, path: &Path) -> Result<Vec<OxtsRecord>> {
 }
 
 /// Reads an OXTS file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_oxts`]).
 pub fn read_oxts(path: &Path) -> Result<Vec<OxtsRecord>> {
     parse_oxts(&read_text(path)?, path)
 }

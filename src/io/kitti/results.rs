@@ -116,6 +116,9 @@ pub fn write_results(labels: &[TrackingLabel]) -> String {
 }
 
 /// Writes `dir/00NN.txt` for one sequence; returns the path.
+///
+/// # Errors
+/// The file cannot be written (named).
 pub fn write_results_file(dir: &Path, sequence: u32, labels: &[TrackingLabel]) -> Result<PathBuf> {
     let path = sequence_file(dir, sequence);
     write_text(&path, &write_results(labels))?;

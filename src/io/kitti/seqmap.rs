@@ -32,6 +32,9 @@ impl SeqmapEntry {
 }
 
 /// Parses a sequence map.
+///
+/// # Errors
+/// A malformed line or a frame range that ends before it starts (file and line).
 pub fn parse_seqmap(text: &str, path: &Path) -> Result<Vec<SeqmapEntry>> {
     content_lines(text)
         .map(|(line_no, line)| {
@@ -60,6 +63,9 @@ pub fn parse_seqmap(text: &str, path: &Path) -> Result<Vec<SeqmapEntry>> {
 }
 
 /// Reads a sequence map.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_seqmap`]).
 pub fn read_seqmap(path: &Path) -> Result<Vec<SeqmapEntry>> {
     parse_seqmap(&read_text(path)?, path)
 }

@@ -99,6 +99,9 @@ impl RawCalib {
     pub const CAM_TO_CAM: &'static str = "calib_cam_to_cam.txt";
 
     /// Reads the three calibration files of a date directory.
+    ///
+    /// # Errors
+    /// An unreadable calibration file, or a malformed one (see [`RawCalib::parse`]).
     pub fn read(date_dir: &Path) -> Result<RawCalib> {
         let imu_path = date_dir.join(Self::IMU_TO_VELO);
         let velo_path = date_dir.join(Self::VELO_TO_CAM);
@@ -114,6 +117,10 @@ impl RawCalib {
     /// `calib_cam_to_cam` (each with its path for error messages). Keys not
     /// needed here (`calib_time`, `S_xx`, `K_xx`, `D_xx`, `delta_f`, …) are
     /// ignored; needed ones are checked.
+    ///
+    /// # Errors
+    /// A missing key, a wrong number of values, a non-finite value or a non-rotation matrix (file
+    /// and line).
     pub fn parse(
         imu_to_velo: (&str, &Path),
         velo_to_cam: (&str, &Path),

@@ -231,6 +231,10 @@ impl RawDrive {
     /// lists the Velodyne sweeps (if `velodyne_points/data` exists) with
     /// their times, and checks numbering, counts and time order (module docs).
     /// Its scans get KITTI's elevation correction.
+    ///
+    /// # Errors
+    /// Missing or malformed OXTS or Velodyne files, holes in their numbering, timestamp files of
+    /// the wrong length, or time going backwards (named).
     pub fn open(drive_dir: &Path) -> Result<RawDrive> {
         let oxts = read_oxts_stream(&drive_dir.join("oxts"))?;
         let velodyne_dir = drive_dir.join("velodyne_points");
@@ -275,6 +279,9 @@ impl RawDrive {
     /// marked [`SweepStart::Synthetic10Hz`]. The points are read as stored
     /// (no elevation correction: a directory of `.bin` files says nothing of
     /// the sensor that recorded them).
+    ///
+    /// # Errors
+    /// An unreadable directory, mixed `.bin`/`.txt` scans or holes in their numbering.
     pub fn open_bare_scans(dir: &Path) -> Result<RawDrive> {
         let (files, format) = scan_files(dir)?;
         let velodyne = files
@@ -337,6 +344,9 @@ impl RawDrive {
 
     /// Loads sweep `i` with its rings; `t_s` = sweep start; points raised by
     /// [`RawDrive::elevation_correction_rad`].
+    ///
+    /// # Errors
+    /// An unreadable or malformed scan file (named), or `i` beyond the drive's scans.
     pub fn velodyne_scan(&self, i: usize) -> Result<VelodyneScan> {
         let Some(frame) = self.velodyne.get(i) else {
             return Err(KittiError::Invalid {
@@ -356,6 +366,9 @@ impl RawDrive {
     }
 
     /// Loads sweep `i` as the estimator's [`LidarScan`] (`t_s` = sweep start).
+    ///
+    /// # Errors
+    /// An unreadable or malformed scan file (named), or `i` beyond the drive's scans.
     pub fn scan(&self, i: usize) -> Result<LidarScan> {
         self.velodyne_scan(i).map(|s| s.scan)
     }
@@ -486,6 +499,9 @@ fn read_velodyne_frames(velodyne_dir: &Path) -> Result<Vec<VelodyneFrame>> {
 
 /// Parses a text scan (`x y z reflectance` per line, `_extract` drives) with
 /// the same ring and per-point time logic as `.bin` scans.
+///
+/// # Errors
+/// A line without 4 columns or a malformed field (file, line and column).
 pub fn parse_velodyne_txt(text: &str, path: &Path, t_s: f64) -> Result<VelodyneScan> {
     const NAMES: [&str; 4] = ["x", "y", "z", "reflectance"];
     let mut points = Vec::new();
@@ -520,6 +536,9 @@ pub fn parse_velodyne_txt(text: &str, path: &Path, t_s: f64) -> Result<VelodyneS
 }
 
 /// Reads a text scan (see [`parse_velodyne_txt`]).
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_velodyne_txt`]).
 pub fn read_velodyne_txt(path: &Path, t_s: f64) -> Result<VelodyneScan> {
     parse_velodyne_txt(&read_text(path)?, path, t_s)
 }

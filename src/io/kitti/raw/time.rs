@@ -97,6 +97,9 @@ impl fmt::Display for UnixTime {
 
 /// Parses `YYYY-MM-DD HH:MM:SS[.f…]` (1 to 9 fraction digits, UTC) into whole
 /// seconds and nanoseconds; `Err` carries a human-readable reason.
+///
+/// # Errors
+/// A malformed date or time, or one out of range (e.g. February 30th).
 pub fn parse_unix_time(s: &str) -> std::result::Result<UnixTime, String> {
     let mut parts = s.split_whitespace();
     let (Some(date), Some(time), None) = (parts.next(), parts.next(), parts.next()) else {
@@ -158,12 +161,18 @@ pub fn parse_unix_time(s: &str) -> std::result::Result<UnixTime, String> {
 
 /// Parses one KITTI timestamp into seconds since the Unix epoch.
 /// `"2011-09-26 13:02:25.964389445"` → 1317042145.964389445.
+///
+/// # Errors
+/// A malformed timestamp (see [`parse_unix_time`]).
 pub fn parse_timestamp(s: &str) -> std::result::Result<f64, String> {
     parse_unix_time(s).map(|t| t.as_secs_f64())
 }
 
 /// Parses a timestamp file (one stamp per non-blank line) and rejects time
 /// going backwards; errors name the file and line.
+///
+/// # Errors
+/// A malformed timestamp, or time going backwards (file and line).
 pub fn parse_timestamps(text: &str, path: &Path) -> Result<Vec<f64>> {
     Ok(parse_timestamp_lines(text, path)?
         .into_iter()
@@ -190,6 +199,9 @@ pub(super) fn parse_timestamp_lines(text: &str, path: &Path) -> Result<Vec<(usiz
 }
 
 /// Reads a timestamp file (see [`parse_timestamps`]).
+///
+/// # Errors
+/// An unreadable file, or a malformed one (see [`parse_timestamps`]).
 pub fn read_timestamps(path: &Path) -> Result<Vec<f64>> {
     parse_timestamps(&read_text(path)?, path)
 }

@@ -51,6 +51,9 @@ pub const ELEVATION_CORRECTION_FILE: &str = "velodyne_elevation_correction_deg.t
 /// number in [`ELEVATION_CORRECTION_FILE`] when present; else none for our
 /// own copies (they have `times.txt`, KITTI has not) and KITTI's
 /// [`KITTI_HDL64_ELEVATION_CORRECTION_DEG`] for KITTI's recordings.
+///
+/// # Errors
+/// An unreadable or malformed correction file, or an implausible angle (beyond 5°).
 pub fn declared_elevation_correction_rad(dir: &Path) -> Result<f64> {
     let path = dir.join(ELEVATION_CORRECTION_FILE);
     if path.is_file() {
@@ -91,6 +94,9 @@ impl RawDrive {
     /// `0.1·i` s and its OXTS record is at the camera trigger, half a sweep
     /// later, as KITTI synchronises them. The scans' elevation correction is
     /// [`declared_elevation_correction_rad`].
+    ///
+    /// # Errors
+    /// Missing or malformed scans, OXTS or `times.txt`, or counts that do not match the scans (named).
     pub fn open_tracking_sequence(dir: &Path, sequence: u32) -> Result<RawDrive> {
         let name = format!("{sequence:04}");
         let (files, format) = scan_files(&dir.join("velodyne").join(&name))?;
