@@ -284,6 +284,30 @@ pub fn imu_gap_limit_s(samples: &[ImuSample], configured_s: f64) -> f64 {
 /// each sweep at a time: everything measured up to the end of the sweep
 /// (within [`SWEEP_END_TOLERANCE_S`]). Before the first frame it skips the
 /// history older than [`IMU_LOOKBACK_S`].
+///
+/// ```
+/// use limot::io::{IMU_LOOKBACK_S, ImuFeed};
+/// use limot_estimator::input::{Frame, ImuSample, LidarScan};
+/// use nalgebra::Vector3;
+/// // 100 Hz from t = 0 s; a 0.1 s sweep starting at t = 1 s
+/// let samples: Vec<ImuSample> = (0..300)
+///     .map(|i| ImuSample {
+///         t_s: i as f64 * 0.01,
+///         accel_mps2: Vector3::new(0.0, 0.0, 9.81),
+///         gyro_radps: Vector3::zeros(),
+///     })
+///     .collect();
+/// let sweep = |t_s: f64| Frame {
+///     scan: LidarScan { t_s, sweep_duration_s: 0.1, ..LidarScan::default() },
+///     ..Frame::default()
+/// };
+/// let mut feed = ImuFeed::new(&samples);
+/// let first = feed.due_before(&sweep(1.0));
+/// assert!(first[0].t_s >= 1.0 - IMU_LOOKBACK_S - 1e-12);
+/// assert!((first.last().unwrap().t_s - 1.1).abs() < 1e-12);
+/// let next = feed.due_before(&sweep(1.1));
+/// assert_eq!(next.len(), 10); // 1.11 ..= 1.2 s
+/// ```
 #[derive(Debug, Clone)]
 pub struct ImuFeed<'a> {
     samples: &'a [ImuSample],

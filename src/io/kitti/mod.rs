@@ -1,4 +1,7 @@
-//! KITTI tracking readers and writers.
+//! KITTI readers and writers: one module per file format of the tracking
+//! benchmark (calib, labels, object_labels, detections, oxts, poses, results,
+//! seqmap, velodyne), [`raw`] for raw drives and the tracking-sequence
+//! opener, and [`export`] for the KITTI-style copy of a simulated dataset.
 //!
 //! Frames used throughout:
 //! - `cam` / `rect`: the rectified camera-0 frame of KITTI (x right, y down,

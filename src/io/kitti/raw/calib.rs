@@ -118,6 +118,38 @@ impl RawCalib {
     /// needed here (`calib_time`, `S_xx`, `K_xx`, `D_xx`, `delta_f`, …) are
     /// ignored; needed ones are checked.
     ///
+    /// ```
+    /// use limot::io::kitti::raw::RawCalib;
+    /// use std::path::Path;
+    /// // 2011-09-26 (KITTI raw), keys not needed here left out
+    /// let imu_to_velo = "\
+    /// calib_time: 25-May-2012 16:47:16
+    /// R: 9.999976e-01 7.553071e-04 -2.035826e-03 -7.854027e-04 9.998898e-01 -1.482298e-02 2.024406e-03 1.482454e-02 9.998881e-01
+    /// T: -8.086759e-01 3.195559e-01 -7.997231e-01
+    /// ";
+    /// let velo_to_cam = "\
+    /// R: 7.533745e-03 -9.999714e-01 -6.166020e-04 1.480249e-02 7.280733e-04 -9.998902e-01 9.998621e-01 7.523790e-03 1.480755e-02
+    /// T: -4.069766e-03 -7.631618e-02 -2.717806e-01
+    /// ";
+    /// let cam_to_cam = "\
+    /// R_rect_00: 9.999239e-01 9.837760e-03 -7.445048e-03 -9.869795e-03 9.999421e-01 -4.278459e-03 7.402527e-03 4.351614e-03 9.999631e-01
+    /// P_rect_00: 7.215377e+02 0.000000e+00 6.095593e+02 0.000000e+00 0.000000e+00 7.215377e+02 1.728540e+02 0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 0.000000e+00
+    /// P_rect_01: 7.215377e+02 0.000000e+00 6.095593e+02 -3.875744e+02 0.000000e+00 7.215377e+02 1.728540e+02 0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 0.000000e+00
+    /// P_rect_02: 7.215377e+02 0.000000e+00 6.095593e+02 4.485728e+01 0.000000e+00 7.215377e+02 1.728540e+02 2.163791e-01 0.000000e+00 0.000000e+00 1.000000e+00 2.745884e-03
+    /// P_rect_03: 7.215377e+02 0.000000e+00 6.095593e+02 -3.395242e+02 0.000000e+00 7.215377e+02 1.728540e+02 2.199936e+00 0.000000e+00 0.000000e+00 1.000000e+00 2.729905e-03
+    /// ";
+    /// let calib = RawCalib::parse(
+    ///     (imu_to_velo, Path::new("calib_imu_to_velo.txt")),
+    ///     (velo_to_cam, Path::new("calib_velo_to_cam.txt")),
+    ///     (cam_to_cam, Path::new("calib_cam_to_cam.txt")),
+    /// )
+    /// .unwrap();
+    /// // the IMU sits 0.81 m behind and 0.32 m left of the Velodyne
+    /// let t = calib.t_velo_imu.translation.vector;
+    /// assert_eq!((t.x, t.y, t.z), (-8.086759e-01, 3.195559e-01, -7.997231e-01));
+    /// assert_eq!(calib.p_rect[2][(0, 0)], 721.5377); // focal length, pixels
+    /// ```
+    ///
     /// # Errors
     /// A missing key, a wrong number of values, a non-finite value or a non-rotation matrix (file
     /// and line).

@@ -98,6 +98,13 @@ impl fmt::Display for UnixTime {
 /// Parses `YYYY-MM-DD HH:MM:SS[.f…]` (1 to 9 fraction digits, UTC) into whole
 /// seconds and nanoseconds; `Err` carries a human-readable reason.
 ///
+/// ```
+/// use limot::io::kitti::raw::{UnixTime, parse_unix_time};
+/// let t = parse_unix_time("2011-09-26 13:02:25.964389445").unwrap();
+/// assert_eq!(t, UnixTime { secs: 1_317_042_145, nanos: 964_389_445 });
+/// assert!(parse_unix_time("2011-02-30 00:00:00").is_err());
+/// ```
+///
 /// # Errors
 /// A malformed date or time, or one out of range (e.g. February 30th).
 pub fn parse_unix_time(s: &str) -> std::result::Result<UnixTime, String> {
@@ -161,6 +168,12 @@ pub fn parse_unix_time(s: &str) -> std::result::Result<UnixTime, String> {
 
 /// Parses one KITTI timestamp into seconds since the Unix epoch.
 /// `"2011-09-26 13:02:25.964389445"` → 1317042145.964389445.
+///
+/// ```
+/// use limot::io::kitti::raw::parse_timestamp;
+/// let t_s = parse_timestamp("2011-09-26 13:02:25.964389445").unwrap();
+/// assert!((t_s - 1_317_042_145.964_389_445).abs() < 1e-6);
+/// ```
 ///
 /// # Errors
 /// A malformed timestamp (see [`parse_unix_time`]).
