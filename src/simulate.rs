@@ -1,5 +1,6 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
+#![warn(missing_docs)]
 
 use crate::cli::frame_progress_bar;
 use crate::io::kitti::export::{self, ExportError};
@@ -8,17 +9,22 @@ use limot_sim::simulation::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Why a scenario could not be simulated into a dataset.
 #[derive(Debug, thiserror::Error)]
 pub enum SimulateError {
     #[error(
         "scenario `{0}` is neither a file nor a built-in scenario (built-in: {names})",
         names = ScenarioSpec::builtin_names().join(", ")
     )]
+    /// The argument is neither a file nor a built-in scenario.
     UnknownScenario(String),
+    /// The scenario is malformed or invalid.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
+    /// The simulation or its dataset writer failed.
     #[error(transparent)]
     Simulation(#[from] SimulationError),
+    /// The KITTI-style copy could not be written.
     #[error(transparent)]
     Export(#[from] ExportError),
     #[error(
@@ -26,10 +32,19 @@ pub enum SimulateError {
         path.display(),
         if *is_dataset { " (a limot dataset: pass --force to replace it)" } else { " and is not a limot dataset; choose another directory" }
     )]
-    OutputNotEmpty { path: PathBuf, is_dataset: bool },
+    /// The output directory is not empty.
+    OutputNotEmpty {
+        /// The directory.
+        path: PathBuf,
+        /// Whether it holds a limot dataset (which `--force` may replace).
+        is_dataset: bool,
+    },
+    /// The output directory could not be read or removed.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The directory.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
@@ -80,7 +95,9 @@ pub fn resolve_scenario(arg: &str) -> Result<ScenarioSpec, SimulateError> {
 /// Overrides applied to a resolved scenario before simulating.
 #[derive(Debug, Clone, Default)]
 pub struct Overrides {
+    /// Seed to use instead of the scenario's.
     pub seed: Option<u64>,
+    /// Duration to use instead of the scenario's (s).
     pub duration_s: Option<f64>,
 }
 
@@ -102,12 +119,19 @@ impl Overrides {
 /// What a simulation run produced.
 #[derive(Debug, Clone)]
 pub struct SimulateSummary {
+    /// The limot dataset.
     pub dataset_dir: PathBuf,
+    /// Its KITTI-style copy, when written.
     pub kitti_dir: Option<PathBuf>,
+    /// Sweeps simulated.
     pub frames: usize,
+    /// LiDAR points recorded.
     pub points: usize,
+    /// Detections recorded.
     pub detections: usize,
+    /// Agents in the scene.
     pub agents: usize,
+    /// Wall time of the simulation and export (s).
     pub wall_time_s: f64,
 }
 
