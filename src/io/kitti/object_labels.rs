@@ -7,7 +7,7 @@
 //! 15 columns in ground truth, 16 with a detector score. The columns are the
 //! tracking label columns (see [`super::labels`]) without `frame` and
 //! `track_id`: the frame is the file name. Parsing goes through
-//! [`TrackingLabel::parse_line`] so both formats share one set of checks
+//! `TrackingLabel::parse_line` so both formats share one set of checks
 //! (finite numbers, known type names); error columns are reported in this
 //! format's numbering.
 //!

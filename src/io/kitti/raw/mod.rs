@@ -18,7 +18,7 @@
 //! the microsecond jitter of the recorded clocks.
 //!
 //! Velodyne times: `timestamps_start` = the laser facing backwards (sweep
-//! start, the [`LidarScan::t_s`] we use), `timestamps` = facing forwards
+//! start, the [`LidarScan::t_s`](limot_estimator::input::LidarScan::t_s) we use), `timestamps` = facing forwards
 //! (camera trigger, mid sweep), `timestamps_end` = backwards again. When a
 //! drive lacks `timestamps_start`, the start is derived as trigger − 0.05 s
 //! or end − 0.1 s (see [`SweepStart`]).

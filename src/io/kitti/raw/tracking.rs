@@ -8,7 +8,7 @@ use std::path::Path;
 /// When the frames of a KITTI tracking directory were taken.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingFrameTimes {
-    /// Sweep start of each frame (the scan's [`LidarScan::t_s`]).
+    /// Sweep start of each frame (the scan's [`LidarScan::t_s`](limot_estimator::input::LidarScan::t_s)).
     pub sweep_starts_s: Vec<f64>,
     /// How long after its sweep start a frame's OXTS record, camera image
     /// and labels were taken.
