@@ -5,6 +5,7 @@
 //! The detector model is scored too, as an oracle-associated "tracker"
 //! (detections carry their true ids, so its MOTA and MOTP are the ceiling a
 //! tracker fed these detections can reach).
+#![warn(missing_docs)]
 
 use crate::eval::EvalError;
 use crate::eval::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
@@ -18,22 +19,31 @@ use limot_sim::sensors::Detector;
 use limot_sim::{SimulatedFrame, Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 
+/// Why the demo failed.
 #[derive(Debug, thiserror::Error)]
 pub enum DemoError {
+    /// The scenario could not be simulated.
     #[error(transparent)]
     Simulation(#[from] SimulationError),
+    /// A metric could not be computed.
     #[error(transparent)]
     Eval(#[from] EvalError),
+    /// The report could not be written.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The dataset could not be written.
     #[error(transparent)]
     Output(Box<crate::simulate::SimulateError>),
+    /// The estimator run failed.
     #[error(transparent)]
     Run(Box<crate::run::RunError>),
+    /// The run could not be scored.
     #[error(transparent)]
     Evaluate(Box<crate::evaluate::EvaluateError>),
+    /// The dataset could not be read back.
     #[error(transparent)]
     Record(#[from] limot_sim::record::RecordError),
+    /// The track evaluation lacks its 3D IoU 0.25 score.
     #[error("the track evaluation has no 3D IoU 0.25 score")]
     NoTrackScore,
 }
@@ -53,15 +63,23 @@ impl From<crate::evaluate::EvaluateError> for DemoError {
 /// How one estimator variant did on the demo scenario.
 #[derive(Debug, Clone)]
 pub struct EstimatorSummary {
+    /// Variant name.
     pub variant: &'static str,
     /// Confirmed, matched tracks vs the camera-visible truth at 3D IoU 0.25.
     pub tracks: ClearMotResult,
+    /// Translational ATE (RMSE) after SE(3) alignment (m).
     pub ate_t_m: f64,
+    /// Rotational ATE (RMSE) after SE(3) alignment (rad).
     pub ate_r_rad: f64,
+    /// Frames with an estimate.
     pub frames_estimated: usize,
+    /// Frames estimated LiDAR-only before the inertial initialisation.
     pub frames_before_init: usize,
+    /// Mean estimator time per frame (ms).
     pub mean_frame_ms: f64,
+    /// Frames estimated per second of the run's wall time.
     pub fps: f64,
+    /// The written trajectory (`poses_tum.txt`).
     pub trajectory: PathBuf,
 }
 
@@ -71,12 +89,19 @@ const FALSE_POSITIVE_ID_BASE: u64 = 1 << 40;
 /// The headline figures of a demo run.
 #[derive(Debug, Clone)]
 pub struct DemoSummary {
+    /// The simulated dataset.
     pub dataset_dir: PathBuf,
+    /// The report (`README.md`).
     pub report_readme: PathBuf,
+    /// Sweeps simulated.
     pub frames: usize,
+    /// Mean points per sweep.
     pub mean_points_per_scan: f64,
+    /// Moving agents in the scene.
     pub moving_agents: usize,
+    /// Parked agents in the scene.
     pub parked_agents: usize,
+    /// Length of the ego path (m).
     pub ego_path_length_m: f64,
     /// Detector scored at 3D IoU 0.25 and 0.5.
     pub detector: [(f64, ClearMotResult); 2],
@@ -134,10 +159,14 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
 }
 
 /// Runs the demo into `out` (dataset in `out/dataset`, report in `out/report`).
+///
+/// # Errors
+/// A scenario that cannot be simulated, a run or score that fails, or a report that cannot be
+/// written.
 pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
-    let bar = crate::simulate::frame_progress_bar(total, progress, "simulate");
+    let bar = crate::cli::frame_progress_bar(total, progress, "simulate");
     let mut mot_frames = Vec::with_capacity(total);
     let mut points = 0usize;
     // the demo owns its output: a dataset left by an earlier demo is replaced
@@ -161,7 +190,7 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
     let detector = [a?, b?];
 
     // The estimator on the dataset just written, scored against its truth.
-    let source = crate::run::Source::open(&dataset_dir)?;
+    let source = crate::io::Source::open(&dataset_dir).map_err(crate::run::RunError::from)?;
     let mut estimators = Vec::new();
     let mut estimated_xy = Vec::new();
     for variant in [crate::report::Variant::Lio, crate::report::Variant::Limot] {
@@ -393,7 +422,7 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
 /// Runs one variant on the demo dataset into `out/<variant>`, scores its ego
 /// trajectory and tracks; returns the summary and the aligned ego XY path.
 fn run_variant(
-    source: &crate::run::Source,
+    source: &crate::io::Source,
     dataset_dir: &Path,
     out: &Path,
     variant: crate::report::Variant,

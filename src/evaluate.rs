@@ -11,7 +11,7 @@
 //!   the ground-truth boxes of a limot dataset → CLEAR-MOT at 3D and BEV IoU,
 //!   TP % and per-object ATE.
 //!
-//! This module is glue between the file readers ([`crate::kitti`],
+//! This module is glue between the file readers ([`crate::io::kitti`],
 //! [`limot_sim::record`]), the metrics ([`crate::eval`]) and the tables
 //! ([`crate::report::table`]); it holds no metric of its own.
 
@@ -22,7 +22,7 @@ pub mod kitti_sequence;
 pub mod tracks;
 
 use crate::eval::EvalError;
-use crate::kitti::KittiError;
+use crate::io::kitti::KittiError;
 use crate::report::ReportError;
 use limot_sim::record::RecordError;
 use std::path::{Path, PathBuf};
@@ -86,7 +86,7 @@ pub enum EvaluateError {
 
 pub type Result<T> = std::result::Result<T, EvaluateError>;
 
-pub use crate::kitti::poses::{parse_times, read_times};
+pub use crate::io::kitti::poses::{parse_times, read_times};
 
 /// Whether `dir` is a limot dataset (it holds `meta.toml`).
 pub fn is_limot_dataset(dir: &Path) -> bool {

@@ -24,13 +24,14 @@ use crate::evaluate::kitti_sequence::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,
 };
-use crate::kitti::calib::Calib;
-use crate::kitti::labels::read_labels;
-use crate::kitti::oxts::read_oxts;
-use crate::kitti::poses::parse_tum;
-use crate::kitti::{read_text, sequence_file};
+use crate::io::Source;
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::labels::read_labels;
+use crate::io::kitti::oxts::read_oxts;
+use crate::io::kitti::poses::parse_tum;
+use crate::io::kitti::{read_text, sequence_file};
 use crate::report::Variant;
-use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
+use crate::run::{RunOptions, kitti_tracking_config, run, write_output};
 use crate::suite::{SuiteError, error_chain, variant_name};
 use crate::track_kitti::{TrackKittiOptions, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -314,8 +315,10 @@ fn score_tracker(
     training: &Path,
     sequence: u32,
     frames: usize,
-    results: impl FnOnce()
-        -> Result<Vec<crate::kitti::labels::TrackingLabel>, Box<dyn std::error::Error>>,
+    results: impl FnOnce() -> Result<
+        Vec<crate::io::kitti::labels::TrackingLabel>,
+        Box<dyn std::error::Error>,
+    >,
 ) -> TrackerResult {
     let attempt = || -> Result<Option<TrackScores>, Box<dyn std::error::Error>> {
         let Some(gt) = read_sequence_labels(training, sequence)? else {
@@ -527,7 +530,7 @@ pub fn run_kitti_suite(
             result.tracker = Some(score_tracker(&spec.training, sequence, frames, || {
                 let tracks = track_sequence_with(&spec.training, det_dir, sequence, options)?;
                 fs::create_dir_all(&out_dir)?;
-                crate::kitti::results::write_results_file(&out_dir, sequence, &tracks.labels)?;
+                crate::io::kitti::results::write_results_file(&out_dir, sequence, &tracks.labels)?;
                 Ok(tracks.labels)
             }));
             bar.inc(1);

@@ -1,10 +1,10 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 
+pub mod cli;
 pub mod demo;
 pub mod eval;
 pub mod evaluate;
-pub mod kitti;
-pub mod kitti_export;
+pub mod io;
 pub mod kitti_report;
 pub mod kitti_suite;
 pub mod realism;

@@ -11,15 +11,15 @@
 //! [`lidar_poses`], turned into the gravity-aligned frame of the first OXTS
 //! record; the vehicle frame is the IMU (OXTS) frame of `calib/SSSS.txt`.
 
+use crate::cli::frame_progress_bar;
 use crate::eval::EvalError;
 use crate::eval::realism::{
     RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare,
 };
-use crate::kitti::KittiError;
-use crate::kitti::calib::Calib;
-use crate::kitti::raw::RawDrive;
-use crate::kitti::sequence_file;
-use crate::simulate::frame_progress_bar;
+use crate::io::kitti::KittiError;
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::raw::RawDrive;
+use crate::io::kitti::sequence_file;
 use crate::track_kitti::lidar_poses;
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};

@@ -1,24 +1,30 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
+#![warn(missing_docs)]
 
-use crate::kitti_export::{self, ExportError};
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::cli::frame_progress_bar;
+use crate::io::kitti::export::{self, ExportError};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Why a scenario could not be simulated into a dataset.
 #[derive(Debug, thiserror::Error)]
 pub enum SimulateError {
     #[error(
         "scenario `{0}` is neither a file nor a built-in scenario (built-in: {names})",
         names = ScenarioSpec::builtin_names().join(", ")
     )]
+    /// The argument is neither a file nor a built-in scenario.
     UnknownScenario(String),
+    /// The scenario is malformed or invalid.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
+    /// The simulation or its dataset writer failed.
     #[error(transparent)]
     Simulation(#[from] SimulationError),
+    /// The KITTI-style copy could not be written.
     #[error(transparent)]
     Export(#[from] ExportError),
     #[error(
@@ -26,10 +32,19 @@ pub enum SimulateError {
         path.display(),
         if *is_dataset { " (a limot dataset: pass --force to replace it)" } else { " and is not a limot dataset; choose another directory" }
     )]
-    OutputNotEmpty { path: PathBuf, is_dataset: bool },
+    /// The output directory is not empty.
+    OutputNotEmpty {
+        /// The directory.
+        path: PathBuf,
+        /// Whether it holds a limot dataset (which `--force` may replace).
+        is_dataset: bool,
+    },
+    /// The output directory could not be read or removed.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The directory.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
@@ -39,6 +54,10 @@ pub enum SimulateError {
 /// fine; an existing limot dataset (it has `meta.toml` or `scenario.toml`)
 /// is removed when `replace` is set, so no stale sweeps of a longer earlier
 /// run survive; anything else is refused rather than mixed or deleted.
+///
+/// # Errors
+/// A directory that cannot be read or removed, or one that is not empty and not a limot dataset (or
+/// `replace` is unset).
 pub fn prepare_output_dir(out: &Path, replace: bool) -> Result<(), SimulateError> {
     let io = |source| SimulateError::Io {
         path: out.to_path_buf(),
@@ -62,6 +81,9 @@ pub fn prepare_output_dir(out: &Path, replace: bool) -> Result<(), SimulateError
 
 /// A scenario given on the command line: a TOML file path, or the name of a
 /// built-in scenario when no such file exists.
+///
+/// # Errors
+/// A malformed scenario file, or a name that is neither a file nor a built-in scenario.
 pub fn resolve_scenario(arg: &str) -> Result<ScenarioSpec, SimulateError> {
     let path = Path::new(arg);
     if path.exists() {
@@ -73,11 +95,15 @@ pub fn resolve_scenario(arg: &str) -> Result<ScenarioSpec, SimulateError> {
 /// Overrides applied to a resolved scenario before simulating.
 #[derive(Debug, Clone, Default)]
 pub struct Overrides {
+    /// Seed to use instead of the scenario's.
     pub seed: Option<u64>,
+    /// Duration to use instead of the scenario's (s).
     pub duration_s: Option<f64>,
 }
 
 impl Overrides {
+    /// # Errors
+    /// A scenario that is invalid after the overrides.
     pub fn apply(&self, spec: &mut ScenarioSpec) -> Result<(), SimulateError> {
         if let Some(seed) = self.seed {
             spec.seed = seed;
@@ -90,37 +116,32 @@ impl Overrides {
     }
 }
 
-/// A per-frame progress bar over `total` frames labelled `label` (hidden unless `visible`).
-pub fn frame_progress_bar(total: usize, visible: bool, label: &str) -> ProgressBar {
-    if !visible {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(total as u64).with_style(
-        ProgressStyle::with_template(
-            "{msg:>10} [{bar:40}] {pos}/{len} frames  {per_sec}  eta {eta}",
-        )
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    bar.set_message(label.to_string());
-    bar
-}
-
 /// What a simulation run produced.
 #[derive(Debug, Clone)]
 pub struct SimulateSummary {
+    /// The limot dataset.
     pub dataset_dir: PathBuf,
+    /// Its KITTI-style copy, when written.
     pub kitti_dir: Option<PathBuf>,
+    /// Sweeps simulated.
     pub frames: usize,
+    /// LiDAR points recorded.
     pub points: usize,
+    /// Detections recorded.
     pub detections: usize,
+    /// Agents in the scene.
     pub agents: usize,
+    /// Wall time of the simulation and export (s).
     pub wall_time_s: f64,
 }
 
 /// Simulates `spec` into `out` (limot format) and, unless `kitti` is false,
 /// `out/kitti` (KITTI tracking layout). Shows a progress bar when `progress`.
 /// `out` must be missing or empty (see [`prepare_output_dir`]).
+///
+/// # Errors
+/// An output directory that is not empty, a scenario the simulator refuses, or a file that cannot
+/// be written.
 pub fn simulate(
     spec: &ScenarioSpec,
     out: &Path,
@@ -140,7 +161,7 @@ pub fn simulate(
     })?;
     bar.finish_and_clear();
     let kitti_dir = if kitti {
-        Some(kitti_export::export_dataset(
+        Some(export::export_dataset(
             &dataset_dir,
             sim.spec(),
             sim.scene(),

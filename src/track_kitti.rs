@@ -34,15 +34,15 @@ use crate::eval::kitti_mot::{
     KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
 };
 use crate::eval::samota::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::{
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::{
     LidarBox, ScoreMap, camera_box_to_lidar, detections_by_frame, read_ab3dmot_csv,
 };
-use crate::kitti::labels::{TrackingLabel, read_labels};
-use crate::kitti::oxts::{oxts_to_poses, read_oxts};
-use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
-use crate::kitti::seqmap::SeqmapEntry;
-use crate::kitti::{KittiError, sequence_file, wrap_angle_rad};
+use crate::io::kitti::labels::{TrackingLabel, read_labels};
+use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
+use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
+use crate::io::kitti::seqmap::SeqmapEntry;
+use crate::io::kitti::{KittiError, sequence_file, wrap_angle_rad};
 use limot_estimator::input::Detection;
 use limot_estimator::tracking::{
     Extrapolation, HeadingRule, Lifecycle, TrackOutput, Tracker, TrackerConfig, TrackerError,
@@ -920,7 +920,7 @@ mod tests {
 
     #[test]
     fn lidar_pose_composes_imu_pose_and_calibration() {
-        let calib = crate::kitti::calib::tests::sample();
+        let calib = crate::io::kitti::calib::tests::sample();
         let t_world_imu = pose();
         let t_world_lidar = lidar_poses(&[t_world_imu], &calib)[0];
         // A LiDAR point goes to the world through the IMU frame.
@@ -935,8 +935,8 @@ mod tests {
     #[test]
     fn three_d_evaluation_uses_3d_iou_after_kitti_preprocessing() {
         use crate::eval::iou::iou_3d;
-        use crate::kitti::labels::parse_labels;
-        let calib = crate::kitti::calib::tests::sample();
+        use crate::io::kitti::labels::parse_labels;
+        let calib = crate::io::kitti::calib::tests::sample();
         let parse = |text: &str| parse_labels(text, Path::new("t.txt")).unwrap();
         // Frame 0: a car 20 m ahead and a van; frame 1: the car only.
         let gt = parse(

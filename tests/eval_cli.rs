@@ -6,7 +6,7 @@ use limot::eval::iou::IouKind;
 use limot::evaluate::EvaluateError;
 use limot::evaluate::ego::{EgoEvalOptions, evaluate_ego, load_truth};
 use limot::evaluate::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
-use limot::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
+use limot::io::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::record::Dataset;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};

@@ -4,8 +4,9 @@
 //! stopped); `allfilt` removes both.
 
 use limot::evaluate::filtering::evaluate_filtering;
+use limot::io::Source;
 use limot::report::Variant;
-use limot::run::{RunOptions, Source, run};
+use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::Simulation;
@@ -45,7 +46,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
                 limot::run::write_dataset_kitti_tracks(&dir.join("kitti_results"), &output, &calib)
                     .unwrap();
             // Each result line carries its frame's detection score.
-            let lines = limot::kitti::labels::read_labels(&results).unwrap();
+            let lines = limot::io::kitti::labels::read_labels(&results).unwrap();
             assert!(lines.len() > 1000, "{}", lines.len());
             let scores: Vec<f64> = lines.iter().map(|l| l.score.unwrap()).collect();
             assert!(scores.iter().all(|s| (0.0..=1.0).contains(s)));

@@ -8,8 +8,9 @@
 mod common;
 
 use common::{ate, simulate};
+use limot::io::Source;
 use limot::report::Variant;
-use limot::run::{RunOptions, RunOutput, Source, run};
+use limot::run::{RunOptions, RunOutput, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_estimator::tracking::Lifecycle;

@@ -2,16 +2,16 @@
 //! root). When that directory is absent they print a loud note and return;
 //! when it is present they always run.
 
-use limot::kitti::calib::Calib;
-use limot::kitti::detections::{
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::{
     CameraDetection, ScoreMap, camera_box_to_lidar, detections_by_frame, detections_from_labels,
     lidar_box_to_camera, read_ab3dmot_csv,
 };
-use limot::kitti::labels::{TrackingLabel, read_labels};
-use limot::kitti::oxts::{OxtsRecord, oxts_to_imu, oxts_to_poses, read_oxts};
-use limot::kitti::seqmap::read_seqmap;
-use limot::kitti::velodyne::{RingSource, read_bin, ring_from_elevation};
-use limot::kitti::{sequence_file, wrap_angle_rad};
+use limot::io::kitti::labels::{TrackingLabel, read_labels};
+use limot::io::kitti::oxts::{OxtsRecord, oxts_to_imu, oxts_to_poses, read_oxts};
+use limot::io::kitti::seqmap::read_seqmap;
+use limot::io::kitti::velodyne::{RingSource, read_bin, ring_from_elevation};
+use limot::io::kitti::{sequence_file, wrap_angle_rad};
 use nalgebra::{Isometry3, Rotation3, Vector3};
 use std::collections::BTreeMap;
 use std::path::PathBuf;

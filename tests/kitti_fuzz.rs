@@ -2,13 +2,13 @@
 //! into every KITTI format gives an error naming the file (and the line or
 //! byte offset), never a panic.
 
-use limot::kitti::calib::Calib;
-use limot::kitti::detections::parse_ab3dmot_csv;
-use limot::kitti::labels::parse_labels;
-use limot::kitti::oxts::parse_oxts;
-use limot::kitti::poses::{parse_kitti_poses, parse_tum};
-use limot::kitti::seqmap::parse_seqmap;
-use limot::kitti::velodyne::parse_bin;
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::parse_ab3dmot_csv;
+use limot::io::kitti::labels::parse_labels;
+use limot::io::kitti::oxts::parse_oxts;
+use limot::io::kitti::poses::{parse_kitti_poses, parse_tum};
+use limot::io::kitti::seqmap::parse_seqmap;
+use limot::io::kitti::velodyne::parse_bin;
 use proptest::prelude::*;
 use std::path::Path;
 

@@ -19,9 +19,9 @@ use limot::eval::clear_mot::{
 use limot::eval::kitti_mot::{
     KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
 };
-use limot::kitti::labels::{TrackingLabel, read_labels};
-use limot::kitti::results::write_results;
-use limot::kitti::seqmap::read_seqmap;
+use limot::io::kitti::labels::{TrackingLabel, read_labels};
+use limot::io::kitti::results::write_results;
+use limot::io::kitti::seqmap::read_seqmap;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 

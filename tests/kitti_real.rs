@@ -6,7 +6,7 @@
 //! `../shared/data` is absent; a failed unpack or run fails the test.
 
 use limot::evaluate::kitti_sequence::TrackScores;
-use limot::kitti::detections::ScoreMap;
+use limot::io::kitti::detections::ScoreMap;
 use limot::kitti_report::write_kitti_report;
 use limot::kitti_suite::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::report::Variant;
@@ -187,7 +187,7 @@ fn partial_copy(training: &Path, name: &str, scans: usize) -> PathBuf {
 }
 
 fn open_error(dir: &Path) -> String {
-    match limot::run::Source::open_kitti_tracking(dir, 0, None, ScoreMap::Sigmoid) {
+    match limot::io::Source::open_kitti_tracking(dir, 0, None, ScoreMap::Sigmoid) {
         Ok(_) => panic!("{} opened", dir.display()),
         Err(e) => limot::suite::error_chain(&e),
     }
@@ -245,7 +245,7 @@ fn damaged_sequences_name_the_file_and_missing_labels_give_no_mot_score() {
     let scan = dir.join("velodyne/0000/000003.bin");
     let bytes = std::fs::read(&scan).unwrap();
     std::fs::write(&scan, &bytes[..1000]).unwrap();
-    let source = limot::run::Source::open_kitti_tracking(&dir, 0, None, ScoreMap::Sigmoid).unwrap();
+    let source = limot::io::Source::open_kitti_tracking(&dir, 0, None, ScoreMap::Sigmoid).unwrap();
     let e = limot::suite::error_chain(&source.frame(3).unwrap_err());
     assert!(e.contains("000003.bin") && e.contains("byte offset"), "{e}");
     std::fs::write(&scan, &bytes).unwrap();
@@ -254,7 +254,7 @@ fn damaged_sequences_name_the_file_and_missing_labels_give_no_mot_score() {
     std::fs::remove_file(dir.join("label_02/0000.txt")).unwrap();
     let detections = data.join("kitti_tracking/detections/pointrcnn_Car_val");
     let source =
-        limot::run::Source::open_kitti_tracking(&dir, 0, Some(&detections), ScoreMap::Sigmoid)
+        limot::io::Source::open_kitti_tracking(&dir, 0, Some(&detections), ScoreMap::Sigmoid)
             .unwrap();
     let options = limot::run::RunOptions {
         variant: Variant::Dynafilt,

@@ -3,14 +3,14 @@
 //! OXTS ego poses, label_02 ground truth). Skips with a loud note only when
 //! `../shared/data` is absent; any unreadable file fails the test.
 
-use limot::kitti::calib::Calib;
-use limot::kitti::detections::{
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::{
     ScoreMap, camera_box_to_lidar, parse_ab3dmot_csv, read_ab3dmot_csv,
 };
-use limot::kitti::labels::read_labels;
-use limot::kitti::oxts::{oxts_to_poses, read_oxts};
-use limot::kitti::seqmap::read_seqmap;
-use limot::kitti::sequence_file;
+use limot::io::kitti::labels::read_labels;
+use limot::io::kitti::oxts::{oxts_to_poses, read_oxts};
+use limot::io::kitti::seqmap::read_seqmap;
+use limot::io::kitti::sequence_file;
 use limot::track_kitti::{
     BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
     evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
@@ -150,7 +150,7 @@ fn offline_settings_are_ahead_of_ab3dmot_in_sample() {
 }
 
 /// The 10 val sequences present in ../shared/data.
-fn present_val_seqmap(training: &Path) -> Vec<limot::kitti::seqmap::SeqmapEntry> {
+fn present_val_seqmap(training: &Path) -> Vec<limot::io::kitti::seqmap::SeqmapEntry> {
     read_seqmap(&training.join("evaluate_tracking.seqmap.val"))
         .unwrap()
         .into_iter()
@@ -644,7 +644,7 @@ fn cross_validate_kitti_settings() {
     };
     let candidates = candidate_options();
     let peer_dir = root.join("kitti_tracking/peers/ab3dmot_pointrcnn_Car_val_thres");
-    let peer = |seqmap: &[limot::kitti::seqmap::SeqmapEntry]| {
+    let peer = |seqmap: &[limot::io::kitti::seqmap::SeqmapEntry]| {
         score_results(
             &d.training,
             seqmap,
@@ -687,7 +687,8 @@ fn cross_validate_kitti_settings() {
                 "online or offline"
             }
         );
-        let mut held_out: BTreeMap<u32, Vec<limot::kitti::labels::TrackingLabel>> = BTreeMap::new();
+        let mut held_out: BTreeMap<u32, Vec<limot::io::kitti::labels::TrackingLabel>> =
+            BTreeMap::new();
         for (train, test) in [(0, 1), (1, 0)] {
             let i = select(train);
             let (name, options) = &candidates[i];

@@ -4,7 +4,8 @@
 mod common;
 
 use common::ate;
-use limot::run::{RunOptions, Source, run, write_output};
+use limot::io::Source;
+use limot::run::{RunOptions, run, write_output};
 use limot::simulate::resolve_scenario;
 use limot_sim::scenario::ScenarioSpec;
 use std::path::PathBuf;

@@ -3,12 +3,12 @@
 
 mod common;
 
-use limot::kitti::calib::Calib;
-use limot::kitti::detections::{ScoreMap, camera_box_to_lidar, read_ab3dmot_csv};
-use limot::kitti::labels::read_labels;
-use limot::kitti::oxts::{oxts_to_poses, read_oxts};
-use limot::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
-use limot::kitti::velodyne::read_bin;
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::{ScoreMap, camera_box_to_lidar, read_ab3dmot_csv};
+use limot::io::kitti::labels::read_labels;
+use limot::io::kitti::oxts::{oxts_to_poses, read_oxts};
+use limot::io::kitti::raw::{ELEVATION_CORRECTION_FILE, RawDrive};
+use limot::io::kitti::velodyne::read_bin;
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::record::Dataset;
 use limot_sim::sensors::ImuSimulator;
@@ -147,8 +147,9 @@ fn simulate_refuses_to_mix_with_existing_files() {
 /// detections in the camera frame), against the same run on the dataset.
 #[test]
 fn the_estimator_runs_on_the_kitti_copy_as_on_the_dataset() {
+    use limot::io::Source;
     use limot::report::Variant;
-    use limot::run::{RunOptions, Source, run};
+    use limot::run::{RunOptions, run};
     use limot_estimator::tracking::Lifecycle;
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = 12.0;

@@ -7,8 +7,9 @@
 mod common;
 
 use common::{ate, simulate};
+use limot::io::Source;
 use limot::report::Variant;
-use limot::run::{RunOptions, Source, run};
+use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
 use std::path::Path;
 

@@ -30,7 +30,7 @@ use super::EvalError;
 use super::assignment::min_cost_assignment;
 use super::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
 use super::iou::{AREA_EPS, Box2, image_fraction_inside, iou_image};
-use crate::kitti::labels::TrackingLabel;
+use crate::io::kitti::labels::TrackingLabel;
 use limot_estimator::input::ObjectClass;
 
 /// The classes TrackEval's KITTI 2D box benchmark evaluates.
@@ -327,7 +327,7 @@ pub fn kitti_2d_clear_mot(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::labels::parse_labels;
+    use crate::io::kitti::labels::parse_labels;
     use std::path::Path;
 
     fn labels(text: &str) -> Vec<TrackingLabel> {

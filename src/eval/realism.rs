@@ -740,7 +740,7 @@ fn coarse(counts: &[u64], fine_width: f64, width: f64, bins: usize) -> Histogram
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::velodyne::KITTI_RING_ELEVATION_DEG;
+    use crate::io::kitti::velodyne::KITTI_RING_ELEVATION_DEG;
     use nalgebra::Isometry3;
 
     const HEIGHT_M: f64 = 1.73;

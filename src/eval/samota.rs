@@ -39,7 +39,7 @@ use super::EvalError;
 use super::assignment::min_cost_assignment;
 use super::iou::{Box2, Box3, image_fraction_inside, iou_3d};
 use super::kitti_mot::KittiEvalClass;
-use crate::kitti::labels::{CameraBox, TrackingLabel};
+use crate::io::kitti::labels::{CameraBox, TrackingLabel};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, HashMap};
 
@@ -500,7 +500,7 @@ fn trajectory_id_switches(trajectory: &[(i64, bool)]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::labels::parse_labels;
+    use crate::io::kitti::labels::parse_labels;
     use std::path::Path;
 
     fn parse(text: &str) -> Vec<TrackingLabel> {

@@ -26,13 +26,13 @@ use crate::eval::iou::{Box3, IouKind};
 use crate::eval::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
 use crate::eval::objects::object_scores;
 use crate::eval::{AlignMode, RpeDelta, pose_at};
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::ScoreMap;
-use crate::kitti::detections::camera_box_to_lidar;
-use crate::kitti::labels::{TrackingLabel, read_labels};
-use crate::kitti::oxts::{oxts_to_poses, read_oxts};
-use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
-use crate::kitti::sequence_file;
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::ScoreMap;
+use crate::io::kitti::detections::camera_box_to_lidar;
+use crate::io::kitti::labels::{TrackingLabel, read_labels};
+use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
+use crate::io::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
+use crate::io::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
 use crate::track_kitti::ResultPolicy;
 use crate::track_kitti::{kitti_3d_clear_mot, lidar_poses};
@@ -489,7 +489,7 @@ impl TrackScores {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::labels::parse_labels;
+    use crate::io::kitti::labels::parse_labels;
 
     const CALIB: &str = "P0: 7.215377e+02 0 6.095593e+02 0 0 7.215377e+02 1.728540e+02 0 0 0 1 0
 P1: 7.215377e+02 0 6.095593e+02 -3.875744e+02 0 7.215377e+02 1.728540e+02 0 0 0 1 0

@@ -6,7 +6,7 @@
 //! - result boxes are in KITTI's rectified camera frame; they go to the LiDAR
 //!   frame with the dataset's calibration (`kitti/calib/NNNN.txt` when the
 //!   KITTI-style copy exists, else the same synthetic calibration the copy
-//!   would hold, [`crate::kitti_export::synthetic_calib`]);
+//!   would hold, [`crate::io::kitti::export::synthetic_calib`]);
 //! - then to the world frame with the GROUND-TRUTH ego pose `t_world_lidar` at
 //!   the frame's sweep start (the instant `gt/boxes.csv` boxes the objects).
 //!   CLEAR-MOT and the per-object ATE are computed in the world frame, so the
@@ -33,12 +33,12 @@ use crate::eval::clear_mot::{
 use crate::eval::interpolate::pose_at;
 use crate::eval::iou::{Box3, IouKind};
 use crate::eval::objects::{ObjectScore, object_scores};
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
-use crate::kitti::labels::TrackingLabel;
-use crate::kitti::results::{ImageSize, image_box};
-use crate::kitti::{LineCtx, content_lines, read_text, sequence_file};
-use crate::kitti_export::synthetic_calib;
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
+use crate::io::kitti::export::synthetic_calib;
+use crate::io::kitti::labels::TrackingLabel;
+use crate::io::kitti::results::{ImageSize, image_box};
+use crate::io::kitti::{LineCtx, content_lines, read_text, sequence_file};
 use crate::report::table::{Cell, Table};
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::{Dataset, EgoTruth};

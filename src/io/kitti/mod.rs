@@ -1,4 +1,7 @@
-//! KITTI tracking readers and writers.
+//! KITTI readers and writers: one module per file format of the tracking
+//! benchmark (calib, labels, object_labels, detections, oxts, poses, results,
+//! seqmap, velodyne), [`raw`] for raw drives and the tracking-sequence
+//! opener, and [`export`] for the KITTI-style copy of a simulated dataset.
 //!
 //! Frames used throughout:
 //! - `cam` / `rect`: the rectified camera-0 frame of KITTI (x right, y down,
@@ -12,6 +15,7 @@
 
 pub mod calib;
 pub mod detections;
+pub mod export;
 pub mod labels;
 pub mod object_labels;
 pub mod oxts;
@@ -26,49 +30,86 @@ use std::path::{Path, PathBuf};
 /// Why a KITTI file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum KittiError {
+    /// The file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// A field of a line is malformed.
     #[error("{}:{line}: column {column} (`{field}`): {why}", path.display())]
     Field {
+        /// The file.
         path: PathBuf,
+        /// 1-based line.
         line: usize,
         /// 1-based column (whitespace- or comma-separated token).
         column: usize,
+        /// Name of the field.
         field: &'static str,
+        /// What is wrong with it.
         why: String,
     },
+    /// A line has the wrong number of columns.
     #[error("{}:{line}: expected {expected} columns, found {found}", path.display())]
     ColumnCount {
+        /// The file.
         path: PathBuf,
+        /// 1-based line.
         line: usize,
+        /// The column counts accepted (e.g. `17 or 18`).
         expected: String,
+        /// The columns found.
         found: usize,
     },
+    /// A line is malformed as a whole.
     #[error("{}:{line}: {why}", path.display())]
     Line {
+        /// The file.
         path: PathBuf,
+        /// 1-based line.
         line: usize,
+        /// What is wrong with it.
         why: String,
     },
+    /// A key-value file lacks a required key.
     #[error("{}: missing key `{key}`", path.display())]
-    MissingKey { path: PathBuf, key: &'static str },
+    MissingKey {
+        /// The file.
+        path: PathBuf,
+        /// The key.
+        key: &'static str,
+    },
+    /// A binary file is malformed.
     #[error("{}: byte offset {byte_offset}: {why}", path.display())]
     Binary {
+        /// The file.
         path: PathBuf,
+        /// Offset of the problem.
         byte_offset: u64,
+        /// What is wrong.
         why: String,
     },
+    /// The file is well-formed but its content is inconsistent.
     #[error("{}: {why}", path.display())]
-    Invalid { path: PathBuf, why: String },
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
 }
 
+/// Result of the KITTI readers and writers.
 pub type Result<T> = std::result::Result<T, KittiError>;
 
 /// Reads a whole text file, mapping I/O errors to [`KittiError::Io`].
+///
+/// # Errors
+/// The file cannot be read ([`KittiError::Io`]).
 pub fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),
@@ -77,6 +118,9 @@ pub fn read_text(path: &Path) -> Result<String> {
 }
 
 /// Writes a whole text file, mapping I/O errors to [`KittiError::Io`].
+///
+/// # Errors
+/// The file cannot be written ([`KittiError::Io`]).
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),

@@ -19,7 +19,9 @@ use std::path::{Path, PathBuf};
 /// 1224..1242 × 370..376.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImageSize {
+    /// Width (pixels).
     pub width: f64,
+    /// Height (pixels).
     pub height: f64,
 }
 
@@ -34,10 +36,15 @@ impl ImageSize {
 /// One tracked object at one frame, in the LiDAR frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackBox {
+    /// Frame index.
     pub frame: u32,
+    /// Track id.
     pub track_id: u32,
+    /// Object class.
     pub class: ObjectClass,
+    /// The box in the frame's LiDAR frame.
     pub lidar_box: LidarBox,
+    /// Score written in the result line.
     pub score: f64,
 }
 
@@ -109,6 +116,9 @@ pub fn write_results(labels: &[TrackingLabel]) -> String {
 }
 
 /// Writes `dir/00NN.txt` for one sequence; returns the path.
+///
+/// # Errors
+/// The file cannot be written (named).
 pub fn write_results_file(dir: &Path, sequence: u32, labels: &[TrackingLabel]) -> Result<PathBuf> {
     let path = sequence_file(dir, sequence);
     write_text(&path, &write_results(labels))?;
@@ -118,12 +128,12 @@ pub fn write_results_file(dir: &Path, sequence: u32, labels: &[TrackingLabel]) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::detections::camera_box_to_lidar;
-    use crate::kitti::labels::parse_labels;
+    use crate::io::kitti::detections::camera_box_to_lidar;
+    use crate::io::kitti::labels::parse_labels;
 
     #[test]
     fn label_survives_lidar_round_trip_into_a_result_line() {
-        let calib = crate::kitti::calib::tests::sample();
+        let calib = crate::io::kitti::calib::tests::sample();
         // A real label of sequence 0001 (frame 0, a Van 13 m ahead-left).
         let text = "0 0 Van 0 0 -1.793451 296.744956 161.752147 455.226042 292.372804 2.000000 1.823255 4.433886 -4.552284 1.858523 13.410495 -2.115488\n";
         let label = parse_labels(text, Path::new("l.txt")).unwrap().remove(0);
@@ -160,7 +170,7 @@ mod tests {
 
     #[test]
     fn boxes_behind_the_camera_are_not_written() {
-        let calib = crate::kitti::calib::tests::sample();
+        let calib = crate::io::kitti::calib::tests::sample();
         let track = TrackBox {
             frame: 3,
             track_id: 7,
@@ -177,7 +187,7 @@ mod tests {
 
     #[test]
     fn results_are_sorted_and_written_per_sequence() {
-        let calib = crate::kitti::calib::tests::sample();
+        let calib = crate::io::kitti::calib::tests::sample();
         let mk = |frame, track_id, x: f64| TrackBox {
             frame,
             track_id,
@@ -198,7 +208,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = write_results_file(&dir, 7, &labels).unwrap();
         assert!(path.ends_with("0007.txt"));
-        let back = crate::kitti::labels::read_labels(&path).unwrap();
+        let back = crate::io::kitti::labels::read_labels(&path).unwrap();
         let keys: Vec<(u32, i64)> = back.iter().map(|l| (l.frame, l.track_id)).collect();
         assert_eq!(keys, vec![(0, 2), (0, 5), (2, 1)]);
         std::fs::remove_dir_all(&dir).unwrap();

@@ -26,8 +26,11 @@ const ROTATION_TOLERANCE: f64 = 1e-3;
 pub struct Calib {
     /// Projection matrices of the four rectified cameras (P2 = left colour).
     pub p0: Matrix3x4<f64>,
+    /// P1 (right grey camera).
     pub p1: Matrix3x4<f64>,
+    /// P2 (left colour camera, the one labels are drawn in).
     pub p2: Matrix3x4<f64>,
+    /// P3 (right colour camera).
     pub p3: Matrix3x4<f64>,
     /// Rectifying rotation of camera 0, kept exactly as stored (it is not
     /// re-orthonormalised so that label boxes convert exactly as the devkit does).
@@ -40,11 +43,17 @@ pub struct Calib {
 
 impl Calib {
     /// Reads and parses a calibration file.
+    ///
+    /// # Errors
+    /// An unreadable file, a missing key or a malformed matrix (named with file and line).
     pub fn read(path: &Path) -> Result<Calib> {
         Calib::parse(&read_text(path)?, path)
     }
 
     /// Parses calibration text; `path` is only used in error messages.
+    ///
+    /// # Errors
+    /// A missing key or a malformed matrix (named with file and line).
     pub fn parse(text: &str, path: &Path) -> Result<Calib> {
         let mut p: [Option<Matrix3x4<f64>>; 4] = [None; 4];
         let mut r_rect: Option<Matrix3<f64>> = None;

@@ -63,35 +63,65 @@ pub const FIELD_NAMES: [&str; 30] = [
 /// One OXTS line (see the module docs for units and frames).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct OxtsRecord {
+    /// Latitude (deg).
     pub lat_deg: f64,
+    /// Longitude (deg).
     pub lon_deg: f64,
+    /// Altitude (m).
     pub alt_m: f64,
+    /// Roll (rad, 0 = level).
     pub roll_rad: f64,
+    /// Pitch (rad, 0 = level).
     pub pitch_rad: f64,
+    /// Heading (rad, 0 = east, counter-clockwise).
     pub yaw_rad: f64,
+    /// Velocity north (m/s).
     pub vn_mps: f64,
+    /// Velocity east (m/s).
     pub ve_mps: f64,
+    /// Velocity forward (m/s).
     pub vf_mps: f64,
+    /// Velocity left (m/s).
     pub vl_mps: f64,
+    /// Velocity up (m/s).
     pub vu_mps: f64,
+    /// Specific force along body x (front), m/s².
     pub ax_mps2: f64,
+    /// Specific force along body y (left), m/s².
     pub ay_mps2: f64,
+    /// Specific force along body z (top), m/s².
     pub az_mps2: f64,
+    /// Specific force forward, level frame (m/s²).
     pub af_mps2: f64,
+    /// Specific force left, level frame (m/s²).
     pub al_mps2: f64,
+    /// Specific force up, level frame (m/s²).
     pub au_mps2: f64,
+    /// Angular rate about body x (rad/s).
     pub wx_radps: f64,
+    /// Angular rate about body y (rad/s).
     pub wy_radps: f64,
+    /// Angular rate about body z (rad/s).
     pub wz_radps: f64,
+    /// Angular rate about forward, level frame (rad/s).
     pub wf_radps: f64,
+    /// Angular rate about left, level frame (rad/s).
     pub wl_radps: f64,
+    /// Angular rate about up, level frame (rad/s).
     pub wu_radps: f64,
+    /// Position accuracy (m).
     pub pos_accuracy_m: f64,
+    /// Velocity accuracy (m/s).
     pub vel_accuracy_mps: f64,
+    /// Navigation status.
     pub navstat: i64,
+    /// Number of satellites tracked.
     pub numsats: i64,
+    /// Position mode.
     pub posmode: i64,
+    /// Velocity mode.
     pub velmode: i64,
+    /// Orientation mode.
     pub orimode: i64,
 }
 
@@ -209,6 +239,9 @@ impl OxtsRecord {
 }
 
 /// Parses an OXTS file's text (one record per non-blank line).
+///
+/// # Errors
+/// A line without 30 columns or a malformed field (file, line and column).
 pub fn parse_oxts(text: &str, path: &Path) -> Result<Vec<OxtsRecord>> {
     content_lines(text)
         .map(|(line_no, line)| OxtsRecord::parse_line(line, LineCtx::new(path, line_no)))
@@ -216,6 +249,9 @@ pub fn parse_oxts(text: &str, path: &Path) -> Result<Vec<OxtsRecord>> {
 }
 
 /// Reads an OXTS file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_oxts`]).
 pub fn read_oxts(path: &Path) -> Result<Vec<OxtsRecord>> {
     parse_oxts(&read_text(path)?, path)
 }

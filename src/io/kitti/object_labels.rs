@@ -7,7 +7,7 @@
 //! 15 columns in ground truth, 16 with a detector score. The columns are the
 //! tracking label columns (see [`super::labels`]) without `frame` and
 //! `track_id`: the frame is the file name. Parsing goes through
-//! [`TrackingLabel::parse_line`] so both formats share one set of checks
+//! `TrackingLabel::parse_line` so both formats share one set of checks
 //! (finite numbers, known type names); error columns are reported in this
 //! format's numbering.
 //!
@@ -56,6 +56,9 @@ fn parse_object_line(line: &str, frame: u32, ctx: LineCtx<'_>) -> Result<Trackin
 
 /// Parses one per-frame object label file; every detection gets `frame`.
 /// See the module docs for skipped lines and the missing-score rule.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_object_labels(text: &str, path: &Path, frame: u32) -> Result<Vec<CameraDetection>> {
     let labels = content_lines(text)
         .map(|(line_no, line)| parse_object_line(line, frame, LineCtx::new(path, line_no)))
@@ -64,6 +67,9 @@ pub fn parse_object_labels(text: &str, path: &Path, frame: u32) -> Result<Vec<Ca
 }
 
 /// Reads one per-frame object label file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_object_labels`]).
 pub fn read_object_labels(path: &Path, frame: u32) -> Result<Vec<CameraDetection>> {
     parse_object_labels(&read_text(path)?, path, frame)
 }
@@ -98,6 +104,9 @@ fn frame_of_file_name(path: &Path) -> Result<Option<u32>> {
 /// - A `.txt` file whose stem is not a number, or two files naming the same
 ///   frame (`1.txt` and `000001.txt`), are errors. Other entries
 ///   (subdirectories, files with other extensions) are ignored.
+///
+/// # Errors
+/// An unreadable directory or label file, or a malformed line.
 pub fn read_object_label_dir(dir: &Path) -> Result<Vec<Vec<CameraDetection>>> {
     let io_err = |source| KittiError::Io {
         path: dir.to_path_buf(),
@@ -165,8 +174,8 @@ pub fn write_object_labels(detections: &[CameraDetection]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kitti::calib::Calib;
-    use crate::kitti::detections::ScoreMap;
+    use crate::io::kitti::calib::Calib;
+    use crate::io::kitti::detections::ScoreMap;
     use limot_estimator::input::ObjectClass;
     use nalgebra::Vector3;
 
@@ -189,7 +198,7 @@ Cyclist -1 -1 0.2 600 170 640 230 1.7 0.6 1.8 -1.2 1.65 17.5 1.45 0.41
         if path.exists() {
             Calib::read(&path).unwrap()
         } else {
-            crate::kitti::calib::tests::sample()
+            crate::io::kitti::calib::tests::sample()
         }
     }
 
@@ -243,7 +252,7 @@ Cyclist -1 -1 0.2 600 170 640 230 1.7 0.6 1.8 -1.2 1.65 17.5 1.45 0.41
         let object_line = SCORED.lines().next().unwrap();
         let tracking_text = format!("12 5 {object_line}\n");
         let via_tracking = detections_from_labels(
-            &crate::kitti::labels::parse_labels(&tracking_text, Path::new("t.txt")).unwrap(),
+            &crate::io::kitti::labels::parse_labels(&tracking_text, Path::new("t.txt")).unwrap(),
         );
         let via_object = parse_object_labels(object_line, Path::new("o.txt"), 12).unwrap();
         assert_eq!(via_object, via_tracking);

@@ -8,17 +8,21 @@ use std::path::Path;
 /// One sequence of a sequence map.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SeqmapEntry {
+    /// Sequence number.
     pub sequence: u32,
+    /// First frame scored.
     pub first_frame: u32,
     /// One past the last frame (= frame count when `first_frame` is 0).
     pub end_frame: u32,
 }
 
 impl SeqmapEntry {
+    /// Number of frames scored.
     pub fn num_frames(&self) -> u32 {
         self.end_frame - self.first_frame
     }
 
+    /// The seqmap line of this entry (`SSSS empty FFFFFF EEEEEE`).
     pub fn to_line(&self) -> String {
         format!(
             "{:04} empty {:06} {:06}",
@@ -28,6 +32,9 @@ impl SeqmapEntry {
 }
 
 /// Parses a sequence map.
+///
+/// # Errors
+/// A malformed line or a frame range that ends before it starts (file and line).
 pub fn parse_seqmap(text: &str, path: &Path) -> Result<Vec<SeqmapEntry>> {
     content_lines(text)
         .map(|(line_no, line)| {
@@ -56,6 +63,9 @@ pub fn parse_seqmap(text: &str, path: &Path) -> Result<Vec<SeqmapEntry>> {
 }
 
 /// Reads a sequence map.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_seqmap`]).
 pub fn read_seqmap(path: &Path) -> Result<Vec<SeqmapEntry>> {
     parse_seqmap(&read_text(path)?, path)
 }

@@ -10,12 +10,17 @@ use std::path::Path;
 /// A pose at a time (TUM files carry timestamps).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StampedPose {
+    /// Time (s).
     pub t_s: f64,
+    /// The pose (maps points of the body frame into the world).
     pub pose: Isometry3<f64>,
 }
 
 /// Parses a times file (KITTI `times.txt`: one time in seconds per line, the
 /// first column is used). Times must be finite and non-decreasing.
+///
+/// # Errors
+/// A malformed or non-finite time, or time going backwards (file and line).
 pub fn parse_times(text: &str, path: &Path) -> Result<Vec<f64>> {
     let mut times: Vec<f64> = Vec::new();
     for (line_no, line) in content_lines(text) {
@@ -37,6 +42,9 @@ pub fn parse_times(text: &str, path: &Path) -> Result<Vec<f64>> {
 }
 
 /// Reads a times file (see [`parse_times`]).
+///
+/// # Errors
+/// An unreadable file, or a malformed time (see [`parse_times`]).
 pub fn read_times(path: &Path) -> Result<Vec<f64>> {
     parse_times(&read_text(path)?, path)
 }
@@ -60,6 +68,9 @@ const TUM_FIELDS: [&str; 8] = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"];
 
 /// Parses a TUM trajectory; `#` comment lines are skipped. The quaternion
 /// must have a norm within 1e-3 of 1 (it is then normalised).
+///
+/// # Errors
+/// A line without 8 columns, a malformed field or a non-unit quaternion (file, line and column).
 pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<StampedPose>> {
     content_lines(text)
         .filter(|(_, l)| !l.trim_start().starts_with('#'))
@@ -104,6 +115,9 @@ pub fn write_kitti_poses(poses: &[Isometry3<f64>]) -> String {
 
 /// Parses a KITTI pose file; the rotation must be orthonormal to 1e-3 (it is
 /// projected onto the nearest rotation).
+///
+/// # Errors
+/// A line without 12 columns, a malformed field or a non-rotation matrix (file, line and column).
 pub fn parse_kitti_poses(text: &str, path: &Path) -> Result<Vec<Isometry3<f64>>> {
     content_lines(text)
         .map(|(line_no, line)| {
@@ -122,11 +136,17 @@ pub fn parse_kitti_poses(text: &str, path: &Path) -> Result<Vec<Isometry3<f64>>>
 }
 
 /// Reads a TUM trajectory file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_tum`]).
 pub fn read_tum(path: &Path) -> Result<Vec<StampedPose>> {
     parse_tum(&read_text(path)?, path)
 }
 
 /// Reads a KITTI pose file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_kitti_poses`]).
 pub fn read_kitti_poses(path: &Path) -> Result<Vec<Isometry3<f64>>> {
     parse_kitti_poses(&read_text(path)?, path)
 }

@@ -45,7 +45,9 @@ pub enum RingSource {
 /// A scan with the provenance of its rings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VelodyneScan {
+    /// The points with rings and per-point times.
     pub scan: LidarScan,
+    /// How the rings were found.
     pub ring_source: RingSource,
 }
 
@@ -184,6 +186,9 @@ fn estimate_rings_at_azimuths(
 /// Decodes a `.bin` scan; `t_s` is the sweep start time. A length that is not
 /// a multiple of 16 bytes or a non-finite value is an error naming the byte
 /// offset.
+///
+/// # Errors
+/// A length that is not a multiple of 16 bytes or a non-finite value (byte offset).
 pub fn parse_bin(bytes: &[u8], path: &Path, t_s: f64) -> Result<VelodyneScan> {
     let remainder = bytes.len() % BYTES_PER_POINT;
     if remainder != 0 {
@@ -245,6 +250,9 @@ pub fn parse_bin(bytes: &[u8], path: &Path, t_s: f64) -> Result<VelodyneScan> {
 }
 
 /// Reads a `.bin` scan.
+///
+/// # Errors
+/// An unreadable file, or a malformed one (see [`parse_bin`]).
 pub fn read_bin(path: &Path, t_s: f64) -> Result<VelodyneScan> {
     let bytes = std::fs::read(path).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),
@@ -266,6 +274,9 @@ pub fn encode_bin(points: &[LidarPoint]) -> Vec<u8> {
 }
 
 /// Writes points as a `.bin` file.
+///
+/// # Errors
+/// The file cannot be written (named).
 pub fn write_bin(path: &Path, points: &[LidarPoint]) -> Result<()> {
     std::fs::write(path, encode_bin(points)).map_err(|source| KittiError::Io {
         path: path.to_path_buf(),

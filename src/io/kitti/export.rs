@@ -16,17 +16,17 @@
 //! devkit's Mercator projection around a point in Karlsruhe, chosen so the
 //! devkit's `oxts_to_poses` gives back our IMU poses relative to the first.
 
-use crate::kitti::calib::Calib;
-use crate::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
-use crate::kitti::labels::write_labels;
-use crate::kitti::oxts::{
+use crate::io::kitti::calib::Calib;
+use crate::io::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
+use crate::io::kitti::labels::write_labels;
+use crate::io::kitti::oxts::{
     EARTH_RADIUS_M, OxtsRecord, lat_lon_to_mercator, lat_to_scale, write_oxts,
 };
-use crate::kitti::poses::write_kitti_poses;
-use crate::kitti::raw::ELEVATION_CORRECTION_FILE;
-use crate::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
-use crate::kitti::velodyne::encode_bin;
-use crate::kitti::{KittiError, detections::LidarBox};
+use crate::io::kitti::poses::write_kitti_poses;
+use crate::io::kitti::raw::ELEVATION_CORRECTION_FILE;
+use crate::io::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
+use crate::io::kitti::velodyne::encode_bin;
+use crate::io::kitti::{KittiError, detections::LidarBox};
 use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;
@@ -43,15 +43,21 @@ const ORIGIN_ALT_M: f64 = 112.0;
 /// Ground-truth boxes farther than this are not labelled (KITTI labels ~80 m).
 const LABEL_RANGE_M: f64 = 80.0;
 
+/// Why the KITTI-style copy of a dataset could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The dataset could not be read.
     #[error(transparent)]
     Record(#[from] RecordError),
+    /// A KITTI file could not be written.
     #[error(transparent)]
     Kitti(#[from] KittiError),
+    /// A file or directory could not be written.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file or directory.
         path: PathBuf,
+        /// The I/O error.
         #[source]
         source: std::io::Error,
     },
@@ -181,6 +187,9 @@ fn oxts_records(scene: &Scene, spec: &ScenarioSpec, times_s: &[f64]) -> Vec<Oxts
 /// `spec` is the scenario the dataset was simulated from and `scene` its
 /// built scene (the caller has it: building it again, traffic included,
 /// would be a good part of the export's time).
+///
+/// # Errors
+/// An unreadable dataset or a file of the copy that cannot be written.
 pub fn export_dataset(
     dataset_dir: &Path,
     spec: &ScenarioSpec,

@@ -62,6 +62,7 @@ pub struct CameraBox {
 /// One line of a tracking label / result file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingLabel {
+    /// Frame index.
     pub frame: u32,
     /// -1 for `DontCare`.
     pub track_id: i64,
@@ -75,6 +76,7 @@ pub struct TrackingLabel {
     pub alpha_rad: f64,
     /// 2D box in the left colour image: left, top, right, bottom (pixels).
     pub bbox_2d: [f64; 4],
+    /// The 3D box in the rectified camera frame.
     pub cam_box: CameraBox,
     /// Present in results and detection files, absent in ground truth.
     pub score: Option<f64>,
@@ -167,6 +169,9 @@ impl TrackingLabel {
 }
 
 /// Parses a tracking label file's text.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<TrackingLabel>> {
     content_lines(text)
         .map(|(line_no, line)| TrackingLabel::parse_line(line, LineCtx::new(path, line_no)))
@@ -174,6 +179,9 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<TrackingLabel>> {
 }
 
 /// Reads a tracking label file.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_labels`]).
 pub fn read_labels(path: &Path) -> Result<Vec<TrackingLabel>> {
     parse_labels(&read_text(path)?, path)
 }

@@ -40,6 +40,7 @@ pub struct LidarBox {
 }
 
 impl LidarBox {
+    /// The box of an estimator detection (its centre, size and heading).
     pub fn from_detection(det: &Detection) -> LidarBox {
         LidarBox {
             center_lidar: det.center_lidar,
@@ -88,6 +89,7 @@ pub enum ScoreMap {
 }
 
 impl ScoreMap {
+    /// Maps a raw detector score into [0, 1].
     pub fn apply(self, raw: f64) -> f64 {
         match self {
             ScoreMap::Sigmoid => 1.0 / (1.0 + (-raw).exp()),
@@ -110,13 +112,17 @@ impl ScoreMap {
 /// One camera-frame detection, as stored in a detection file.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CameraDetection {
+    /// Frame index.
     pub frame: u32,
+    /// Object class.
     pub class: ObjectClass,
     /// Left, top, right, bottom (pixels).
     pub bbox_2d: [f64; 4],
     /// Detector score as stored (not necessarily in [0, 1]).
     pub score_raw: f64,
+    /// The 3D box in the rectified camera frame.
     pub cam_box: CameraBox,
+    /// Observation angle (rad).
     pub alpha_rad: f64,
 }
 
@@ -232,6 +238,9 @@ fn parse_csv_line(line: &str, ctx: LineCtx<'_>) -> Result<CameraDetection> {
 }
 
 /// Parses an AB3DMOT detection CSV.
+///
+/// # Errors
+/// A line with the wrong column count or a malformed field (file, line and column).
 pub fn parse_ab3dmot_csv(text: &str, path: &Path) -> Result<Vec<CameraDetection>> {
     content_lines(text)
         .map(|(line_no, line)| parse_csv_line(line, LineCtx::new(path, line_no)))
@@ -239,6 +248,9 @@ pub fn parse_ab3dmot_csv(text: &str, path: &Path) -> Result<Vec<CameraDetection>
 }
 
 /// Reads an AB3DMOT detection CSV.
+///
+/// # Errors
+/// An unreadable file, or a malformed line (see [`parse_ab3dmot_csv`]).
 pub fn read_ab3dmot_csv(path: &Path) -> Result<Vec<CameraDetection>> {
     parse_ab3dmot_csv(&read_text(path)?, path)
 }
@@ -298,7 +310,7 @@ mod tests {
     use super::*;
 
     fn calib() -> Calib {
-        crate::kitti::calib::tests::sample()
+        crate::io::kitti::calib::tests::sample()
     }
 
     const CSV: &str = "\
@@ -402,7 +414,7 @@ mod tests {
 0 3 Van 0 0 -1.79 296.7 161.7 455.2 292.3 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12
 1 4 Tram 0 0 -1.79 296.7 161.7 455.2 292.3 3.0 2.5 14.0 -4.55 1.86 33.41 -2.12
 ";
-        let labels = crate::kitti::labels::parse_labels(text, Path::new("l.txt")).unwrap();
+        let labels = crate::io::kitti::labels::parse_labels(text, Path::new("l.txt")).unwrap();
         let dets = detections_from_labels(&labels);
         assert_eq!(dets.len(), 1);
         assert_eq!(dets[0].class, ObjectClass::Car);

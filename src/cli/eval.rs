@@ -1,0 +1,246 @@
+//! `limot eval`: ego and track scores of result files, the simulated suite and the KITTI suite.
+
+use super::EvalCommand;
+use super::options::{kitti_tracking_options, parse_score_map};
+use super::report::{print_kitti_report, print_suite_report};
+use crate::evaluate::EvaluateError;
+use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
+use crate::evaluate::tracks::{TrackEvalOptions, evaluate_tracks};
+use std::path::PathBuf;
+
+pub(super) fn parse_align(s: &str) -> Result<crate::eval::AlignMode, EvaluateError> {
+    use crate::eval::AlignMode;
+    match s.to_ascii_lowercase().as_str() {
+        "se3" => Ok(AlignMode::Se3),
+        "sim3" => Ok(AlignMode::Sim3),
+        "none" => Ok(AlignMode::None),
+        _ => Err(EvaluateError::Argument(format!(
+            "--align `{s}`: expected se3, sim3 or none"
+        ))),
+    }
+}
+
+pub(super) fn write_output(path: &std::path::Path, text: &str) -> Result<(), EvaluateError> {
+    std::fs::write(path, text).map_err(|source| EvaluateError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+pub(super) fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Error>> {
+    match what {
+        EvalCommand::Ego {
+            truth,
+            estimate,
+            format,
+            times,
+            truth_format,
+            truth_times,
+            sequence,
+            align,
+            max_dt,
+            rpe_delta,
+            rpe_all_pairs,
+            json,
+            markdown,
+        } => {
+            let opts = EgoEvalOptions {
+                estimate_format: format.as_deref().map(str::parse).transpose()?,
+                estimate_times: times,
+                truth_format: truth_format.as_deref().map(str::parse).transpose()?,
+                truth_times,
+                sequence,
+                align: parse_align(&align)?,
+                max_dt_s: max_dt,
+                rpe_delta: parse_rpe_delta(&rpe_delta)?,
+                rpe_all_pairs,
+            };
+            let r = evaluate_ego(&truth, &estimate, &opts)?;
+            println!("{}", r.summary_line());
+            println!();
+            print!("{}", r.table()?.to_markdown()?);
+            if let Some(note) = r.alignment_note() {
+                println!("note: {note}");
+            }
+            if let Some(path) = json {
+                write_output(&path, &r.to_json().render())?;
+            }
+            if let Some(path) = markdown {
+                write_output(&path, &r.to_markdown()?)?;
+            }
+        }
+        EvalCommand::Tracks {
+            truth,
+            results,
+            gt_filter,
+            sequence,
+            json,
+            markdown,
+        } => {
+            let opts = TrackEvalOptions {
+                gt_filter: gt_filter.parse()?,
+                sequence,
+                ..TrackEvalOptions::default()
+            };
+            let r = evaluate_tracks(&truth, &results, &opts)?;
+            for line in r.summary_lines() {
+                println!("{line}");
+            }
+            println!();
+            print!("{}", r.clear_mot_table()?.to_markdown()?);
+            println!();
+            print!("{}", r.object_table()?.to_markdown()?);
+            if let Some(path) = json {
+                write_output(&path, &r.to_json().render())?;
+            }
+            if let Some(path) = markdown {
+                write_output(&path, &r.to_markdown()?)?;
+            }
+        }
+        EvalCommand::Suite {
+            families,
+            seeds,
+            duration,
+            variants,
+            out,
+            shard,
+            jobs,
+        } => run_eval_suite(
+            &families,
+            &seeds,
+            duration,
+            &variants,
+            out,
+            shard.as_deref(),
+            jobs,
+        )?,
+        EvalCommand::Kitti {
+            training,
+            detections,
+            score_map,
+            sequences,
+            variants,
+            tracker,
+            tracking_peer,
+            ego_peer,
+            out,
+        } => run_eval_kitti(
+            training,
+            detections,
+            &score_map,
+            sequences,
+            &variants,
+            &tracker,
+            tracking_peer,
+            ego_peer,
+            out,
+        )?,
+    }
+    Ok(())
+}
+
+/// `limot eval suite`: runs the suite, writes OUT/report and prints the ego table.
+pub(super) fn run_eval_suite(
+    families: &str,
+    seeds: &str,
+    duration_s: f64,
+    variants: &str,
+    out: PathBuf,
+    shard: Option<&str>,
+    jobs: Option<usize>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::report::Variant;
+    use crate::suite::{Shard, SuiteSpec, parse_list, run_suite};
+    let spec = SuiteSpec {
+        families: parse_list("families", families, |s| Ok(s.to_string()))?,
+        seeds: parse_list("seeds", seeds, |s| {
+            s.parse::<u64>().map_err(|e| e.to_string())
+        })?,
+        duration_s,
+        variants: parse_list("variants", variants, |s| {
+            Variant::parse(s).map_err(|e| e.to_string())
+        })?,
+        out_dir: out,
+        shard: shard.map(Shard::parse).transpose()?,
+        jobs,
+    };
+    let runs = spec.families.len() * spec.seeds.len() * spec.variants.len();
+    println!(
+        "limot eval suite: {} sequence(s) x {} variant(s) = {runs} runs of {} s into {}",
+        spec.families.len() * spec.seeds.len(),
+        spec.variants.len(),
+        spec.duration_s,
+        spec.out_dir.display()
+    );
+    let results = run_suite(&spec, true)?;
+    if let Some(shard) = spec.shard {
+        println!(
+            "shard {}/{}: {} sequence(s) in {}; join all shards with `limot report --merge {}`",
+            shard.index,
+            shard.count,
+            results.sequences.len(),
+            spec.out_dir.join(shard.results_file_name()).display(),
+            spec.out_dir.join("results-shard-*.json").display()
+        );
+        return Ok(());
+    }
+    print_suite_report(&results, &spec.out_dir, &spec.out_dir.join("report"))
+}
+
+/// `NAME=DIR` of a peer option.
+pub(super) fn parse_peer(option: &str, text: &str) -> Result<(String, PathBuf), String> {
+    match text.split_once('=') {
+        Some((name, dir)) if !name.trim().is_empty() && !dir.is_empty() => {
+            Ok((name.trim().to_string(), PathBuf::from(dir)))
+        }
+        _ => Err(format!("--{option} `{text}`: expected NAME=DIR")),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_eval_kitti(
+    training: PathBuf,
+    detections: Option<PathBuf>,
+    score_map: &str,
+    sequences: Option<String>,
+    variants: &str,
+    tracker: &str,
+    tracking_peer: Option<String>,
+    ego_peer: Vec<String>,
+    out: PathBuf,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::kitti_suite::{KittiSuiteSpec, run_kitti_suite};
+    use crate::report::Variant;
+    use crate::suite::parse_list;
+    let spec = KittiSuiteSpec {
+        training,
+        detections,
+        tracking: kitti_tracking_options(tracker, parse_score_map(score_map)?)?,
+        variants: parse_list("variants", variants, |s| {
+            Variant::parse(s).map_err(|e| e.to_string())
+        })?,
+        sequences: sequences
+            .map(|s| {
+                parse_list("sequences", &s, |x| {
+                    x.parse::<u32>().map_err(|e| e.to_string())
+                })
+            })
+            .transpose()?,
+        tracking_peer: tracking_peer
+            .map(|p| parse_peer("tracking-peer", &p))
+            .transpose()?,
+        ego_peers: ego_peer
+            .iter()
+            .map(|p| parse_peer("ego-peer", p))
+            .collect::<Result<_, _>>()?,
+        out_dir: out,
+    };
+    println!(
+        "limot eval kitti: {} into {}",
+        spec.training.display(),
+        spec.out_dir.display()
+    );
+    let results = run_kitti_suite(&spec, true)?;
+    let file = spec.out_dir.join(crate::suite::RESULTS_FILE);
+    print_kitti_report(&results, &file, &spec.out_dir.join("report"))
+}

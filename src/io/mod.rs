@@ -1,0 +1,22 @@
+//! Everything that reads or writes a file format or a dataset.
+//!
+//! - [`kitti`]: KITTI tracking and raw-drive files (calibration, labels,
+//!   detections, OXTS, poses, results, seqmaps, Velodyne scans), the raw
+//!   drive and tracking-sequence openers, and the KITTI-style export of a
+//!   simulated dataset.
+//! - [`Source`]: a dataset opened for the estimator (a limot dataset, a KITTI
+//!   raw drive, bare scans or a KITTI tracking sequence), with [`ImuFeed`],
+//!   which hands the estimator the IMU samples due before each sweep.
+//! - [`write_run_files`]: the files of a run of the estimator (poses,
+//!   estimates, timings, tracks).
+#![warn(missing_docs)]
+
+pub mod kitti;
+mod run_files;
+mod source;
+
+pub use run_files::{WriteError, write_run_files};
+pub use source::{
+    IMU_GAP_PERIODS, IMU_LOOKBACK_S, ImuFeed, SWEEP_END_TOLERANCE_S, Source, SourceError,
+    imu_gap_limit_s,
+};
