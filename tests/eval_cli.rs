@@ -1,11 +1,11 @@
 //! `limot eval` on a short simulated dataset: ego trajectories written as
 //! TUM / KITTI pose files and the KITTI copy's labels used as tracker results.
 
-use limot::eval::AlignMode;
-use limot::eval::iou::IouKind;
-use limot::evaluate::EvaluateError;
-use limot::evaluate::ego::{EgoEvalOptions, evaluate_ego, load_truth};
-use limot::evaluate::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
+use limot::metrics::AlignMode;
+use limot::metrics::iou::IouKind;
+use limot::experiments::score::EvaluateError;
+use limot::experiments::score::ego::{EgoEvalOptions, evaluate_ego, load_truth};
+use limot::experiments::score::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
 use limot::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::record::Dataset;

@@ -3,7 +3,9 @@
 //! `write_report`. Everything works on plain data, so the evaluation runner
 //! only has to fill the row structs and series.
 
+pub mod kitti;
 pub mod plot;
+pub mod suite;
 pub mod table;
 
 pub use plot::{

@@ -4,7 +4,7 @@
 //! ego-ATE, tracking (MOTA/MOTP), per-object and timing tables.
 
 use super::{ReportError, Variant};
-use crate::eval::{ClearMotResult, ObjectScore, TimingAccumulator};
+use crate::metrics::{ClearMotResult, ObjectScore, TimingAccumulator};
 use std::collections::BTreeMap;
 
 /// What a missing cell renders as (an en dash, like the paper's "--").

@@ -24,16 +24,16 @@
 //! by their mean score over the sequence), which AB3DMOT's thresholded
 //! output, the peer of docs/tracking-kitti.md, has been through.
 
-use crate::eval::EvalError;
-use crate::eval::clear_mot::{
+use crate::metrics::EvalError;
+use crate::metrics::clear_mot::{
     ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, TrackedBox, clear_mot,
     combine_sequences,
 };
-use crate::eval::iou::{Box3, IouKind};
-use crate::eval::kitti_mot::{
+use crate::metrics::iou::{Box3, IouKind};
+use crate::metrics::kitti_mot::{
     KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
 };
-use crate::eval::samota::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
+use crate::metrics::samota::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{
     LidarBox, ScoreMap, camera_box_to_lidar, detections_by_frame, read_ab3dmot_csv,
@@ -546,7 +546,7 @@ pub fn kitti_3d_clear_mot(
     let result_boxes = boxes_of(results);
     let lift = |frame: u32,
                 boxes: &BTreeMap<(u32, u64), Box3>,
-                items: &[TrackedBox<crate::eval::iou::Box2>]|
+                items: &[TrackedBox<crate::metrics::iou::Box2>]|
      -> Vec<TrackedBox<Box3>> {
         items
             .iter()
@@ -934,7 +934,7 @@ mod tests {
 
     #[test]
     fn three_d_evaluation_uses_3d_iou_after_kitti_preprocessing() {
-        use crate::eval::iou::iou_3d;
+        use crate::metrics::iou::iou_3d;
         use crate::kitti::labels::parse_labels;
         let calib = crate::kitti::calib::tests::sample();
         let parse = |text: &str| parse_labels(text, Path::new("t.txt")).unwrap();

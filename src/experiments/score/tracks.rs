@@ -20,19 +20,19 @@
 //! plane, hit by at least one LiDAR point of the sweep, and with a 2D box in
 //! the image. `GtFilter::All` scores against every ground-truth box.
 //!
-//! Metrics: class-agnostic and per-class CLEAR-MOT ([`crate::eval::clear_mot`])
+//! Metrics: class-agnostic and per-class CLEAR-MOT ([`crate::metrics::clear_mot`])
 //! at 3D and BEV IoU ≥ 0.25 and 0.5; per-object TP % and ATE
-//! ([`crate::eval::object_scores`]) at 3D IoU ≥ 0.25 (the paper's threshold).
+//! ([`crate::metrics::object_scores`]) at 3D IoU ≥ 0.25 (the paper's threshold).
 
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times};
-use crate::eval::clear_mot::{
+use crate::metrics::clear_mot::{
     ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
     clear_mot_per_class,
 };
-use crate::eval::interpolate::pose_at;
-use crate::eval::iou::{Box3, IouKind};
-use crate::eval::objects::{ObjectScore, object_scores};
+use crate::metrics::interpolate::pose_at;
+use crate::metrics::iou::{Box3, IouKind};
+use crate::metrics::objects::{ObjectScore, object_scores};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
 use crate::kitti::labels::TrackingLabel;

@@ -1,4 +1,4 @@
-//! `limot realism`: the realism statistics ([`crate::eval::realism`]) of one
+//! `limot realism`: the realism statistics ([`crate::metrics::realism`]) of one
 //! sequence read through the KITTI tracking layout (a KITTI `training`
 //! directory, a limot dataset's `kitti/` copy, or the dataset itself), and
 //! the report files `realism.json` and `realism.md`, optionally beside a
@@ -11,8 +11,8 @@
 //! [`lidar_poses`], turned into the gravity-aligned frame of the first OXTS
 //! record; the vehicle frame is the IMU (OXTS) frame of `calib/SSSS.txt`.
 
-use crate::eval::EvalError;
-use crate::eval::realism::{
+use crate::metrics::EvalError;
+use crate::metrics::realism::{
     RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare,
 };
 use crate::kitti::KittiError;
@@ -20,7 +20,7 @@ use crate::kitti::calib::Calib;
 use crate::kitti::raw::RawDrive;
 use crate::kitti::sequence_file;
 use crate::simulate::frame_progress_bar;
-use crate::track_kitti::lidar_poses;
+use crate::experiments::track_kitti::lidar_poses;
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -275,8 +275,8 @@ fn fmt_value(v: f64) -> String {
 fn histogram_table(
     md: &mut String,
     label: &str,
-    h: &crate::eval::realism::Histogram,
-    reference: Option<&crate::eval::realism::Histogram>,
+    h: &crate::metrics::realism::Histogram,
+    reference: Option<&crate::metrics::realism::Histogram>,
     decimals: usize,
 ) {
     let _ = writeln!(

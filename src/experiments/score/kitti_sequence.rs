@@ -14,18 +14,18 @@
 //! Tracks: the run's KITTI result lines (camera frame) against `label_02`,
 //! class Car: TrackEval's KITTI 2D box benchmark (image IoU ≥ 0.5), the
 //! AB3DMOT-style 3D CLEAR-MOT at 3D IoU ≥ 0.25 and 0.5, and TP % / object ATE
-//! ([`crate::eval::objects`], 3D IoU ≥ 0.25) of the ground-truth cars with the
+//! ([`crate::metrics::objects`], 3D IoU ≥ 0.25) of the ground-truth cars with the
 //! most labelled frames (the paper's Table III protocol). Result boxes were
 //! placed with the estimated ego pose and are compared in each frame's LiDAR
 //! frame, so the object ATE includes the ego's error relative to the scene.
 
 use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories};
 use super::{EvaluateError, Result};
-use crate::eval::clear_mot::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
-use crate::eval::iou::{Box3, IouKind};
-use crate::eval::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
-use crate::eval::objects::object_scores;
-use crate::eval::{AlignMode, RpeDelta, pose_at};
+use crate::metrics::clear_mot::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
+use crate::metrics::iou::{Box3, IouKind};
+use crate::metrics::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
+use crate::metrics::objects::object_scores;
+use crate::metrics::{AlignMode, RpeDelta, pose_at};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::ScoreMap;
 use crate::kitti::detections::camera_box_to_lidar;
@@ -34,8 +34,8 @@ use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
 use crate::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
-use crate::track_kitti::ResultPolicy;
-use crate::track_kitti::{kitti_3d_clear_mot, lidar_poses};
+use crate::experiments::track_kitti::ResultPolicy;
+use crate::experiments::track_kitti::{kitti_3d_clear_mot, lidar_poses};
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};

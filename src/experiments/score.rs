@@ -12,7 +12,7 @@
 //!   TP % and per-object ATE.
 //!
 //! This module is glue between the file readers ([`crate::kitti`],
-//! [`limot_sim::record`]), the metrics ([`crate::eval`]) and the tables
+//! [`limot_sim::record`]), the metrics ([`crate::metrics`]) and the tables
 //! ([`crate::report::table`]); it holds no metric of its own.
 
 pub mod ego;
@@ -21,7 +21,7 @@ pub mod json;
 pub mod kitti_sequence;
 pub mod tracks;
 
-use crate::eval::EvalError;
+use crate::metrics::EvalError;
 use crate::kitti::KittiError;
 use crate::report::ReportError;
 use limot_sim::record::RecordError;

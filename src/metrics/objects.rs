@@ -123,8 +123,8 @@ mod tests {
 #[cfg(test)]
 mod hand_tests {
     use super::*;
-    use crate::eval::clear_mot::TrackedBox;
-    use crate::eval::iou::Box3;
+    use crate::metrics::clear_mot::TrackedBox;
+    use crate::metrics::iou::Box3;
     use limot_estimator::input::ObjectClass;
     use nalgebra::Vector3;
 

@@ -736,11 +736,11 @@ mod tests {
         assert_eq!(b.bbox.size_lwh, truth.size_lwh_m);
     }
 
-    fn img(id: u64, left: f64) -> TrackedBox<crate::eval::iou::Box2> {
+    fn img(id: u64, left: f64) -> TrackedBox<crate::metrics::iou::Box2> {
         TrackedBox {
             id,
             class: ObjectClass::Car,
-            bbox: crate::eval::iou::Box2::from_ltrb([left, 0.0, left + 10.0, 10.0]),
+            bbox: crate::metrics::iou::Box2::from_ltrb([left, 0.0, left + 10.0, 10.0]),
         }
     }
 

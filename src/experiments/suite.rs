@@ -1,7 +1,7 @@
 //! `limot eval suite`: simulates a set of scenarios (families × seeds), runs
 //! every requested system variant on each, scores the runs against ground
 //! truth and saves the figures as `OUT/results.json`, from which
-//! `crate::suite_report` renders the tables and plots (also later, without
+//! `crate::report::suite` renders the tables and plots (also later, without
 //! re-running, via `limot report`).
 //!
 //! Layout of OUT:
@@ -26,11 +26,11 @@
 //! suite specification (unknown family, empty lists, bad duration) or an
 //! unwritable OUT stops the suite.
 
-use crate::eval::iou::IouKind;
-use crate::eval::{MotSummary, TimingAccumulator};
-use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
-use crate::evaluate::filtering::{FilterEvaluation, evaluate_filtering};
-use crate::evaluate::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
+use crate::metrics::iou::IouKind;
+use crate::metrics::{MotSummary, TimingAccumulator};
+use crate::experiments::score::ego::{EgoEvalOptions, evaluate_ego};
+use crate::experiments::score::filtering::{FilterEvaluation, evaluate_filtering};
+use crate::experiments::score::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::report::Variant;
 use crate::run::{RunOptions, RunOutput, Source, run, write_dataset_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};

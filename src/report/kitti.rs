@@ -3,9 +3,9 @@
 //! for the same sequences beside them (values copied from the paper, cited
 //! per table; rows of methods we do not run are marked as such).
 
-use crate::eval::MotSummary;
-use crate::evaluate::kitti_sequence::{EgoScores, ObjectSummary, TrackScores};
-use crate::kitti_suite::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
+use crate::metrics::MotSummary;
+use crate::experiments::score::kitti_sequence::{EgoScores, ObjectSummary, TrackScores};
+use crate::experiments::kitti_suite::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
 use crate::report::table::{Better, BoldRule, Cell, Table};
 use crate::report::{Report, ReportError, Section, Variant, write_report};
 use std::path::{Path, PathBuf};

@@ -17,8 +17,8 @@
 //!
 //! Poses are associated by timestamp within `max_dt_s`, aligned with Umeyama
 //! (SE(3) by default; the estimate may start in any frame, e.g. KISS-ICP's
-//! first-scan frame) and scored with [`crate::eval::ate`] and
-//! [`crate::eval::rpe`].
+//! first-scan frame) and scored with [`crate::metrics::ate`] and
+//! [`crate::metrics::rpe`].
 //!
 //! Straight paths: positions on (nearly) a line do not determine the rotation
 //! of the alignment about that line, and Umeyama then returns a numerically
@@ -34,8 +34,8 @@
 
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times, is_limot_dataset, read_times};
-use crate::eval::Alignment;
-use crate::eval::{AlignMode, AteResult, EvalError, RpeDelta, RpeResult, associate, ate_with, rpe};
+use crate::metrics::Alignment;
+use crate::metrics::{AlignMode, AteResult, EvalError, RpeDelta, RpeResult, associate, ate_with, rpe};
 use crate::kitti::calib::Calib;
 use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::poses::{parse_kitti_poses, parse_tum};
