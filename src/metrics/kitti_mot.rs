@@ -28,9 +28,14 @@
 
 use super::EvalError;
 use super::assignment::min_cost_assignment;
-use super::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
-use super::iou::{AREA_EPS, Box2, image_fraction_inside, iou_image};
+use super::clear_mot::{
+    ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, TrackedBox, clear_mot,
+};
+use super::iou::{AREA_EPS, Box2, Box3, IouKind, image_fraction_inside, iou_image};
+use crate::kitti::calib::Calib;
+use crate::kitti::detections::camera_box_to_lidar;
 use crate::kitti::labels::TrackingLabel;
+use std::collections::BTreeMap;
 use limot_estimator::input::ObjectClass;
 
 /// The classes TrackEval's KITTI 2D box benchmark evaluates.
@@ -324,6 +329,75 @@ pub fn kitti_2d_clear_mot(
     clear_mot(&prepared.frames, &ClearMotConfig::trackeval())
 }
 
+/// AB3DMOT-style 3D CLEAR-MOT of one sequence: TrackEval's KITTI preprocessing
+/// (distractors, DontCare, small boxes; decided on the image boxes as the 2D
+/// benchmark does), then CLEAR-MOT on the 3D IoU of the kept boxes (LiDAR frame
+/// via `calib`) at `iou_threshold`, TrackEval's matching and ID-switch rules.
+pub fn kitti_3d_clear_mot(
+    gt: &[TrackingLabel],
+    results: &[TrackingLabel],
+    num_frames: u32,
+    class: KittiEvalClass,
+    calib: &Calib,
+    iou_threshold: f64,
+) -> Result<ClearMotResult, EvalError> {
+    let prepared = kitti_2d_frames(
+        gt,
+        results,
+        num_frames,
+        &KittiPreprocessConfig::for_class(class),
+    )?;
+    // (frame, id) → 3D box, for the ground truth and for the results.
+    let boxes_of = |labels: &[TrackingLabel]| -> BTreeMap<(u32, u64), Box3> {
+        labels
+            .iter()
+            .filter(|l| l.track_id >= 0 && !l.is_dont_care())
+            .map(|l| {
+                let b = camera_box_to_lidar(&l.cam_box, calib);
+                (
+                    (l.frame, l.track_id as u64),
+                    Box3::new(b.center_lidar, b.size_lwh, b.yaw_rad),
+                )
+            })
+            .collect()
+    };
+    let gt_boxes = boxes_of(gt);
+    let result_boxes = boxes_of(results);
+    let lift = |frame: u32,
+                boxes: &BTreeMap<(u32, u64), Box3>,
+                items: &[TrackedBox<Box2>]|
+     -> Vec<TrackedBox<Box3>> {
+        items
+            .iter()
+            .filter_map(|t| {
+                boxes.get(&(frame, t.id)).map(|b| TrackedBox {
+                    id: t.id,
+                    class: t.class,
+                    bbox: *b,
+                })
+            })
+            .collect()
+    };
+    let frames: Vec<MotFrame<Box3>> = prepared
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| MotFrame {
+            gt: lift(k as u32, &gt_boxes, &f.gt),
+            tracks: lift(k as u32, &result_boxes, &f.tracks),
+            dont_care: Vec::new(),
+        })
+        .collect();
+    let cfg = ClearMotConfig {
+        iou_threshold,
+        iou_kind: IouKind::ThreeD,
+        id_switch_rule: IdSwitchRule::LastMatched,
+        matching: MatchingRule::TrackEval,
+        dont_care_min_fraction: 0.5,
+    };
+    clear_mot(&frames, &cfg)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -421,5 +495,43 @@ mod tests {
             ..KittiPreprocessConfig::default()
         };
         assert!(kitti_2d_frames(&gt, &[], 3, &bad).is_err());
+    }
+
+    #[test]
+    fn three_d_evaluation_uses_3d_iou_after_kitti_preprocessing() {
+        use crate::metrics::iou::iou_3d;
+        use crate::kitti::detections::camera_box_to_lidar;
+        use std::path::Path;
+        use crate::kitti::labels::parse_labels;
+        let calib = crate::kitti::calib::tests::sample();
+        let parse = |text: &str| parse_labels(text, Path::new("t.txt")).unwrap();
+        // Frame 0: a car 20 m ahead and a van; frame 1: the car only.
+        let gt = parse(
+            "0 0 Car 0 0 0 500 150 600 250 1.5 1.6 4.0 1.0 1.7 20.0 -1.57\n\
+             0 1 Van 0 0 0 100 150 200 250 2.0 1.8 4.5 -6.0 1.8 20.0 -1.57\n\
+             1 0 Car 0 0 0 500 150 600 250 1.5 1.6 4.0 1.0 1.7 20.0 -1.57\n",
+        );
+        // Frame 0: the car shifted 1 m along its length (3D IoU 0.6), a box
+        // on the van (removed), frame 1: the car shifted 3 m (IoU 1/7 < 0.25).
+        let results = parse(
+            "0 3 Car 0 0 0 500 150 600 250 1.5 1.6 4.0 1.0 1.7 21.0 -1.57 0.9\n\
+             0 4 Car 0 0 0 100 150 200 250 2.0 1.8 4.5 -6.0 1.8 20.0 -1.57 0.9\n\
+             1 3 Car 0 0 0 500 150 600 250 1.5 1.6 4.0 1.0 1.7 23.0 -1.57 0.9\n",
+        );
+        let r = kitti_3d_clear_mot(&gt, &results, 2, KittiEvalClass::Car, &calib, 0.25).unwrap();
+        assert_eq!(r.gt_count, 2);
+        assert_eq!(r.track_count, 2, "the box on the van is removed");
+        assert_eq!((r.matches, r.false_positives, r.false_negatives), (1, 1, 1));
+        let to_box3 = |l: &TrackingLabel| {
+            let b = camera_box_to_lidar(&l.cam_box, &calib);
+            Box3::new(b.center_lidar, b.size_lwh, b.yaw_rad)
+        };
+        let expected = iou_3d(&to_box3(&gt[0]), &to_box3(&results[0]));
+        assert!((expected - 0.6).abs() < 0.01, "{expected}");
+        assert!((r.motp.unwrap() - expected).abs() < 1e-12);
+        assert!((r.mota.unwrap() - (1.0 - 2.0 / 2.0)).abs() < 1e-12);
+        // The same results pass the image benchmark (identical 2D boxes).
+        let r2 = kitti_2d_clear_mot(&gt, &results, 2, KittiEvalClass::Car).unwrap();
+        assert_eq!((r2.matches, r2.false_positives), (2, 0));
     }
 }

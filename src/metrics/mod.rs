@@ -19,6 +19,7 @@ pub mod objects;
 pub mod realism;
 pub mod rpe;
 pub mod samota;
+pub mod straight_path;
 pub mod timing;
 
 pub use align::{Alignment, umeyama};
@@ -33,6 +34,7 @@ pub use interpolate::pose_at;
 pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
 pub use objects::{ObjectScore, object_scores};
 pub use rpe::{RpeDelta, RpeResult, rpe};
+pub use straight_path::{AlignmentFix, STRAIGHT_PATH_RATIO, complete_alignment};
 pub use samota::{
     Ab3dmotCounts, Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate,
 };

@@ -35,7 +35,8 @@ use crate::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times}
 use crate::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
 use crate::experiments::track_kitti::ResultPolicy;
-use crate::experiments::track_kitti::{kitti_3d_clear_mot, lidar_poses};
+use crate::experiments::track_kitti::lidar_poses;
+use crate::metrics::kitti_mot::kitti_3d_clear_mot;
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
