@@ -7,8 +7,8 @@
 //! tracker fed these detections can reach).
 
 use crate::metrics::EvalError;
-use crate::metrics::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
-use crate::metrics::iou::{Box3, IouKind};
+use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
+use crate::metrics::{Box3, IouKind};
 use crate::report::plot::Series2D;
 use crate::report::table::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};

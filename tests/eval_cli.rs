@@ -2,7 +2,7 @@
 //! TUM / KITTI pose files and the KITTI copy's labels used as tracker results.
 
 use limot::metrics::AlignMode;
-use limot::metrics::iou::IouKind;
+use limot::metrics::IouKind;
 use limot::experiments::score::EvaluateError;
 use limot::experiments::score::ego::{EgoEvalOptions, evaluate_ego, load_truth};
 use limot::experiments::score::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};

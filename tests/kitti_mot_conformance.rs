@@ -13,10 +13,10 @@
 //! The test reads `CARGO_MANIFEST_DIR/../shared/data/kitti_tracking`; without
 //! it, it prints a note and passes.
 
-use limot::metrics::clear_mot::{
+use limot::metrics::{
     ClearMotConfig, ClearMotResult, MatchingRule, clear_mot, combine_sequences,
 };
-use limot::metrics::kitti_mot::{
+use limot::metrics::{
     KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
 };
 use limot::kitti::labels::{TrackingLabel, read_labels};

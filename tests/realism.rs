@@ -6,7 +6,7 @@
 
 mod common;
 
-use limot::metrics::realism::{RealismConfig, RealismStats};
+use limot::metrics::{RealismConfig, RealismStats};
 use limot::experiments::realism::{RealismReport, analyze_sequence};
 use limot::simulate::{resolve_scenario, simulate};
 use std::fs;

@@ -18,8 +18,8 @@
 //! A run or sequence that fails is recorded with its error and the others go
 //! on; only a bad specification or an unwritable OUT stops the command.
 
-use crate::metrics::kitti_mot::KittiEvalClass;
-use crate::metrics::samota::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
+use crate::metrics::KittiEvalClass;
+use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::experiments::score::kitti_sequence::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,

@@ -12,8 +12,8 @@
 //! record; the vehicle frame is the IMU (OXTS) frame of `calib/SSSS.txt`.
 
 use crate::metrics::EvalError;
-use crate::metrics::realism::{
-    RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare,
+use crate::metrics::{
+    RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare_realism,
 };
 use crate::kitti::KittiError;
 use crate::kitti::calib::Calib;
@@ -150,7 +150,7 @@ impl RealismReport {
     pub fn new(dataset: SequenceRealism, reference: Option<SequenceRealism>) -> RealismReport {
         let comparison = reference
             .as_ref()
-            .map(|r| compare(&dataset.stats, &r.stats))
+            .map(|r| compare_realism(&dataset.stats, &r.stats))
             .unwrap_or_default();
         RealismReport {
             dataset,
@@ -275,8 +275,8 @@ fn fmt_value(v: f64) -> String {
 fn histogram_table(
     md: &mut String,
     label: &str,
-    h: &crate::metrics::realism::Histogram,
-    reference: Option<&crate::metrics::realism::Histogram>,
+    h: &crate::metrics::Histogram,
+    reference: Option<&crate::metrics::Histogram>,
     decimals: usize,
 ) {
     let _ = writeln!(

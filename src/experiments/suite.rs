@@ -26,7 +26,7 @@
 //! suite specification (unknown family, empty lists, bad duration) or an
 //! unwritable OUT stops the suite.
 
-use crate::metrics::iou::IouKind;
+use crate::metrics::IouKind;
 use crate::metrics::{MotSummary, TimingAccumulator};
 use crate::experiments::score::ego::{EgoEvalOptions, evaluate_ego};
 use crate::experiments::score::filtering::{FilterEvaluation, evaluate_filtering};

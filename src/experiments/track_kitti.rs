@@ -25,11 +25,11 @@
 //! output, the peer of docs/tracking-kitti.md, has been through.
 
 use crate::metrics::EvalError;
-use crate::metrics::clear_mot::{ClearMotResult, combine_sequences};
-use crate::metrics::kitti_mot::{kitti_3d_clear_mot,
+use crate::metrics::{ClearMotResult, combine_sequences};
+use crate::metrics::{kitti_3d_clear_mot,
     KittiEvalClass, kitti_2d_clear_mot,
 };
-use crate::metrics::samota::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
+use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{
     LidarBox, ScoreMap, detections_by_frame, read_ab3dmot_csv,

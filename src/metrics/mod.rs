@@ -1,43 +1,58 @@
-//! Evaluation metrics: ego trajectory (ATE, RPE), 3D boxes (IoU), multi-object
-//! tracking (CLEAR-MOT, AB3DMOT's sAMOTA, per-object TP% and ATE), dynamic-point filtering
-//! (precision/recall) and timing.
+//! Evaluation metrics: ego trajectory (ATE, RPE, alignment), 3D boxes (IoU),
+//! multi-object tracking (CLEAR-MOT, the KITTI 2D/3D benchmarks, AB3DMOT's
+//! sAMOTA, per-object TP % and ATE), dynamic-point filtering (precision/recall),
+//! realism statistics of LiDAR sequences and timing.
 //!
 //! The metric functions take plain inputs (timestamped poses, oriented boxes,
 //! masks) so the KITTI reader and the simulator feed them alike. Conventions
 //! follow evo (ATE/RPE, Zhang & Scaramuzza 2018) and the KITTI tracking devkit /
 //! TrackEval (CLEAR-MOT, Bernardin & Stiefelhagen 2008).
+//!
+//! Entry points: [`ate`] / [`ate_with`], [`rpe`], [`iou_3d`] / [`iou_bev`] /
+//! [`iou_image`], [`clear_mot`], [`kitti_2d_clear_mot`] / [`kitti_3d_clear_mot`],
+//! [`ab3dmot_evaluate`] (sAMOTA), [`object_scores`], [`filter_precision_recall`],
+//! [`RealismAccumulator`] and [`TimingAccumulator`].
+#![warn(missing_docs)]
 
-pub mod align;
-pub mod assignment;
-pub mod ate;
-pub mod clear_mot;
-pub mod filtering;
-pub mod interpolate;
-pub mod iou;
-pub mod kitti_mot;
-pub mod objects;
-pub mod realism;
-pub mod rpe;
-pub mod samota;
-pub mod straight_path;
-pub mod timing;
+mod align;
+mod assignment;
+mod ate;
+mod clear_mot;
+mod filtering;
+mod interpolate;
+mod iou;
+mod kitti_mot;
+mod objects;
+mod realism;
+mod rpe;
+mod samota;
+mod straight_path;
+mod timing;
 
 pub use align::{Alignment, umeyama};
 pub use assignment::{Assignment, min_cost_assignment};
 pub use ate::{AlignMode, AteResult, associate, ate, ate_with, ego_trajectory};
 pub use clear_mot::{
-    ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, MotSummary, TrackedBox,
-    clear_mot, clear_mot_per_class, combine_sequences,
+    ClearMotConfig, ClearMotResult, FrameMatch, IdSwitchRule, MatchingRule, MotFrame, MotSummary,
+    PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot, clear_mot_per_class, combine_sequences,
 };
 pub use filtering::{FilterScore, filter_precision_recall};
 pub use interpolate::pose_at;
 pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
+pub use kitti_mot::{
+    KittiEvalClass, KittiMotFrames, KittiPreprocessConfig, KittiPreprocessStats,
+    kitti_2d_clear_mot, kitti_2d_frames, kitti_3d_clear_mot,
+};
 pub use objects::{ObjectScore, object_scores};
+pub use realism::{
+    GroundPlane, Histogram, RealismAccumulator, RealismConfig, RealismStats, Spread,
+    StatComparison, compare_realism, fit_ground_plane, roll_pitch_rad, surface_normals,
+};
 pub use rpe::{RpeDelta, RpeResult, rpe};
-pub use straight_path::{AlignmentFix, STRAIGHT_PATH_RATIO, complete_alignment};
 pub use samota::{
     Ab3dmotCounts, Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate,
 };
+pub use straight_path::{AlignmentFix, STRAIGHT_PATH_RATIO, complete_alignment};
 pub use timing::{TimingAccumulator, TimingStats};
 
 /// Why a metric could not be computed from its inputs.

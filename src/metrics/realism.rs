@@ -234,7 +234,7 @@ pub struct StatComparison {
 }
 
 /// Every scalar statistic of `stats` beside the same of `reference`.
-pub fn compare(stats: &RealismStats, reference: &RealismStats) -> Vec<StatComparison> {
+pub fn compare_realism(stats: &RealismStats, reference: &RealismStats) -> Vec<StatComparison> {
     stats
         .scalars()
         .into_iter()
@@ -978,14 +978,14 @@ mod tests {
             (0.0, 0.0, Some(('x', 12.0))),
             (0.0, 0.001, Some(('x', 12.0))),
         ]);
-        let same = compare(&s, &s);
+        let same = compare_realism(&s, &s);
         assert!(
             same.iter().all(|c| c.ratio == 1.0 && c.within_factor_2),
             "{same:?}"
         );
         let mut half = s.clone();
         half.points_per_sweep_mean /= 3.0;
-        let c = compare(&half, &s);
+        let c = compare_realism(&half, &s);
         let pts = c
             .iter()
             .find(|c| c.statistic.starts_with("points per sweep"))

@@ -3,7 +3,7 @@
 //! the estimator extracted, which it dropped as dynamic, which lie on moving
 //! objects, which on static ones (parked, or stopped at a light).
 
-use crate::metrics::filtering::{FilterScore, filter_precision_recall};
+use crate::metrics::{FilterScore, filter_precision_recall};
 use crate::run::RunOutput;
 use limot_sim::record::{Dataset, RecordError};
 use serde::{Deserialize, Serialize};

@@ -21,10 +21,10 @@
 
 use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories};
 use super::{EvaluateError, Result};
-use crate::metrics::clear_mot::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
-use crate::metrics::iou::{Box3, IouKind};
-use crate::metrics::kitti_mot::{KittiEvalClass, kitti_2d_clear_mot};
-use crate::metrics::objects::object_scores;
+use crate::metrics::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
+use crate::metrics::{Box3, IouKind};
+use crate::metrics::{KittiEvalClass, kitti_2d_clear_mot};
+use crate::metrics::object_scores;
 use crate::metrics::{AlignMode, RpeDelta, pose_at};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::ScoreMap;
@@ -36,7 +36,7 @@ use crate::kitti::sequence_file;
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
 use crate::experiments::track_kitti::ResultPolicy;
 use crate::experiments::track_kitti::lidar_poses;
-use crate::metrics::kitti_mot::kitti_3d_clear_mot;
+use crate::metrics::kitti_3d_clear_mot;
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};

@@ -26,13 +26,13 @@
 
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times};
-use crate::metrics::clear_mot::{
+use crate::metrics::{
     ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
     clear_mot_per_class,
 };
-use crate::metrics::interpolate::pose_at;
-use crate::metrics::iou::{Box3, IouKind};
-use crate::metrics::objects::{ObjectScore, object_scores};
+use crate::metrics::pose_at;
+use crate::metrics::{Box3, IouKind};
+use crate::metrics::{ObjectScore, object_scores};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
 use crate::kitti::labels::TrackingLabel;
