@@ -9,8 +9,8 @@
 use crate::metrics::EvalError;
 use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
 use crate::metrics::{Box3, IouKind};
-use crate::report::plot::Series2D;
-use crate::report::table::{Cell, Table};
+use crate::report::Series2D;
+use crate::report::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
 use limot_sim::detector::Detector;
 use limot_sim::record::points_per_instance;
@@ -31,7 +31,7 @@ pub enum DemoError {
     #[error(transparent)]
     Run(Box<crate::run::RunError>),
     #[error(transparent)]
-    Evaluate(Box<crate::experiments::score::EvaluateError>),
+    Evaluate(Box<crate::experiments::EvaluateError>),
     #[error(transparent)]
     Record(#[from] limot_sim::record::RecordError),
     #[error("the track evaluation has no 3D IoU 0.25 score")]
@@ -44,8 +44,8 @@ impl From<crate::run::RunError> for DemoError {
     }
 }
 
-impl From<crate::experiments::score::EvaluateError> for DemoError {
-    fn from(e: crate::experiments::score::EvaluateError) -> Self {
+impl From<crate::experiments::EvaluateError> for DemoError {
+    fn from(e: crate::experiments::EvaluateError) -> Self {
         DemoError::Evaluate(Box::new(e))
     }
 }
@@ -407,9 +407,9 @@ fn run_variant(
     let output = crate::run::run(source, dataset_dir, &run_options, None)?;
     let run_dir = out.join(variant.name());
     crate::run::write_output(&run_dir, &output)?;
-    let eval_options = crate::experiments::score::ego::EgoEvalOptions::default();
-    let truth = crate::experiments::score::ego::load_truth(dataset_dir, &eval_options)?;
-    let estimate = crate::experiments::score::ego::Trajectory {
+    let eval_options = crate::experiments::EgoEvalOptions::default();
+    let truth = crate::experiments::load_truth(dataset_dir, &eval_options)?;
+    let estimate = crate::experiments::Trajectory {
         path: run_dir.join("poses_tum.txt"),
         kind: format!("{} estimate", variant.name()),
         poses: output
@@ -419,7 +419,7 @@ fn run_variant(
             .collect(),
         frame_times: None,
     };
-    let eval = crate::experiments::score::ego::evaluate_trajectories(&truth, &estimate, &eval_options)?;
+    let eval = crate::experiments::evaluate_trajectories(&truth, &estimate, &eval_options)?;
     let xy = output
         .estimates
         .iter()
@@ -429,13 +429,13 @@ fn run_variant(
         })
         .collect();
     let dataset = limot_sim::record::Dataset::open(dataset_dir)?;
-    let (calib, _) = crate::experiments::score::tracks::dataset_calib(&dataset, 0)?;
+    let (calib, _) = crate::experiments::dataset_calib(&dataset, 0)?;
     let results =
         crate::run::write_dataset_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
-    let tracks_eval = crate::experiments::score::tracks::evaluate_tracks(
+    let tracks_eval = crate::experiments::evaluate_tracks(
         dataset_dir,
         &results,
-        &crate::experiments::score::tracks::TrackEvalOptions::default(),
+        &crate::experiments::TrackEvalOptions::default(),
     )?;
     let tracks = tracks_eval
         .score(IouKind::ThreeD, 0.25)

@@ -2,9 +2,9 @@
 
 use clap::{Parser, Subcommand};
 use limot::demo::run_demo as demo;
-use limot::experiments::score::EvaluateError;
-use limot::experiments::score::ego::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
-use limot::experiments::score::tracks::{TrackEvalOptions, evaluate_tracks};
+use limot::experiments::EvaluateError;
+use limot::experiments::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
+use limot::experiments::{TrackEvalOptions, evaluate_tracks};
 use limot::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -344,7 +344,7 @@ fn main() -> ExitCode {
             out,
             reference,
             reference_sequence,
-        } => limot::experiments::realism::run_realism(&limot::experiments::realism::RealismOptions {
+        } => limot::experiments::run_realism(&limot::experiments::RealismOptions {
             path,
             sequence,
             out,
@@ -588,7 +588,7 @@ fn run_estimator(
         );
     }
     if let Some(sequence) = kitti_tracking.sequence {
-        use limot::experiments::score::kitti_sequence::{KittiScoreOptions, score_run};
+        use limot::experiments::{KittiScoreOptions, score_run};
         let (scores, results) = score_run(
             dataset,
             sequence,
@@ -620,7 +620,7 @@ fn run_estimator(
         println!("scores: {}", scores_path.display());
     }
     if let Source::Dataset(dataset) = &source {
-        let (calib, _) = limot::experiments::score::tracks::dataset_calib(dataset, 0)?;
+        let (calib, _) = limot::experiments::dataset_calib(dataset, 0)?;
         let results =
             limot::run::write_dataset_kitti_tracks(&out.join("kitti_results"), &output, &calib)?;
         let e = evaluate_tracks(
@@ -845,7 +845,7 @@ fn run_eval_suite(
     jobs: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use limot::report::Variant;
-    use limot::experiments::suite::{Shard, SuiteSpec, parse_list, run_suite};
+    use limot::experiments::{Shard, SuiteSpec, parse_list, run_suite};
     let spec = SuiteSpec {
         families: parse_list("families", families, |s| Ok(s.to_string()))?,
         seeds: parse_list("seeds", seeds, |s| {
@@ -890,7 +890,7 @@ fn run_report(
     out: Option<PathBuf>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     if merge {
-        let (merged, suite_dir) = limot::experiments::suite::merge_shards(results)?;
+        let (merged, suite_dir) = limot::experiments::merge_shards(results)?;
         let file = merged.save(&suite_dir)?;
         println!(
             "merged {} shard(s), {} sequence(s): {}",
@@ -908,39 +908,39 @@ fn run_report(
     };
     let results = results.as_path();
     let file = if results.is_dir() {
-        results.join(limot::experiments::suite::RESULTS_FILE)
+        results.join(limot::experiments::RESULTS_FILE)
     } else {
         results.to_path_buf()
     };
     let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    if limot::experiments::kitti_suite::is_kitti_results(&text) {
-        let kitti = limot::experiments::kitti_suite::KittiSuiteResults::parse(&text, &file)?;
+    if limot::experiments::is_kitti_results(&text) {
+        let kitti = limot::experiments::KittiSuiteResults::parse(&text, &file)?;
         let dir = file
             .parent()
             .map_or_else(|| PathBuf::from("."), PathBuf::from);
         let out = out.unwrap_or_else(|| dir.join("report"));
         return print_kitti_report(&kitti, &file, &out);
     }
-    let (results, suite_dir) = limot::experiments::suite::SuiteResults::load(results)?;
+    let (results, suite_dir) = limot::experiments::SuiteResults::load(results)?;
     let out = out.unwrap_or_else(|| suite_dir.join("report"));
     print_suite_report(&results, &suite_dir, &out)
 }
 
 fn print_kitti_report(
-    results: &limot::experiments::kitti_suite::KittiSuiteResults,
+    results: &limot::experiments::KittiSuiteResults,
     results_file: &std::path::Path,
     report_dir: &std::path::Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let readme = limot::report::kitti::write_kitti_report(report_dir, results)?;
+    let readme = limot::report::write_kitti_report(report_dir, results)?;
     println!();
     print!(
         "{}",
-        limot::report::kitti::ego_table(results)?.to_markdown()?
+        limot::report::kitti_ego_table(results)?.to_markdown()?
     );
     println!();
     print!(
         "{}",
-        limot::report::kitti::tracking_table(results)?.to_markdown()?
+        limot::report::kitti_tracking_table(results)?.to_markdown()?
     );
     println!("results: {}", results_file.display());
     println!("report: {}", readme.display());
@@ -954,11 +954,11 @@ fn print_kitti_report(
 fn kitti_tracking_options(
     name: &str,
     score_map: limot::kitti::detections::ScoreMap,
-) -> Result<limot::experiments::track_kitti::TrackKittiOptions, String> {
-    use limot::experiments::track_kitti::{TrackKittiOptions, kitti_val_offline_options};
+) -> Result<limot::experiments::TrackKittiOptions, String> {
+    use limot::experiments::{TrackKittiOptions, kitti_val_offline_options};
     let options = match name {
         "paper" => TrackKittiOptions::default(),
-        "tuned" => limot::experiments::track_kitti::kitti_val_tuned_options(),
+        "tuned" => limot::experiments::kitti_val_tuned_options(),
         "offline" => kitti_val_offline_options(),
         other => {
             return Err(format!(
@@ -966,7 +966,7 @@ fn kitti_tracking_options(
             ));
         }
     };
-    Ok(limot::experiments::track_kitti::TrackKittiOptions {
+    Ok(limot::experiments::TrackKittiOptions {
         score_map,
         ..options
     })
@@ -994,9 +994,9 @@ fn run_eval_kitti(
     ego_peer: Vec<String>,
     out: PathBuf,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    use limot::experiments::kitti_suite::{KittiSuiteSpec, run_kitti_suite};
+    use limot::experiments::{KittiSuiteSpec, run_kitti_suite};
     use limot::report::Variant;
-    use limot::experiments::suite::parse_list;
+    use limot::experiments::parse_list;
     let spec = KittiSuiteSpec {
         training,
         detections,
@@ -1026,20 +1026,20 @@ fn run_eval_kitti(
         spec.out_dir.display()
     );
     let results = run_kitti_suite(&spec, true)?;
-    let file = spec.out_dir.join(limot::experiments::suite::RESULTS_FILE);
+    let file = spec.out_dir.join(limot::experiments::RESULTS_FILE);
     print_kitti_report(&results, &file, &spec.out_dir.join("report"))
 }
 
 fn print_suite_report(
-    results: &limot::experiments::suite::SuiteResults,
+    results: &limot::experiments::SuiteResults,
     suite_dir: &std::path::Path,
     report_dir: &std::path::Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let readme = limot::report::suite::write_suite_report(report_dir, results, suite_dir)?;
+    let readme = limot::report::write_suite_report(report_dir, results, suite_dir)?;
     println!();
     print!(
         "{}",
-        limot::report::suite::ego_table(results)?.to_markdown()?
+        limot::report::suite_ego_table(results)?.to_markdown()?
     );
     for s in &results.sequences {
         if let Some(e) = &s.error {
@@ -1056,7 +1056,7 @@ fn print_suite_report(
     }
     println!(
         "results: {}",
-        suite_dir.join(limot::experiments::suite::RESULTS_FILE).display()
+        suite_dir.join(limot::experiments::RESULTS_FILE).display()
     );
     println!("report: {}", readme.display());
     Ok(())
@@ -1066,7 +1066,7 @@ fn print_suite_report(
 fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error>> {
     use limot::kitti::results::write_results_file;
     use limot::kitti::seqmap::read_seqmap;
-    use limot::experiments::track_kitti::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
+    use limot::experiments::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule};
     let training = &args.training;
     let seqmap_path = args
@@ -1183,7 +1183,7 @@ fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error
         result.coast_min_hits = n;
     }
     if args.detection_boxes {
-        options.box_source = limot::experiments::track_kitti::BoxSource::Detection;
+        options.box_source = limot::experiments::BoxSource::Detection;
     }
     std::fs::create_dir_all(&out)?;
     let (tracks, evaluation) = evaluate_sequences(training, &input_dir, &entries, &options)?;

@@ -498,7 +498,7 @@ pub fn write_output(out_dir: &Path, output: &RunOutput) -> Result<(), RunError> 
         for t in &e.tracks {
             let c = t.center_world;
             let v = t.velocity_world_mps;
-            let lidar = crate::experiments::track_kitti::world_box_to_lidar(
+            let lidar = crate::experiments::world_box_to_lidar(
                 &t.center_world,
                 &t.size_lwh,
                 t.yaw_rad,
@@ -554,7 +554,7 @@ pub struct LabelFrame {
 /// through `calib` (the dataset's KITTI copy uses
 /// [`crate::kitti_export::synthetic_calib`]). Boxes outside the camera image
 /// have no KITTI line. The tracker alone writes through the same
-/// [`ResultWriter`](crate::experiments::track_kitti::ResultWriter).
+/// [`ResultWriter`](crate::experiments::ResultWriter).
 ///
 /// Boxes are given where the labels were taken ([`LabelFrame`]): moved along
 /// their velocity to the label time, placed with the ego pose of that
@@ -567,13 +567,13 @@ pub fn kitti_track_labels(
     output: &RunOutput,
     calib: &crate::kitti::calib::Calib,
     label_frame: LabelFrame,
-    result: &crate::experiments::track_kitti::ResultPolicy,
+    result: &crate::experiments::ResultPolicy,
     score_map: crate::kitti::detections::ScoreMap,
 ) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
     let frame_delay_s = label_frame.delay_s;
     use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
-    use crate::experiments::track_kitti::world_box_to_lidar;
-    let mut writer = crate::experiments::track_kitti::ResultWriter::new(result.clone());
+    use crate::experiments::world_box_to_lidar;
+    let mut writer = crate::experiments::ResultWriter::new(result.clone());
     let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
         .estimates
         .iter()
@@ -634,7 +634,7 @@ pub fn write_dataset_kitti_tracks(
         output,
         calib,
         LabelFrame::default(),
-        &crate::experiments::track_kitti::ResultPolicy::default(),
+        &crate::experiments::ResultPolicy::default(),
         crate::kitti::detections::ScoreMap::Clamp01,
     )?;
     write_kitti_tracks(dir, 0, &labels)

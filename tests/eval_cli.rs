@@ -3,9 +3,9 @@
 
 use limot::metrics::AlignMode;
 use limot::metrics::IouKind;
-use limot::experiments::score::EvaluateError;
-use limot::experiments::score::ego::{EgoEvalOptions, evaluate_ego, load_truth};
-use limot::experiments::score::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
+use limot::experiments::EvaluateError;
+use limot::experiments::{EgoEvalOptions, evaluate_ego, load_truth};
+use limot::experiments::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
 use limot::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::record::Dataset;

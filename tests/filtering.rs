@@ -3,7 +3,7 @@
 //! moving objects (faster than 1 m/s) and keeps static ones (parked or
 //! stopped); `allfilt` removes both.
 
-use limot::experiments::score::filtering::evaluate_filtering;
+use limot::experiments::evaluate_filtering;
 use limot::report::Variant;
 use limot::run::{RunOptions, Source, run};
 use limot::simulate::resolve_scenario;
@@ -40,7 +40,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             .expect("features recorded");
         if variant == Variant::Dynafilt {
             // The tracks, as KITTI tracking results, scored against the truth.
-            let (calib, _) = limot::experiments::score::tracks::dataset_calib(&dataset, 0).unwrap();
+            let (calib, _) = limot::experiments::dataset_calib(&dataset, 0).unwrap();
             let results =
                 limot::run::write_dataset_kitti_tracks(&dir.join("kitti_results"), &output, &calib)
                     .unwrap();
@@ -53,10 +53,10 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
                 scores.iter().any(|&s| s < 0.99),
                 "scores all 1: not the detections'"
             );
-            let e = limot::experiments::score::tracks::evaluate_tracks(
+            let e = limot::experiments::evaluate_tracks(
                 &dir,
                 &results,
-                &limot::experiments::score::tracks::TrackEvalOptions::default(),
+                &limot::experiments::TrackEvalOptions::default(),
             )
             .unwrap();
             let s = &e.scores[0];

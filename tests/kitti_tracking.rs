@@ -11,7 +11,7 @@ use limot::kitti::labels::read_labels;
 use limot::kitti::oxts::{oxts_to_poses, read_oxts};
 use limot::kitti::seqmap::read_seqmap;
 use limot::kitti::sequence_file;
-use limot::experiments::track_kitti::{
+use limot::experiments::{
     BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
     evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
     lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
@@ -505,11 +505,11 @@ fn summary(e: &TrackingEvaluation) -> String {
 fn score_folds(root: &Path, options: &TrackKittiOptions) -> [TrackingEvaluation; 3] {
     let d = dirs(root);
     let all = present_val_seqmap(&d.training);
-    let results: Vec<limot::experiments::track_kitti::SequenceResults> = all
+    let results: Vec<limot::experiments::SequenceResults> = all
         .iter()
         .map(|e| {
             let t = track_sequence_with(&d.training, &d.detections, e.sequence, options).unwrap();
-            limot::experiments::track_kitti::SequenceResults {
+            limot::experiments::SequenceResults {
                 sequence: e.sequence,
                 labels: t.labels,
             }
@@ -705,7 +705,7 @@ fn cross_validate_kitti_settings() {
         }
         let results: Vec<_> = all
             .iter()
-            .map(|e| limot::experiments::track_kitti::SequenceResults {
+            .map(|e| limot::experiments::SequenceResults {
                 sequence: e.sequence,
                 labels: held_out[&e.sequence].clone(),
             })
@@ -763,7 +763,7 @@ fn startup_rule_and_track_score_gate_change_what_is_written() {
     gated.result.min_track_score = 5.0;
     let strict = track_sequence_with(&d.training, &d.detections, seq, &gated).unwrap();
     let count =
-        |t: &limot::experiments::track_kitti::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
+        |t: &limot::experiments::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
     assert!(count(&strict) < count(&plain) && count(&strict) > 0);
     let mut per_track: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
     for l in &strict.labels {

@@ -7,7 +7,7 @@
 mod common;
 
 use limot::metrics::{RealismConfig, RealismStats};
-use limot::experiments::realism::{RealismReport, analyze_sequence};
+use limot::experiments::{RealismReport, analyze_sequence};
 use limot::simulate::{resolve_scenario, simulate};
 use std::fs;
 use std::path::{Path, PathBuf};

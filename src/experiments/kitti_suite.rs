@@ -2,7 +2,7 @@
 //! scans are present, the tracker alone on every sequence with detections,
 //! and optional peers' outputs (AB3DMOT's result files, another odometry's
 //! poses), all scored by the same evaluators
-//! ([`crate::experiments::score::kitti_sequence`]) and saved as `OUT/results.json`;
+//! ([`crate::experiments::kitti_sequence`]) and saved as `OUT/results.json`;
 //! [`crate::report::kitti`] renders it in the shapes of the paper's Tables
 //! I-III with the paper's published rows beside ours.
 //!
@@ -20,7 +20,7 @@
 
 use crate::metrics::KittiEvalClass;
 use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
-use crate::experiments::score::kitti_sequence::{
+use crate::experiments::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,
 };
@@ -31,8 +31,8 @@ use crate::kitti::poses::parse_tum;
 use crate::kitti::{read_text, sequence_file};
 use crate::report::Variant;
 use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
-use crate::experiments::suite::{SuiteError, error_chain, variant_name};
-use crate::experiments::track_kitti::{TrackKittiOptions, track_sequence_with};
+use crate::experiments::{SuiteError, error_chain, variant_name};
+use crate::experiments::{TrackKittiOptions, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use std::fs;
@@ -53,7 +53,7 @@ pub struct KittiSuiteSpec {
     /// the tracker alone; without them only `lio` runs.
     pub detections: Option<PathBuf>,
     /// The tracker settings and result-file rules of the object variants and
-    /// of the tracker alone (e.g. [`crate::experiments::track_kitti::kitti_val_tuned_options`]), with the
+    /// of the tracker alone (e.g. [`crate::experiments::kitti_val_tuned_options`]), with the
     /// detections' score map.
     pub tracking: TrackKittiOptions,
     pub variants: Vec<Variant>,
@@ -92,7 +92,7 @@ pub struct TrackerResult {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EgoPeerResult {
     pub name: String,
-    pub scores: Option<crate::experiments::score::kitti_sequence::EgoScores>,
+    pub scores: Option<crate::experiments::EgoScores>,
     pub error: Option<String>,
 }
 
@@ -156,7 +156,7 @@ impl KittiSuiteResults {
     /// # Errors
     /// An unwritable file.
     pub fn save(&self, dir: &Path) -> Result<PathBuf, SuiteError> {
-        let path = dir.join(crate::experiments::suite::RESULTS_FILE);
+        let path = dir.join(crate::experiments::RESULTS_FILE);
         let text = serde_json::to_string_pretty(self).map_err(|source| SuiteError::Json {
             path: path.clone(),
             source,

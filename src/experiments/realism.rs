@@ -20,7 +20,7 @@ use crate::kitti::calib::Calib;
 use crate::kitti::raw::RawDrive;
 use crate::kitti::sequence_file;
 use crate::simulate::frame_progress_bar;
-use crate::experiments::track_kitti::lidar_poses;
+use crate::experiments::lidar_poses;
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;

@@ -15,11 +15,11 @@
 //! [`limot_sim::record`]), the metrics ([`crate::metrics`]) and the tables
 //! ([`crate::report::table`]); it holds no metric of its own.
 
-pub mod ego;
-pub mod filtering;
-pub mod json;
-pub mod kitti_sequence;
-pub mod tracks;
+pub(crate) mod ego;
+pub(crate) mod filtering;
+pub(crate) mod json;
+pub(crate) mod kitti_sequence;
+pub(crate) mod tracks;
 
 use crate::metrics::EvalError;
 use crate::kitti::KittiError;
@@ -86,7 +86,7 @@ pub enum EvaluateError {
 
 pub type Result<T> = std::result::Result<T, EvaluateError>;
 
-pub use crate::kitti::poses::{parse_times, read_times};
+pub use crate::kitti::poses::read_times;
 
 /// Whether `dir` is a limot dataset (it holds `meta.toml`).
 pub fn is_limot_dataset(dir: &Path) -> bool {

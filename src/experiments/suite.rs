@@ -28,9 +28,9 @@
 
 use crate::metrics::IouKind;
 use crate::metrics::{MotSummary, TimingAccumulator};
-use crate::experiments::score::ego::{EgoEvalOptions, evaluate_ego};
-use crate::experiments::score::filtering::{FilterEvaluation, evaluate_filtering};
-use crate::experiments::score::tracks::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
+use crate::experiments::{EgoEvalOptions, evaluate_ego};
+use crate::experiments::{FilterEvaluation, evaluate_filtering};
+use crate::experiments::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::report::Variant;
 use crate::run::{RunOptions, RunOutput, Source, run, write_dataset_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};

@@ -4,8 +4,8 @@
 //! per table; rows of methods we do not run are marked as such).
 
 use crate::metrics::MotSummary;
-use crate::experiments::score::kitti_sequence::{EgoScores, ObjectSummary, TrackScores};
-use crate::experiments::kitti_suite::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
+use crate::experiments::{EgoScores, ObjectSummary, TrackScores};
+use crate::experiments::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
 use crate::report::table::{Better, BoldRule, Cell, Table};
 use crate::report::{Report, ReportError, Section, Variant, write_report};
 use std::path::{Path, PathBuf};

@@ -1,17 +1,25 @@
-//! Evaluation reports: markdown tables shaped like the paper's (`table`) and
-//! SVG plots (`plot`), gathered into a directory with a `README.md` by
-//! `write_report`. Everything works on plain data, so the evaluation runner
-//! only has to fill the row structs and series.
+//! Evaluation reports: markdown tables shaped like the paper's, SVG plots, and
+//! the two report directories built from them: the simulated suite's
+//! ([`write_suite_report`]) and the KITTI suite's ([`write_kitti_report`]).
+//! [`write_report`] gathers sections of tables and plots into a directory with a
+//! `README.md`. Everything works on plain data, so the runners in
+//! [`crate::experiments`] only fill the row structs and series.
+#![warn(missing_docs)]
 
-pub mod kitti;
-pub mod plot;
-pub mod suite;
-pub mod table;
+mod kitti;
+mod plot;
+mod suite;
+mod table;
 
+pub use kitti::{
+    ab3dmot_table, ego_table as kitti_ego_table, kitti_report, object_table as kitti_object_table,
+    tracking_table as kitti_tracking_table, write_kitti_report,
+};
 pub use plot::{
     LineKind, Series2D, Style, plot_error_over_time, plot_object_tracks, plot_speed,
     plot_trajectories_xy,
 };
+pub use suite::{build_report, ego_table as suite_ego_table, write_suite_report};
 pub use table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,

@@ -9,19 +9,21 @@
 //! are gone is left out with a note rather than failing the report.
 
 use crate::metrics::Alignment;
-use crate::experiments::score::ego::{EgoEvalOptions, evaluate_trajectories, load_estimate, load_truth};
+use crate::experiments::{EgoEvalOptions, evaluate_trajectories, load_estimate, load_truth};
 use crate::report::plot::Series2D;
 use crate::report::table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
 };
 use crate::report::{Plot, PlotKind, Report, Section, Variant, write_report};
-use crate::experiments::suite::{Result, SequenceResult, SuiteError, SuiteResults, VariantMetrics};
+use crate::experiments::{SequenceResult, SuiteError, SuiteResults, VariantMetrics};
 use limot_sim::record::Dataset;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+type Result<T, E = SuiteError> = std::result::Result<T, E>;
 
 /// Moving objects per sequence in the per-object table (longest in view first).
 pub const OBJECTS_PER_SEQUENCE: usize = 5;
@@ -448,7 +450,7 @@ fn ego_plots(s: &SequenceResult, suite_dir: &Path) -> EgoPlots {
         Err(e) => {
             out.notes.push(format!(
                 "ego plots left out: {}",
-                crate::experiments::suite::error_chain(&e)
+                crate::experiments::error_chain(&e)
             ));
             return out;
         }
@@ -470,7 +472,7 @@ fn ego_plots(s: &SequenceResult, suite_dir: &Path) -> EgoPlots {
                 out.notes.push(format!(
                     "{} left out of the ego plots: {}",
                     r.variant.label(),
-                    crate::experiments::suite::error_chain(&e)
+                    crate::experiments::error_chain(&e)
                 ));
                 continue;
             }
@@ -552,7 +554,7 @@ fn object_plots(
     let loaded = read_tracks_csv(&run_dir.join("tracks.csv")).and_then(|rows| {
         let truth = Dataset::open(&suite_dir.join(&s.dataset_dir))
             .and_then(|d| d.box_truth())
-            .map_err(|e| SuiteError::Data(crate::experiments::suite::error_chain(&e)))?;
+            .map_err(|e| SuiteError::Data(crate::experiments::error_chain(&e)))?;
         Ok((rows, truth))
     });
     let (rows, truth) = match loaded {
@@ -560,7 +562,7 @@ fn object_plots(
         Err(e) => {
             notes.push(format!(
                 "object plots left out: {}",
-                crate::experiments::suite::error_chain(&e)
+                crate::experiments::error_chain(&e)
             ));
             return (Vec::new(), notes);
         }
@@ -745,7 +747,7 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
                 "The {OBJECTS_PER_SEQUENCE} moving objects (not parked, ≥ {} m/s at some \
                  frame) of each sequence seen in the most frames. TP = frames matched at 3D \
                  IoU ≥ 0.25 over frames in view; ATE of the track matched most often.",
-                crate::experiments::suite::MOVING_SPEED_MPS
+                crate::experiments::MOVING_SPEED_MPS
             ),
             tables: vec![objects_table(results)?],
             plots: Vec::new(),
@@ -757,7 +759,7 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
                  as object points, against the per-point instance labels: a feature is \
                  positive when it lies on an object moving faster than {} m/s in that \
                  frame (the paper's v_thres); parked and stopped objects are static.",
-                crate::experiments::score::filtering::FILTER_MOVING_SPEED_MPS
+                crate::experiments::FILTER_MOVING_SPEED_MPS
             ),
             tables: vec![filtering_table(results)?],
             plots: Vec::new(),
@@ -807,8 +809,8 @@ pub fn write_suite_report(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiments::score::filtering::FilterEvaluation;
-    use crate::experiments::suite::{
+    use crate::experiments::FilterEvaluation;
+    use crate::experiments::{
         EgoMetrics, MotMetrics, ObjectMetricsRecord, RESULTS_FORMAT_VERSION, StageSamples,
         VariantResult,
     };

@@ -31,7 +31,7 @@ use crate::kitti::calib::Calib;
 use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::poses::{parse_kitti_poses, parse_tum};
 use crate::kitti::{LineCtx, content_lines, read_text, sequence_file};
-use crate::report::table::{Cell, Table};
+use crate::report::{Cell, Table};
 use limot_sim::record::Dataset;
 use nalgebra::Isometry3;
 use std::path::{Path, PathBuf};

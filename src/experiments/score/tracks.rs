@@ -39,7 +39,7 @@ use crate::kitti::labels::TrackingLabel;
 use crate::kitti::results::{ImageSize, image_box};
 use crate::kitti::{LineCtx, content_lines, read_text, sequence_file};
 use crate::kitti_export::synthetic_calib;
-use crate::report::table::{Cell, Table};
+use crate::report::{Cell, Table};
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::{Dataset, EgoTruth};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
