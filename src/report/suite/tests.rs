@@ -1,5 +1,6 @@
 //! Unit tests of `suite`.
 
+use super::plots::{read_tracks_csv, thin};
 use super::*;
 use crate::experiments::FilterEvaluation;
 use crate::experiments::{
