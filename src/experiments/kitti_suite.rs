@@ -56,6 +56,7 @@ pub struct KittiSuiteSpec {
     /// of the tracker alone (e.g. [`crate::experiments::kitti_val_tuned_options`]), with the
     /// detections' score map.
     pub tracking: TrackKittiOptions,
+    /// Variants run on each sequence with scans.
     pub variants: Vec<Variant>,
     /// Sequences to consider; `None`: every sequence with an OXTS file.
     pub sequences: Option<Vec<u32>>,
@@ -63,6 +64,7 @@ pub struct KittiSuiteSpec {
     pub tracking_peer: Option<(String, PathBuf)>,
     /// Peer ego trajectories (TUM, `SSSS.txt`, LiDAR poses), each scored beside ours.
     pub ego_peers: Vec<(String, PathBuf)>,
+    /// Output directory (OUT).
     pub out_dir: PathBuf,
 }
 
@@ -70,47 +72,63 @@ pub struct KittiSuiteSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KittiVariantResult {
     #[serde(with = "variant_name")]
+    /// The variant.
     pub variant: Variant,
     /// Output directory, relative to OUT.
     pub run_dir: PathBuf,
+    /// Frames with an estimate.
     pub frames_estimated: usize,
+    /// Frames before the estimator initialised.
     pub frames_before_init: usize,
     /// Mean wall time per estimated frame, ms.
     pub mean_frame_ms: f64,
+    /// Scores; `None` when the run or its scoring failed.
     pub scores: Option<KittiRunScores>,
+    /// Why the run or its scoring failed.
     pub error: Option<String>,
 }
 
 /// Tracking scores of a tracker (ours alone, or a peer's result files) on one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrackerResult {
+    /// Scores; `None` on failure.
     pub scores: Option<TrackScores>,
+    /// Why the tracking or its scoring failed.
     pub error: Option<String>,
 }
 
 /// A peer's ego trajectory on one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EgoPeerResult {
+    /// The peer's name.
     pub name: String,
+    /// Scores; `None` on failure.
     pub scores: Option<crate::experiments::EgoScores>,
+    /// Why the trajectory could not be scored.
     pub error: Option<String>,
 }
 
 /// One KITTI tracking sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KittiSequenceResult {
+    /// Sequence number.
     pub sequence: u32,
     /// OXTS records (= frames).
     pub frames: usize,
+    /// Whether the sequence has velodyne scans (the variants need them).
     pub has_scans: bool,
+    /// One entry per variant run.
     pub runs: Vec<KittiVariantResult>,
     /// The tracker alone with the KITTI settings, OXTS ego poses.
     pub tracker: Option<TrackerResult>,
+    /// The peer tracker's results, when given.
     pub tracking_peer: Option<TrackerResult>,
+    /// The peer ego trajectories, when given.
     pub ego_peers: Vec<EgoPeerResult>,
 }
 
 impl KittiSequenceResult {
+    /// The run of variant `v`, if any.
     pub fn run(&self, v: Variant) -> Option<&KittiVariantResult> {
         self.runs.iter().find(|r| r.variant == v)
     }
@@ -121,13 +139,19 @@ impl KittiSequenceResult {
 /// by the whole set, so it is computed per set, not per sequence).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Ab3dmotSummary {
+    /// The tracker's name.
     pub name: String,
+    /// Sequences evaluated together.
     pub sequences: Vec<u32>,
+    /// sAMOTA.
     pub samota: f64,
+    /// AMOTA.
     pub amota: f64,
+    /// AMOTP.
     pub amotp: f64,
     /// MOTA and MOTP at the score threshold with the best MOTA.
     pub best_mota: Option<f64>,
+    /// MOTP at the score threshold with the best MOTA.
     pub best_motp: f64,
 }
 
@@ -136,13 +160,20 @@ pub struct Ab3dmotSummary {
 pub struct KittiSuiteResults {
     /// Always [`KITTI_RESULTS_KIND`].
     pub kind: String,
+    /// Version of this layout ([`KITTI_RESULTS_FORMAT_VERSION`]).
     pub format_version: u32,
+    /// The KITTI tracking `training/` directory.
     pub training: PathBuf,
+    /// Detection CSV directory, when the tracker ran.
     pub detections: Option<PathBuf>,
     #[serde(with = "variant_name::list")]
+    /// Variants run.
     pub variants: Vec<Variant>,
+    /// Name of the peer tracker, when given.
     pub tracking_peer: Option<String>,
+    /// Names of the peer ego trajectories.
     pub ego_peers: Vec<String>,
+    /// One entry per sequence.
     pub sequences: Vec<KittiSequenceResult>,
     /// evaluate.py of the tracker alone (and the tracking peer) over the
     /// sequences both have, and of the tracker alone over all it ran on.

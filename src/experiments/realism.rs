@@ -30,19 +30,32 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum RealismError {
     #[error(transparent)]
+    /// A KITTI file could not be read.
     Kitti(#[from] KittiError),
     #[error("{}: {source}", path.display())]
+    /// A statistic could not be computed.
     Eval {
+        /// The sequence directory.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: EvalError,
     },
     #[error("{}: {why}", path.display())]
-    Input { path: PathBuf, why: String },
+    /// An input is missing or malformed.
+    Input {
+        /// The input.
+        path: PathBuf,
+        /// What is wrong with it.
+        why: String,
+    },
     #[error("{}: {source}", path.display())]
+    /// A file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: std::io::Error,
     },
 }
@@ -52,14 +65,18 @@ pub enum RealismError {
 pub struct SequenceRealism {
     /// The KITTI-layout directory that was read.
     pub kitti_dir: PathBuf,
+    /// Sequence number.
     pub sequence: u32,
+    /// Its statistics.
     pub stats: RealismStats,
 }
 
 /// The contents of `realism.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RealismReport {
+    /// The analysed dataset.
     pub dataset: SequenceRealism,
+    /// The reference (e.g. a real KITTI sequence), when given.
     pub reference: Option<SequenceRealism>,
     /// Each scalar statistic beside the reference's (empty without one).
     pub comparison: Vec<StatComparison>,
@@ -316,12 +333,17 @@ fn histogram_table(
 /// Options of `limot realism`.
 #[derive(Debug, Clone)]
 pub struct RealismOptions {
+    /// A limot dataset or a KITTI-layout directory.
     pub path: PathBuf,
+    /// Sequence number inside `path`.
     pub sequence: u32,
     /// Default: `PATH/realism` for a limot dataset, else `reports/realism`.
     pub out: Option<PathBuf>,
+    /// Reference KITTI-layout directory, when given.
     pub reference: Option<PathBuf>,
+    /// Sequence number inside `reference`.
     pub reference_sequence: u32,
+    /// Show a progress bar.
     pub progress: bool,
 }
 

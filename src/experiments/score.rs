@@ -31,23 +31,37 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum EvaluateError {
     #[error(transparent)]
+    /// A KITTI file could not be read.
     Kitti(#[from] KittiError),
     #[error(transparent)]
+    /// A limot dataset could not be read.
     Record(#[from] RecordError),
     #[error(transparent)]
+    /// A metric could not be computed.
     Eval(#[from] EvalError),
     #[error(transparent)]
+    /// A table could not be built.
     Report(#[from] ReportError),
     #[error(transparent)]
+    /// The estimator run failed.
     Run(#[from] Box<crate::run::RunError>),
     #[error("{}: {source}", path.display())]
+    /// A file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: std::io::Error,
     },
     #[error("{}: {why}", path.display())]
-    Input { path: PathBuf, why: String },
+    /// An input is missing or malformed.
+    Input {
+        /// The input.
+        path: PathBuf,
+        /// What is wrong with it.
+        why: String,
+    },
     #[error(
         "timestamps do not overlap: estimate {} covers [{est_first_s}, {est_last_s}] s ({est_n} poses), \
          truth {} covers [{truth_first_s}, {truth_last_s}] s ({truth_n} poses); only {pairs} pose pairs \
@@ -56,17 +70,29 @@ pub enum EvaluateError {
         estimate.display(),
         truth.display()
     )]
+    /// Too few estimate poses lie within `max_dt_s` of a truth pose.
     NoOverlap {
+        /// The estimate file.
         estimate: PathBuf,
+        /// The truth.
         truth: PathBuf,
+        /// First estimate time, s.
         est_first_s: f64,
+        /// Last estimate time, s.
         est_last_s: f64,
+        /// Estimate poses.
         est_n: usize,
+        /// First truth time, s.
         truth_first_s: f64,
+        /// Last truth time, s.
         truth_last_s: f64,
+        /// Truth poses.
         truth_n: usize,
+        /// Pairs associated.
         pairs: usize,
+        /// Pairs needed.
         need: usize,
+        /// Association tolerance, s.
         max_dt_s: f64,
     },
     #[error(
@@ -74,13 +100,19 @@ pub enum EvaluateError {
         poses_path.display(),
         times_path.display()
     )]
+    /// A times file does not have one entry per pose.
     TimesLength {
+        /// The pose file.
         poses_path: PathBuf,
+        /// Its pose count.
         poses: usize,
+        /// The times file.
         times_path: PathBuf,
+        /// Its entry count.
         times: usize,
     },
     #[error("invalid argument: {0}")]
+    /// A command-line argument is invalid.
     Argument(String),
 }
 

@@ -62,43 +62,65 @@ pub const RESULTS_FILE: &str = "results.json";
 pub const MOVING_SPEED_MPS: f64 = 0.5;
 
 #[derive(Debug, thiserror::Error)]
+/// Why a suite could not be run, saved, read or reported.
 pub enum SuiteError {
     #[error("suite specification: {0}")]
+    /// The suite's specification is invalid.
     Spec(String),
     #[error("family `{family}`: {source}")]
+    /// A scenario family could not be resolved or simulated.
     Scenario {
+        /// The family.
         family: String,
         #[source]
+        /// The cause.
         source: Box<crate::simulate::SimulateError>,
     },
     #[error("{path}: {source}")]
+    /// A file could not be read or written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: std::io::Error,
     },
     #[error("{path}: {source}")]
+    /// A results file is not valid JSON of its layout.
     Json {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: serde_json::Error,
     },
     #[error("{path}: results format version {found}, this limot reads version {expected}")]
+    /// A results file has another format version.
     Version {
+        /// The file.
         path: PathBuf,
+        /// Its version.
         found: u32,
+        /// The version this build reads.
         expected: u32,
     },
     #[error("{path}: line {line}: field `{field}`: {why}")]
+    /// A run output file is malformed.
     Parse {
+        /// The file.
         path: PathBuf,
+        /// 1-based line.
         line: usize,
+        /// The field.
         field: String,
+        /// What is wrong with it.
         why: String,
     },
     #[error(transparent)]
+    /// A report could not be written.
     Report(#[from] crate::report::ReportError),
     #[error("{0}")]
+    /// Run outputs or results are inconsistent.
     Data(String),
 }
 
@@ -109,9 +131,13 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 pub struct SuiteSpec {
     /// Scenario files or built-in names (highway, urban, highway-dense, urban-parked).
     pub families: Vec<String>,
+    /// Seeds, each simulated per family.
     pub seeds: Vec<u64>,
+    /// Duration of each sequence, s.
     pub duration_s: f64,
+    /// Variants run on each sequence.
     pub variants: Vec<Variant>,
+    /// Output directory (OUT).
     pub out_dir: PathBuf,
     /// Run only this shard's sequences (and save them as its own results file).
     pub shard: Option<Shard>,
@@ -123,7 +149,9 @@ pub struct SuiteSpec {
 /// `index - 1, index - 1 + count, ...` of the family-major sequence list.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shard {
+    /// 1-based shard index.
     pub index: usize,
+    /// Number of shards.
     pub count: usize,
 }
 

@@ -115,21 +115,34 @@ pub fn kitti_val_offline_options() -> TrackKittiOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum TrackKittiError {
     #[error(transparent)]
+    /// A KITTI file could not be read.
     Kitti(#[from] KittiError),
     #[error("sequence {sequence:04}: tracker: {source}")]
+    /// The tracker rejected its input.
     Tracker {
+        /// Sequence number.
         sequence: u32,
         #[source]
+        /// The cause.
         source: TrackerError,
     },
     #[error("sequence {sequence:04}: evaluation: {source}")]
+    /// A metric could not be computed.
     Eval {
+        /// Sequence number.
         sequence: u32,
         #[source]
+        /// The cause.
         source: EvalError,
     },
     #[error("{}: {why}", path.display())]
-    Input { path: PathBuf, why: String },
+    /// An input is missing or malformed.
+    Input {
+        /// The input.
+        path: PathBuf,
+        /// What is wrong with it.
+        why: String,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, TrackKittiError>;
@@ -177,6 +190,7 @@ pub enum BoxSource {
 /// so their result files compare like with like.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ResultPolicy {
+    /// Which tracks are written each frame.
     pub output: OutputPolicy,
     /// During the first `startup_frames` frames of a sequence, tentative
     /// tracks matched this frame are written too: the objects in view when
@@ -235,6 +249,7 @@ struct TrackRecord {
 }
 
 impl ResultWriter {
+    /// A writer with no track seen yet.
     pub fn new(policy: ResultPolicy) -> Self {
         ResultWriter {
             policy,
@@ -292,12 +307,16 @@ impl ResultWriter {
 /// Options of [`track_sequence_with`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackKittiOptions {
+    /// The tracker's settings.
     pub tracker: TrackerConfig,
+    /// Which tracks become result lines.
     pub result: ResultPolicy,
+    /// Which box a written track carries.
     pub box_source: BoxSource,
     /// How the CSV's raw detector score becomes a [0, 1] score (the tracker's
     /// `min_score` applies to the mapped score). PointRCNN scores are logits.
     pub score_map: ScoreMap,
+    /// Image size, for the 2D boxes.
     pub image: ImageSize,
 }
 
@@ -316,6 +335,7 @@ impl Default for TrackKittiOptions {
 /// The tracker's output of one sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceTracks {
+    /// Sequence number.
     pub sequence: u32,
     /// Written tracks per frame (LiDAR frame, the raw score of the latest
     /// matched detection), `frames` entries.
@@ -326,6 +346,7 @@ pub struct SequenceTracks {
     pub outside_image: usize,
     /// Detections the tracker skipped as garbage / below `min_score`.
     pub garbage_detections: u64,
+    /// Detections below the tracker's `min_score`.
     pub low_score_detections: u64,
 }
 
@@ -509,6 +530,7 @@ fn matched_detection<'a>(
 /// Scores of one sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceScores {
+    /// Sequence number.
     pub sequence: u32,
     /// TrackEval KITTI 2D box benchmark (image IoU ≥ 0.5).
     pub image_iou_50: ClearMotResult,
@@ -520,8 +542,11 @@ pub struct SequenceScores {
 /// MOTP recomputed, as the devkit and TrackEval combine sequences).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingEvaluation {
+    /// One entry per sequence.
     pub per_sequence: Vec<SequenceScores>,
+    /// All sequences combined, image IoU ≥ 0.5.
     pub total_image_iou_50: ClearMotResult,
+    /// All sequences combined, 3D IoU ≥ 0.25.
     pub total_iou3d_25: ClearMotResult,
     /// AB3DMOT's own evaluate.py over all sequences together (3D IoU ≥ 0.25):
     /// sAMOTA, AMOTA, AMOTP and MOTA/MOTP at the best track-score threshold.
@@ -532,7 +557,9 @@ pub struct TrackingEvaluation {
 /// result file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceResults {
+    /// Sequence number.
     pub sequence: u32,
+    /// Result rows.
     pub labels: Vec<TrackingLabel>,
 }
 

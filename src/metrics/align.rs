@@ -8,7 +8,9 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 /// `p_dst ≈ scale · rotation · p_src + translation`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Alignment {
+    /// Rotation applied to the source points.
     pub rotation: Rotation3<f64>,
+    /// Translation added after rotating and scaling.
     pub translation: Vector3<f64>,
     /// 1 unless scale estimation was requested.
     pub scale: f64,
@@ -19,6 +21,7 @@ pub struct Alignment {
 }
 
 impl Alignment {
+    /// The identity alignment (scale 1).
     pub fn identity() -> Alignment {
         Alignment {
             rotation: Rotation3::identity(),
@@ -28,6 +31,7 @@ impl Alignment {
         }
     }
 
+    /// Maps a source point: `s · R · p + t`.
     pub fn transform_point(&self, p_src: &Vector3<f64>) -> Vector3<f64> {
         self.scale * (self.rotation * p_src) + self.translation
     }

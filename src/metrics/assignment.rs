@@ -15,7 +15,9 @@ use std::ops::{Add, Sub};
 /// The chosen pairs `(row, col)`, sorted by row, and their summed cost.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Assignment {
+    /// Matched `(row, column)` pairs, by increasing row.
     pub pairs: Vec<(usize, usize)>,
+    /// Sum of the matched pairs' costs.
     pub total_cost: f64,
 }
 

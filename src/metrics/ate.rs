@@ -29,13 +29,17 @@ pub enum AlignMode {
 }
 
 #[derive(Debug, Clone, PartialEq)]
+/// Absolute trajectory error after alignment.
 pub struct AteResult {
     /// RMSE of the translation errors, metres (ATE_T).
     pub ate_t_rmse_m: f64,
     /// RMSE of the rotation-error angles, radians (ATE_R).
     pub ate_r_rmse_rad: f64,
+    /// Mean translation error, m.
     pub mean_m: f64,
+    /// Median translation error, m.
     pub median_m: f64,
+    /// Largest translation error, m.
     pub max_m: f64,
     /// Number of associated pose pairs used.
     pub n: usize,

@@ -50,8 +50,11 @@ pub const PAPER_IOU_THRESHOLDS: [f64; 2] = [0.25, 0.5];
 /// `B` is [`Box3`] (3D evaluation) or [`Box2`](super::iou::Box2) (image).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackedBox<B = Box3> {
+    /// Track or ground-truth id, unique within a frame.
     pub id: u64,
+    /// Object class.
     pub class: ObjectClass,
+    /// The box.
     pub bbox: B,
 }
 
@@ -70,7 +73,9 @@ impl TrackedBox<Box3> {
 /// LiDAR or the image).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotFrame<B = Box3> {
+    /// Ground-truth boxes of the frame.
     pub gt: Vec<TrackedBox<B>>,
+    /// Tracker boxes of the frame.
     pub tracks: Vec<TrackedBox<B>>,
     /// Regions in which unmatched tracker boxes are not counted as false positives.
     pub dont_care: Vec<B>,
@@ -116,12 +121,15 @@ pub enum MatchingRule {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// Settings of a CLEAR-MOT evaluation.
 pub struct ClearMotConfig {
     /// A pair matches when IoU ≥ this (paper: 0.25 and 0.5).
     pub iou_threshold: f64,
     /// BEV or 3D IoU for [`Box3`]; image boxes ignore it.
     pub iou_kind: IouKind,
+    /// When a match counts as an ID switch.
     pub id_switch_rule: IdSwitchRule,
+    /// How ground truth and tracks are matched per frame.
     pub matching: MatchingRule,
     /// Unmatched tracks more than this fraction inside a DontCare region are ignored.
     pub dont_care_min_fraction: f64,
@@ -140,6 +148,7 @@ impl Default for ClearMotConfig {
 }
 
 impl ClearMotConfig {
+    /// The default settings with another IoU threshold.
     pub fn with_threshold(iou_threshold: f64) -> ClearMotConfig {
         ClearMotConfig {
             iou_threshold,
@@ -174,21 +183,30 @@ pub struct FrameMatch {
     pub gt_index: usize,
     /// Index into the frame's `tracks` list.
     pub track_index: usize,
+    /// Ground-truth id.
     pub gt_id: u64,
+    /// Track id.
     pub track_id: u64,
+    /// IoU of the pair.
     pub iou: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
+/// CLEAR-MOT counts and scores of a sequence (or of combined sequences).
 pub struct ClearMotResult {
     /// `None` when there is no ground truth.
     pub mota: Option<f64>,
     /// Mean IoU of the matches; `None` without matches.
     pub motp: Option<f64>,
+    /// Matched ground-truth boxes (true positives).
     pub matches: usize,
+    /// Unmatched tracker boxes.
     pub false_positives: usize,
+    /// Unmatched ground-truth boxes.
     pub false_negatives: usize,
+    /// Matches whose track differs from the ground truth's previous one.
     pub id_switches: usize,
+    /// Times a ground-truth trajectory's tracking was interrupted.
     pub fragmentations: usize,
     /// Ground-truth boxes over all frames.
     pub gt_count: usize,
@@ -196,10 +214,15 @@ pub struct ClearMotResult {
     pub track_count: usize,
     /// Unmatched tracker boxes ignored because they lie in a DontCare region.
     pub ignored_tracks: usize,
+    /// Distinct ground-truth objects.
     pub gt_objects: usize,
+    /// Objects tracked in at least 80 % of their frames.
     pub mostly_tracked: usize,
+    /// Objects that are neither mostly tracked nor mostly lost.
     pub partially_tracked: usize,
+    /// Objects tracked in less than 20 % of their frames.
     pub mostly_lost: usize,
+    /// Sum of the matches' IoU.
     pub iou_sum: f64,
     /// The matches of every frame, in frame order.
     pub per_frame: Vec<Vec<FrameMatch>>,
@@ -208,12 +231,19 @@ pub struct ClearMotResult {
 /// The headline figures of a [`ClearMotResult`], as results files store them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MotSummary {
+    /// MOTA as a fraction; `None` without ground truth.
     pub mota: Option<f64>,
+    /// MOTP (mean IoU of the matches); `None` without matches.
     pub motp: Option<f64>,
+    /// ID switches.
     pub id_switches: usize,
+    /// False positives.
     pub false_positives: usize,
+    /// False negatives.
     pub false_negatives: usize,
+    /// Matches.
     pub matches: usize,
+    /// Ground-truth boxes evaluated.
     pub gt_count: usize,
 }
 

@@ -9,10 +9,15 @@ use super::EvalError;
 use std::collections::BTreeSet;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// Confusion counts and scores of a dynamic-point classification.
 pub struct FilterScore {
+    /// Dynamic points removed.
     pub true_positives: usize,
+    /// Static points removed.
     pub false_positives: usize,
+    /// Dynamic points kept.
     pub false_negatives: usize,
+    /// Static points kept.
     pub true_negatives: usize,
     /// `None` when nothing was removed.
     pub precision: Option<f64>,
@@ -37,6 +42,7 @@ impl FilterScore {
         )
     }
 
+    /// The score of the given confusion counts.
     pub fn from_counts(tp: usize, fp: usize, fn_: usize, tn: usize) -> FilterScore {
         let ratio = |num: usize, den: usize| (den > 0).then(|| num as f64 / den as f64);
         FilterScore {

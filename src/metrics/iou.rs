@@ -17,7 +17,9 @@ use nalgebra::{Isometry3, Vector2, Vector3};
 pub struct Box3 {
     /// Geometric centre (the vertical extent is `center.z ± h/2`).
     pub center: Vector3<f64>,
+    /// Length (along the heading), width and height, m.
     pub size_lwh: Vector3<f64>,
+    /// Heading about +z, rad.
     pub yaw_rad: f64,
 }
 
@@ -32,6 +34,7 @@ pub enum IouKind {
 }
 
 impl Box3 {
+    /// A box from its centre, size (l, w, h) and yaw.
     pub fn new(center: Vector3<f64>, size_lwh: Vector3<f64>, yaw_rad: f64) -> Box3 {
         Box3 {
             center,
@@ -86,10 +89,12 @@ impl Box3 {
         ]
     }
 
+    /// Footprint area, m².
     pub fn bev_area(&self) -> f64 {
         self.size_lwh.x * self.size_lwh.y
     }
 
+    /// Volume, m³.
     pub fn volume(&self) -> f64 {
         self.size_lwh.x * self.size_lwh.y * self.size_lwh.z
     }
@@ -147,9 +152,13 @@ pub fn iou_3d(a: &Box3, b: &Box3) -> f64 {
 /// KITTI stores `bbox_2d`: left, top, right, bottom.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Box2 {
+    /// Left edge, px.
     pub left_px: f64,
+    /// Top edge, px.
     pub top_px: f64,
+    /// Right edge, px.
     pub right_px: f64,
+    /// Bottom edge, px.
     pub bottom_px: f64,
 }
 
@@ -168,14 +177,17 @@ impl Box2 {
         }
     }
 
+    /// Width, px (0 for an inverted box).
     pub fn width_px(&self) -> f64 {
         self.right_px - self.left_px
     }
 
+    /// Height, px (0 for an inverted box).
     pub fn height_px(&self) -> f64 {
         self.bottom_px - self.top_px
     }
 
+    /// Area, px².
     pub fn area_px2(&self) -> f64 {
         self.width_px() * self.height_px()
     }
@@ -277,6 +289,7 @@ impl MotBox for Box2 {
     }
 }
 
+/// IoU of two 3D boxes of the given kind (3D or bird's-eye view).
 pub fn iou(a: &Box3, b: &Box3, kind: IouKind) -> f64 {
     match kind {
         IouKind::Bev => iou_bev(a, b),

@@ -41,11 +41,14 @@ use limot_estimator::input::ObjectClass;
 /// The classes TrackEval's KITTI 2D box benchmark evaluates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum KittiEvalClass {
+    /// Class Car (distractor: Van).
     Car,
+    /// Class Pedestrian (distractors: Person, Person_sitting).
     Pedestrian,
 }
 
 impl KittiEvalClass {
+    /// Both classes.
     pub const ALL: [KittiEvalClass; 2] = [KittiEvalClass::Car, KittiEvalClass::Pedestrian];
 
     /// The class in our own types.
@@ -80,6 +83,7 @@ impl KittiEvalClass {
 /// are the [`Default`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KittiPreprocessConfig {
+    /// The evaluated class.
     pub class: KittiEvalClass,
     /// Ground truth more occluded than this is a distractor (2).
     pub max_occlusion: i64,
@@ -100,6 +104,7 @@ impl Default for KittiPreprocessConfig {
 }
 
 impl KittiPreprocessConfig {
+    /// TrackEval's settings for `class`.
     pub fn for_class(class: KittiEvalClass) -> KittiPreprocessConfig {
         KittiPreprocessConfig {
             class,
@@ -132,7 +137,9 @@ pub struct KittiPreprocessStats {
 /// Frames ready for [`clear_mot`] plus what preprocessing removed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KittiMotFrames {
+    /// The frames to evaluate, image boxes.
     pub frames: Vec<MotFrame<Box2>>,
+    /// What the preprocessing removed.
     pub stats: KittiPreprocessStats,
 }
 

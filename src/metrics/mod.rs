@@ -59,32 +59,59 @@ pub use timing::{TimingAccumulator, TimingStats};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EvalError {
     #[error("{what}: input is empty")]
-    Empty { what: &'static str },
-    #[error("{what}: lengths differ ({left} vs {right})")]
-    LengthMismatch {
+    /// An input list is empty.
+    Empty {
+        /// The input.
         what: &'static str,
+    },
+    #[error("{what}: lengths differ ({left} vs {right})")]
+    /// Two inputs that must pair up have different lengths.
+    LengthMismatch {
+        /// The inputs.
+        what: &'static str,
+        /// Length of the first.
         left: usize,
+        /// Length of the second.
         right: usize,
     },
     #[error("{what}[{index}]: field `{field}` is not finite")]
+    /// An entry holds a NaN or infinite value.
     NotFinite {
+        /// The input.
         what: &'static str,
+        /// Index of the offending entry.
         index: usize,
+        /// The offending field.
         field: &'static str,
     },
     #[error("{what}[{index}]: field `{field}` is invalid ({why})")]
+    /// An entry is out of its domain (e.g. a negative box size).
     Invalid {
+        /// The input.
         what: &'static str,
+        /// Index of the offending entry.
         index: usize,
+        /// The offending field.
         field: &'static str,
+        /// Why it is invalid.
         why: String,
     },
     #[error("{what}: {why}")]
-    BadParameter { what: &'static str, why: String },
-    #[error("{what}: only {got} samples could be used, need at least {need}")]
-    TooFew {
+    /// A parameter (threshold, delta, ...) is out of range.
+    BadParameter {
+        /// The parameter.
         what: &'static str,
+        /// Why it is out of range.
+        why: String,
+    },
+    #[error("{what}: only {got} samples could be used, need at least {need}")]
+    /// Too few samples remained after association.
+    TooFew {
+        /// The metric.
+        what: &'static str,
+        /// Samples that could be used.
         got: usize,
+        /// Samples needed.
         need: usize,
     },
 }
@@ -121,10 +148,15 @@ pub(crate) fn check_pose(
 /// Summary statistics of a non-empty list of non-negative errors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorStats {
+    /// Root mean square.
     pub rmse: f64,
+    /// Mean.
     pub mean: f64,
+    /// Median (mean of the middle two for an even count).
     pub median: f64,
+    /// Largest value.
     pub max: f64,
+    /// Number of values.
     pub n: usize,
 }
 

@@ -18,7 +18,9 @@ use std::collections::BTreeMap;
 use std::f64::consts::{PI, TAU};
 
 #[derive(Debug, Clone, PartialEq)]
+/// TP % and ATE of one ground-truth object.
 pub struct ObjectScore {
+    /// Ground-truth id.
     pub gt_id: u64,
     /// Frames in which the object appears in the ground truth.
     pub gt_frames: usize,

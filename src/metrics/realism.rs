@@ -58,6 +58,7 @@ pub struct RealismConfig {
     pub normal_radius_m: f64,
     /// Width of the coarse range bins, m, and their count (the last takes all beyond).
     pub range_bin_m: f64,
+    /// Number of range bins.
     pub range_bins: usize,
     /// Intensity bins over [0, 1] (values outside go to the end bins).
     pub intensity_bins: usize,
@@ -94,10 +95,15 @@ impl Default for RealismConfig {
 /// Mean, median and spread of a list of non-negative values.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Spread {
+    /// Number of values.
     pub n: usize,
+    /// Mean.
     pub mean: f64,
+    /// Median.
     pub median: f64,
+    /// 5th percentile.
     pub p5: f64,
+    /// 95th percentile.
     pub p95: f64,
 }
 
@@ -131,7 +137,9 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 /// A histogram with equal bins from `start`; `fractions` sum to 1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Histogram {
+    /// Lower edge of the first bin.
     pub start: f64,
+    /// Width of each bin.
     pub bin_width: f64,
     /// Fraction of the points per bin; the first and last bins also take
     /// the values below and beyond the range.
@@ -141,7 +149,9 @@ pub struct Histogram {
 /// The statistics of one sequence (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RealismStats {
+    /// Sweeps analysed.
     pub sweeps: usize,
+    /// Mean number of points per sweep.
     pub points_per_sweep_mean: f64,
     /// |Δroll| per consecutive sweep pair while moving, deg.
     pub roll_change_deg: Spread,
@@ -161,11 +171,17 @@ pub struct RealismStats {
     pub information_share_pct: [f64; 3],
     /// Points that got a normal (after thinning), over all sweeps.
     pub information_points: usize,
+    /// Median point range, m.
     pub range_median_m: f64,
+    /// Fraction of the points beyond `far_range_m`.
     pub range_beyond_far_fraction: f64,
+    /// The far range, m.
     pub far_range_m: f64,
+    /// Point ranges in coarse bins.
     pub range_histogram: Histogram,
+    /// Median point intensity.
     pub intensity_median: f64,
+    /// Point intensities in bins over [0, 1].
     pub intensity_histogram: Histogram,
 }
 
@@ -223,9 +239,13 @@ impl RealismStats {
 /// One scalar statistic beside its reference value.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StatComparison {
+    /// Name of the statistic.
     pub statistic: String,
+    /// Its unit.
     pub unit: String,
+    /// Value of the analysed sequence.
     pub value: f64,
+    /// Value of the reference.
     pub reference: f64,
     /// `value / reference`; 1 when both are 0, infinite when only the reference is.
     pub ratio: f64,
@@ -272,8 +292,11 @@ pub fn roll_pitch_rad(r_level_lidar: &UnitQuaternion<f64>) -> (f64, f64) {
 /// A ground plane `z = a + b x + c y` in the sensor frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundPlane {
+    /// Coefficient of x in `z = a·x + b·y + c`.
     pub a: f64,
+    /// Coefficient of y.
     pub b: f64,
+    /// Height at the origin, m.
     pub c: f64,
 }
 

@@ -25,19 +25,35 @@ use nalgebra::Isometry3;
 /// The step over which relative motion is compared.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RpeDelta {
+    /// A fixed number of frames.
     Frames(usize),
-    Meters { delta_m: f64, path_tolerance_m: f64 },
+    /// A distance travelled along the true path.
+    Meters {
+        /// The distance, m.
+        delta_m: f64,
+        /// How far a pair's path length may differ from `delta_m`, m.
+        path_tolerance_m: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// Relative pose error over the pose pairs of one delta.
 pub struct RpeResult {
+    /// Translation RMSE, m.
     pub trans_rmse_m: f64,
+    /// Translation mean, m.
     pub trans_mean_m: f64,
+    /// Translation median, m.
     pub trans_median_m: f64,
+    /// Largest translation error, m.
     pub trans_max_m: f64,
+    /// Rotation RMSE, rad.
     pub rot_rmse_rad: f64,
+    /// Rotation mean, rad.
     pub rot_mean_rad: f64,
+    /// Rotation median, rad.
     pub rot_median_rad: f64,
+    /// Largest rotation error, rad.
     pub rot_max_rad: f64,
     /// Number of pose pairs compared.
     pub n_pairs: usize,

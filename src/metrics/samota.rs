@@ -73,7 +73,9 @@ impl Default for Ab3dmotEvalConfig {
 /// One sequence's ground truth and results (KITTI tracking rows, camera frame).
 #[derive(Debug, Clone, Copy)]
 pub struct Ab3dmotSequence<'a> {
+    /// Ground-truth rows.
     pub gt: &'a [TrackingLabel],
+    /// Result rows (their score column gates tracks).
     pub results: &'a [TrackingLabel],
     /// Frames evaluated: `0..num_frames` (extended to the last ground-truth frame).
     pub num_frames: u32,
@@ -88,8 +90,11 @@ pub struct Ab3dmotCounts {
     pub recall_sample: f64,
     /// Matches, including those to ignored ground truth.
     pub true_positives: u64,
+    /// Tracker boxes not matched.
     pub false_positives: u64,
+    /// Evaluated ground truth not matched.
     pub false_negatives: u64,
+    /// ID switches.
     pub id_switches: u64,
     /// Ground truth evaluated (ignored boxes excluded).
     pub gt_count: u64,
@@ -101,7 +106,9 @@ pub struct Ab3dmotCounts {
     pub smota: Option<f64>,
     /// Mean 3D IoU of the matches; 0 without matches (evaluate.py's value).
     pub motp: f64,
+    /// TP / (TP + FN).
     pub recall: f64,
+    /// TP / (TP + FP).
     pub precision: f64,
 }
 
@@ -114,8 +121,11 @@ pub struct Ab3dmotResult {
     pub curve: Vec<Ab3dmotCounts>,
     /// The row at the threshold with the highest MOTA (evaluated with recall 1).
     pub best: Ab3dmotCounts,
+    /// Scaled AMOTA: mean sMOTA over the sampled recalls.
     pub samota: f64,
+    /// Mean MOTA over the sampled recalls.
     pub amota: f64,
+    /// Mean MOTP over the sampled recalls.
     pub amotp: f64,
 }
 

@@ -5,13 +5,21 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
+/// Summary of one stage's durations, s.
 pub struct TimingStats {
+    /// Number of samples.
     pub count: usize,
+    /// Sum.
     pub total_s: f64,
+    /// Mean.
     pub mean_s: f64,
+    /// Median.
     pub median_s: f64,
+    /// 90th percentile.
     pub p90_s: f64,
+    /// 99th percentile.
     pub p99_s: f64,
+    /// Largest.
     pub max_s: f64,
     /// 1 / mean (frames per second if one sample is one frame); infinite for a zero mean.
     pub fps: f64,
@@ -38,10 +46,12 @@ fn percentile_sorted(sorted: &[f64], p: f64) -> f64 {
 }
 
 impl TimingAccumulator {
+    /// An empty accumulator.
     pub fn new() -> TimingAccumulator {
         TimingAccumulator::default()
     }
 
+    /// Adds one duration of stage `name`.
     pub fn record(&mut self, name: &str, duration: Duration) {
         self.samples
             .entry(name.to_string())
@@ -67,10 +77,12 @@ impl TimingAccumulator {
         }
     }
 
+    /// Stage names in first-recorded order.
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.samples.keys().map(String::as_str)
     }
 
+    /// Every duration recorded for `name` (empty when unknown).
     pub fn samples(&self, name: &str) -> &[Duration] {
         self.samples.get(name).map_or(&[], Vec::as_slice)
     }

@@ -42,13 +42,18 @@ pub const TRUTH_RGB: (u8, u8, u8) = (0, 0, 0);
 /// How a series is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LineKind {
+    /// A line through the points.
     Line,
+    /// A marker per point.
     Markers,
+    /// Both.
     LineMarkers,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How a series looks.
 pub struct Style {
+    /// Line, markers or both.
     pub kind: LineKind,
     /// `None` picks the next palette colour.
     pub rgb: Option<(u8, u8, u8)>,
@@ -67,8 +72,11 @@ impl Default for Style {
 /// the world frame or (t_s, speed_mps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series2D {
+    /// Legend label.
     pub label: String,
+    /// The points, in drawing order.
     pub points: Vec<(f64, f64)>,
+    /// How it is drawn.
     pub style: Style,
 }
 
@@ -87,11 +95,13 @@ impl Series2D {
         Series2D::line(label, points).with_rgb(TRUTH_RGB)
     }
 
+    /// The same series in a fixed colour.
     pub fn with_rgb(mut self, rgb: (u8, u8, u8)) -> Series2D {
         self.style.rgb = Some(rgb);
         self
     }
 
+    /// The same series drawn as `kind`.
     pub fn with_kind(mut self, kind: LineKind) -> Series2D {
         self.style.kind = kind;
         self

@@ -16,11 +16,13 @@ pub const DEFAULT_DECIMALS: usize = 3;
 /// One table cell.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Cell {
+    /// Text, rendered as is.
     Text(String),
     /// Rendered with the column's fixed decimals.
     Num(f64),
     /// Rendered as is (counts such as IDSW, FP, FN).
     Int(i64),
+    /// No value, rendered as [`MISSING`].
     Missing,
 }
 
@@ -58,7 +60,9 @@ impl From<usize> for Cell {
 /// Which direction of a metric is better.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Better {
+    /// Lower is better.
     Lower,
+    /// Higher is better.
     Higher,
 }
 
@@ -69,13 +73,21 @@ pub enum Better {
 #[derive(Debug, Clone, PartialEq)]
 pub enum BoldRule {
     /// In every row, the best among `columns` (e.g. ATE_T of each variant).
-    BestInRow { columns: Vec<usize>, better: Better },
+    BestInRow {
+        /// The compared columns.
+        columns: Vec<usize>,
+        /// Which direction wins.
+        better: Better,
+    },
     /// In `column`, the best over the rows that agree in the text of every
     /// `group_by` column (e.g. the best variant per sequence); no grouping
     /// compares the whole column.
     BestInColumn {
+        /// The column.
         column: usize,
+        /// Which direction wins.
         better: Better,
+        /// Columns whose text defines a group.
         group_by: Vec<usize>,
     },
 }
@@ -83,12 +95,16 @@ pub enum BoldRule {
 /// A table of typed cells; every row has one cell per header entry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
+    /// Title, rendered as a heading.
     pub title: String,
+    /// Column names.
     pub header: Vec<String>,
+    /// Rows of cells.
     pub rows: Vec<Vec<Cell>>,
     /// Fixed decimals of `Cell::Num` per column; columns past its end use
     /// `DEFAULT_DECIMALS`.
     pub decimals: Vec<usize>,
+    /// Which cells are bold.
     pub bold: Vec<BoldRule>,
 }
 
@@ -99,6 +115,7 @@ enum Align {
 }
 
 impl Table {
+    /// An empty table with the given title and header.
     pub fn new(title: impl Into<String>, header: Vec<String>) -> Table {
         let decimals = vec![DEFAULT_DECIMALS; header.len()];
         Table {
@@ -386,14 +403,18 @@ fn escape_cell(text: &str) -> String {
 /// Ego-pose ATE of one variant on one sequence.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoAte {
+    /// ATE_T, m.
     pub ate_t_m: f64,
+    /// ATE_R, rad.
     pub ate_r_rad: f64,
 }
 
 /// One sequence of the ego ATE table (paper Table "tab_ego_track").
 #[derive(Debug, Clone, PartialEq)]
 pub struct EgoAteRow {
+    /// Sequence name.
     pub sequence: String,
+    /// ATE per variant.
     pub per_variant: BTreeMap<Variant, EgoAte>,
 }
 
@@ -444,13 +465,21 @@ pub fn ego_ate_table(title: &str, rows: &[EgoAteRow]) -> Result<Table, ReportErr
 /// (paper Table "tab_ab3dmot_compare" reports MOTP at 0.25 and 0.5).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingRow {
+    /// Sequence name.
     pub sequence: String,
+    /// The variant.
     pub variant: Variant,
+    /// The 3D IoU threshold.
     pub iou_threshold: f64,
+    /// MOTA, %.
     pub mota_percent: Option<f64>,
+    /// MOTP, %.
     pub motp_percent: Option<f64>,
+    /// ID switches.
     pub idsw: usize,
+    /// False positives.
     pub fp: usize,
+    /// False negatives.
     pub fn_: usize,
 }
 
@@ -523,6 +552,7 @@ pub struct ObjectMetrics {
     pub tp_percent: f64,
     /// `None` when the object was never matched.
     pub ate_t_m: Option<f64>,
+    /// ATE_R of the object's track, rad.
     pub ate_r_rad: Option<f64>,
 }
 
@@ -539,8 +569,11 @@ impl From<&ObjectScore> for ObjectMetrics {
 /// One object of the per-object table (paper Table "tab_obj_track").
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectRow {
+    /// Sequence name.
     pub sequence: String,
+    /// Ground-truth object id.
     pub object_id: u64,
+    /// Scores per variant.
     pub per_variant: BTreeMap<Variant, ObjectMetrics>,
 }
 
@@ -586,8 +619,11 @@ pub fn object_table(title: &str, rows: &[ObjectRow]) -> Result<Table, ReportErro
 /// Runtime of one module (paper Table "tab_time_consume").
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimingRow {
+    /// Pipeline stage.
     pub module: String,
+    /// Mean wall time, ms.
     pub mean_ms: f64,
+    /// 95th-percentile wall time, ms.
     pub p95_ms: f64,
     /// Scans per second this module alone allows (1000 / mean_ms).
     pub fps: f64,

@@ -103,10 +103,13 @@ pub struct EgoEvalOptions {
     pub truth_times: Option<PathBuf>,
     /// KITTI sequence number in a KITTI-style truth directory.
     pub sequence: u32,
+    /// How the estimate is aligned to the truth.
     pub align: AlignMode,
     /// Largest time difference of an associated pose pair, s.
     pub max_dt_s: f64,
+    /// The RPE's pose-pair spacing.
     pub rpe_delta: RpeDelta,
+    /// RPE over every pair at the spacing rather than consecutive ones.
     pub rpe_all_pairs: bool,
 }
 
@@ -133,6 +136,7 @@ pub struct Trajectory {
     pub path: PathBuf,
     /// What was read, for reports ("limot dataset gt/ego.csv", ...).
     pub kind: String,
+    /// Timestamped poses (`t_world_lidar`), by time.
     pub poses: Vec<(f64, Isometry3<f64>)>,
     /// Times of the source's frames (sweeps) when it has frames; a KITTI
     /// estimate without its own times takes these.
@@ -302,13 +306,21 @@ pub fn load_estimate(path: &Path, truth: &Trajectory, opts: &EgoEvalOptions) -> 
 /// ATE and RPE of one estimate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EgoEvaluation {
+    /// The truth's path.
     pub truth: PathBuf,
+    /// What the truth is (dataset, KITTI directory, pose file).
     pub truth_kind: String,
+    /// The estimate's path.
     pub estimate: PathBuf,
+    /// The estimate's format.
     pub estimate_kind: String,
+    /// The alignment used.
     pub align: AlignMode,
+    /// Association tolerance, s.
     pub max_dt_s: f64,
+    /// ATE after alignment.
     pub ate: AteResult,
+    /// The RPE's spacing.
     pub rpe_delta: RpeDelta,
     /// `None` when the trajectory is too short for the delta.
     pub rpe: Option<RpeResult>,
@@ -516,6 +528,7 @@ impl EgoEvaluation {
         Ok(out)
     }
 
+    /// The evaluation as a JSON summary.
     pub fn to_json(&self) -> Json {
         let a = &self.ate;
         let rpe = match &self.rpe {

@@ -18,10 +18,15 @@ pub const FILTER_MOVING_SPEED_MPS: f64 = 1.0;
 pub struct FilterEvaluation {
     /// Features removed / kept against "on a moving object" (positives).
     pub features: usize,
+    /// Features removed by the filter.
     pub removed: usize,
+    /// Features on moving objects.
     pub moving_features: usize,
+    /// Of those, removed.
     pub removed_moving: usize,
+    /// Features on standing objects.
     pub static_object_features: usize,
+    /// Of those, removed.
     pub removed_static_object: usize,
 }
 

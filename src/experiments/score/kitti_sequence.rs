@@ -82,18 +82,23 @@ pub struct EgoScores {
     pub path_length_m: f64,
     /// SE(3)-aligned ATE, m and rad.
     pub ate_t_m: f64,
+    /// SE(3)-aligned ATE_R, rad.
     pub ate_r_rad: f64,
     /// Sim(3)-aligned ATE_T and the scale that aligns the estimate.
     pub sim3_ate_t_m: f64,
+    /// Sim(3) scale.
     pub sim3_scale: f64,
     /// RPE RMSE over consecutive frames.
     pub rpe_frame_t_m: Option<f64>,
+    /// RPE rotation RMSE over consecutive frames, rad.
     pub rpe_frame_r_rad: Option<f64>,
     /// RPE RMSE over [`RPE_PATH_DELTA_M`] of path.
     pub rpe_10m_t_m: Option<f64>,
+    /// RPE rotation RMSE over [`RPE_PATH_DELTA_M`] of path, rad.
     pub rpe_10m_r_rad: Option<f64>,
     /// OXTS `pos_accuracy` of the truth frames used: mean and largest, m.
     pub truth_pos_accuracy_mean_m: f64,
+    /// Largest OXTS `pos_accuracy` of the truth frames used, m.
     pub truth_pos_accuracy_max_m: f64,
     /// Truth frames left out for their `pos_accuracy`.
     pub truth_frames_gated: usize,
@@ -102,10 +107,15 @@ pub struct EgoScores {
 /// TP % and ATE of one ground-truth object.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectSummary {
+    /// Ground-truth track id.
     pub gt_id: u64,
+    /// Frames it is labelled in.
     pub gt_frames: usize,
+    /// Share of those frames it is tracked in, %.
     pub tp_percent: f64,
+    /// ATE_T of its track, m.
     pub ate_t_m: Option<f64>,
+    /// ATE_R of its track, rad.
     pub ate_r_rad: Option<f64>,
 }
 
@@ -116,6 +126,7 @@ pub struct TrackScores {
     pub image_iou_50: MotSummary,
     /// AB3DMOT-style 3D evaluation at 3D IoU ≥ 0.25 and ≥ 0.5.
     pub iou3d_25: MotSummary,
+    /// 3D IoU ≥ 0.5.
     pub iou3d_50: MotSummary,
     /// Every labelled car, most labelled frames first (ties: smaller id).
     pub objects: Vec<ObjectSummary>,
@@ -123,8 +134,11 @@ pub struct TrackScores {
 
 /// Poses and OXTS accuracy of a KITTI sequence's ego truth.
 pub struct KittiEgoTruth {
+    /// LiDAR poses from OXTS.
     pub trajectory: Trajectory,
+    /// OXTS `pos_accuracy` per frame, m.
     pub pos_accuracy_m: Vec<f64>,
+    /// Frames left out for their `pos_accuracy`.
     pub gated: usize,
 }
 
@@ -271,7 +285,9 @@ pub fn score_ego(
 /// Everything a run on a KITTI tracking sequence is scored on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KittiRunScores {
+    /// Sequence number.
     pub sequence: u32,
+    /// Ego scores.
     pub ego: EgoScores,
     /// `None` when the sequence has no `label_02` file or the variant does
     /// not track (lio).

@@ -74,7 +74,9 @@ impl std::str::FromStr for GtFilter {
 }
 
 #[derive(Debug, Clone, PartialEq)]
+/// Options of `limot eval tracks`.
 pub struct TrackEvalOptions {
+    /// Which ground-truth boxes are scored.
     pub gt_filter: GtFilter,
     /// Sequence number of the calibration file in `DATASET/kitti/calib/`.
     pub sequence: u32,
@@ -98,6 +100,7 @@ impl Default for TrackEvalOptions {
 /// Result boxes of a file, per frame, in the LiDAR frame.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ResultBoxes {
+    /// Per frame: `(track id, class, box)`.
     pub per_frame: Vec<Vec<(u64, ObjectClass, LidarBox)>>,
     /// Result lines of types we do not track (Tram, Misc), skipped.
     pub skipped_types: usize,
@@ -234,9 +237,13 @@ pub fn dataset_calib(dataset: &Dataset, sequence: u32) -> Result<(Calib, String)
 /// The CLEAR-MOT frames (world frame) of a dataset and a result file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingInput {
+    /// CLEAR-MOT frames.
     pub frames: Vec<MotFrame>,
+    /// Where the calibration came from.
     pub calib_source: String,
+    /// Result lines of types we do not track, skipped.
     pub skipped_types: usize,
+    /// DontCare result lines, skipped.
     pub dont_care: usize,
     /// Ground-truth boxes dropped by the filter.
     pub gt_filtered_out: usize,
@@ -307,24 +314,38 @@ pub fn tracking_input(
 /// CLEAR-MOT of one IoU kind and threshold, over all classes and per class.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotScore {
+    /// 3D or BEV IoU.
     pub iou_kind: IouKind,
+    /// The IoU threshold.
     pub iou_threshold: f64,
+    /// Over all classes.
     pub all: ClearMotResult,
+    /// Per ground-truth class.
     pub per_class: BTreeMap<ObjectClass, ClearMotResult>,
 }
 
 /// Everything `limot eval tracks` reports.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TracksEvaluation {
+    /// The dataset directory.
     pub dataset: PathBuf,
+    /// The result file.
     pub results: PathBuf,
+    /// Which ground-truth boxes were scored.
     pub gt_filter: GtFilter,
+    /// Where the calibration came from.
     pub calib_source: String,
+    /// Frames scored.
     pub frames: usize,
+    /// Result lines of types we do not track, skipped.
     pub skipped_types: usize,
+    /// Ground-truth boxes dropped by the filter.
     pub gt_filtered_out: usize,
+    /// CLEAR-MOT per IoU kind and threshold.
     pub scores: Vec<MotScore>,
+    /// 3D IoU threshold of the per-object scores.
     pub object_threshold: f64,
+    /// Per-object TP % and ATE.
     pub objects: Vec<ObjectScore>,
     /// Ground-truth class of every scored object.
     pub object_classes: BTreeMap<u64, ObjectClass>,
@@ -514,6 +535,11 @@ impl TracksEvaluation {
         Ok(table)
     }
 
+    /// The evaluation as markdown tables.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError::Report`] when a table cannot be built.
     pub fn to_markdown(&self) -> Result<String> {
         let filter = match self.gt_filter {
             GtFilter::All => "all ground-truth boxes",
@@ -548,6 +574,7 @@ impl TracksEvaluation {
         Ok(out)
     }
 
+    /// The evaluation as a JSON summary.
     pub fn to_json(&self) -> Json {
         let scores = self
             .scores

@@ -49,12 +49,17 @@ pub(crate) mod variant_name {
 /// Ego trajectory accuracy (SE(3)-aligned ATE, RPE over one frame).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EgoMetrics {
+    /// SE(3)-aligned ATE_T (RMSE), m.
     pub ate_t_m: f64,
+    /// SE(3)-aligned ATE_R (RMSE), rad.
     pub ate_r_rad: f64,
+    /// Largest translation error, m.
     pub ate_max_m: f64,
     /// Associated pose pairs.
     pub pairs: usize,
+    /// RPE translation RMSE over one frame, m.
     pub rpe_t_m: Option<f64>,
+    /// RPE rotation RMSE over one frame, rad.
     pub rpe_r_rad: Option<f64>,
 }
 
@@ -63,42 +68,59 @@ pub struct EgoMetrics {
 pub struct MotMetrics {
     /// "3D" or "BEV".
     pub iou_kind: String,
+    /// The IoU threshold.
     pub iou_threshold: f64,
     #[serde(flatten)]
+    /// Counts and scores.
     pub counts: MotSummary,
 }
 
 /// One ground-truth object as the tracker followed it (3D IoU ≥ 0.25).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ObjectMetricsRecord {
+    /// Ground-truth id.
     pub gt_id: u64,
+    /// Ground-truth class.
     pub class: String,
+    /// Frames the object is in the ground truth.
     pub gt_frames: usize,
+    /// Frames it was tracked in.
     pub tracked_frames: usize,
+    /// `tracked_frames / gt_frames`, %.
     pub tp_percent: f64,
     /// The tracker id matched most often (the id in `tracks.csv`).
     pub track_id: Option<u64>,
+    /// ATE_T of its track, m.
     pub ate_t_m: Option<f64>,
+    /// ATE_R of its track, rad.
     pub ate_r_rad: Option<f64>,
 }
 
 /// Per-frame wall time of one pipeline stage, ms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StageSamples {
+    /// Stage name.
     pub stage: String,
+    /// One wall time per frame, ms.
     pub ms: Vec<f64>,
 }
 
 /// Everything measured for one variant on one sequence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VariantMetrics {
+    /// Frames with an estimate.
     pub frames_estimated: usize,
+    /// Frames before the estimator initialised.
     pub frames_before_init: usize,
+    /// Wall time of the run, s.
     pub wall_time_s: f64,
     /// Frames estimated per second of wall time.
     pub fps: f64,
+    /// Ego trajectory accuracy.
     pub ego: EgoMetrics,
+    /// Class-agnostic CLEAR-MOT per IoU kind and threshold.
     pub clear_mot: Vec<MotMetrics>,
+    /// Per-object TP % and ATE.
     pub objects: Vec<ObjectMetricsRecord>,
     /// Pipeline stages in order, then "total".
     pub timings: Vec<StageSamples>,
@@ -132,9 +154,11 @@ impl VariantMetrics {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VariantResult {
     #[serde(with = "variant_name")]
+    /// The variant.
     pub variant: Variant,
     /// Output directory, relative to the suite directory.
     pub run_dir: PathBuf,
+    /// Its figures; `None` when the run or its scoring failed.
     pub metrics: Option<VariantMetrics>,
     /// Set when the run or its scoring failed.
     pub error: Option<String>,
@@ -145,8 +169,11 @@ pub struct VariantResult {
 pub struct SequenceResult {
     /// `<family>_s<seed>`.
     pub name: String,
+    /// Scenario family.
     pub family: String,
+    /// Seed.
     pub seed: u64,
+    /// Frames (sweeps) of the dataset.
     pub frames: usize,
     /// Dataset directory, relative to the suite directory.
     pub dataset_dir: PathBuf,
@@ -154,14 +181,17 @@ pub struct SequenceResult {
     pub moving_objects: Vec<u64>,
     /// Set when the sequence could not be simulated or read.
     pub error: Option<String>,
+    /// One entry per variant.
     pub variants: Vec<VariantResult>,
 }
 
 impl SequenceResult {
+    /// The result of variant `v`, if it ran.
     pub fn variant(&self, v: Variant) -> Option<&VariantResult> {
         self.variants.iter().find(|r| r.variant == v)
     }
 
+    /// The figures of variant `v`, if it ran and was scored.
     pub fn metrics(&self, v: Variant) -> Option<&VariantMetrics> {
         self.variant(v).and_then(|r| r.metrics.as_ref())
     }
@@ -170,15 +200,21 @@ impl SequenceResult {
 /// What `results.json` holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SuiteResults {
+    /// Version of this layout ([`RESULTS_FORMAT_VERSION`]).
     pub format_version: u32,
+    /// Scenario families.
     pub families: Vec<String>,
+    /// Seeds.
     pub seeds: Vec<u64>,
+    /// Duration of each sequence, s.
     pub duration_s: f64,
     #[serde(with = "variant_name::list")]
+    /// Variants run.
     pub variants: Vec<Variant>,
     /// Set when only this shard's sequences are here.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
+    /// One entry per sequence, family-major.
     pub sequences: Vec<SequenceResult>,
 }
 
