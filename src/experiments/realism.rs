@@ -84,6 +84,10 @@ pub struct RealismReport {
 
 /// The KITTI-layout directory of `path`: `path` itself when it has
 /// `velodyne/`, else a limot dataset's `path/kitti`.
+///
+/// # Errors
+///
+/// [`RealismError::Input`] when the path is neither a limot dataset nor a KITTI-layout directory.
 pub fn kitti_dir_of(path: &Path) -> Result<PathBuf, RealismError> {
     if !path.is_dir() {
         return Err(RealismError::Input {
@@ -107,6 +111,10 @@ pub fn kitti_dir_of(path: &Path) -> Result<PathBuf, RealismError> {
 
 /// The statistics of sequence `sequence` of `path` (see the module docs);
 /// a per-frame progress bar when `progress`. Every error names the file.
+///
+/// # Errors
+///
+/// [`RealismError`] when a file cannot be read or a statistic computed.
 pub fn analyze_sequence(
     path: &Path,
     sequence: u32,
@@ -261,6 +269,10 @@ impl RealismReport {
     }
 
     /// Writes `realism.json` and `realism.md` into `out` (created); returns their paths.
+    ///
+    /// # Errors
+    ///
+    /// [`RealismError::Io`] when a file cannot be written.
     pub fn write(&self, out: &Path) -> Result<(PathBuf, PathBuf), RealismError> {
         let io = |path: &Path| {
             let path = path.to_path_buf();
@@ -349,6 +361,10 @@ pub struct RealismOptions {
 
 /// `limot realism`: analyses the dataset (and the reference), writes the
 /// report and prints its table.
+///
+/// # Errors
+///
+/// [`RealismError`] when an input cannot be read or analysed or the report written.
 pub fn run_realism(opts: &RealismOptions) -> Result<RealismReport, RealismError> {
     let config = RealismConfig::default();
     if opts.progress {

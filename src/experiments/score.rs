@@ -128,6 +128,10 @@ pub fn is_limot_dataset(dir: &Path) -> bool {
 /// Start time of every sweep of a limot dataset: `kitti/times.txt` when the
 /// KITTI-style copy exists, else `index · sweep_duration_s` (the simulator
 /// starts sweep `i` at that time).
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the dataset cannot be read.
 pub fn dataset_frame_times(dataset: &limot_sim::record::Dataset) -> Result<Vec<f64>> {
     let times_path = dataset.dir.join("kitti").join("times.txt");
     if times_path.is_file() {

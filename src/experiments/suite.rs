@@ -157,6 +157,10 @@ pub struct Shard {
 
 impl Shard {
     /// Parses `K/N` with 1 <= K <= N.
+    ///
+    /// # Errors
+    ///
+    /// [`SuiteError::Spec`] unless the text is `K/N` with `1 <= K <= N`.
     pub fn parse(text: &str) -> Result<Shard> {
         let bad = || {
             SuiteError::Spec(format!(
@@ -187,6 +191,11 @@ impl Shard {
 
 impl SuiteSpec {
     /// Non-empty lists without repeats and a positive, finite duration.
+    ///
+    /// # Errors
+    ///
+    /// [`SuiteError::Spec`] for an empty or repeated family, seed or variant list, a
+    /// non-positive duration, an invalid shard or zero jobs.
     pub fn validate(&self) -> Result<()> {
         fn no_repeats<T: Ord + std::fmt::Debug>(what: &str, items: &[T]) -> Result<()> {
             if items.is_empty() {
@@ -223,6 +232,10 @@ impl SuiteSpec {
 }
 
 /// Parses a comma-separated list (`"lio,dynafilt"`), naming the option in errors.
+///
+/// # Errors
+///
+/// [`SuiteError::Spec`] for an empty list or an entry that does not parse.
 pub fn parse_list<T>(
     option: &str,
     text: &str,
@@ -531,6 +544,10 @@ fn run_sequence(
 }
 
 /// Runs the whole suite and saves `OUT/results.json`.
+///
+/// # Errors
+///
+/// [`SuiteError`] when the specification is invalid or the results cannot be written; failures of single sequences or runs are recorded in the results instead.
 pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
     spec.validate()?;
     // Resolve every scenario first: a typo fails before hours of simulation.

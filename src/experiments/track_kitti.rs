@@ -402,6 +402,10 @@ pub fn world_box_to_lidar(
 
 /// Runs the tracker over one sequence with default options apart from the
 /// tracker configuration.
+///
+/// # Errors
+///
+/// [`TrackKittiError`] when an input cannot be read or the tracker rejects a detection.
 pub fn track_sequence(
     training_dir: &Path,
     detections_dir: &Path,
@@ -418,6 +422,10 @@ pub fn track_sequence(
 /// Runs the tracker over one sequence: `training_dir/{calib,oxts}/NNNN.txt`
 /// and `detections_dir/NNNN.txt` (AB3DMOT CSV). The sequence has as many
 /// frames as OXTS records; a detection of a later frame is an error.
+///
+/// # Errors
+///
+/// [`TrackKittiError`] when an input cannot be read or the tracker rejects a detection.
 pub fn track_sequence_with(
     training_dir: &Path,
     detections_dir: &Path,
@@ -565,6 +573,10 @@ pub struct SequenceResults {
 
 /// Tracks every sequence of `seqmap` and scores it against
 /// `training_dir/label_02` for class Car. Returns the tracks too (for writing).
+///
+/// # Errors
+///
+/// [`TrackKittiError`] when a sequence cannot be read, tracked or scored.
 pub fn evaluate_sequences(
     training_dir: &Path,
     detections_dir: &Path,
@@ -588,6 +600,10 @@ pub fn evaluate_sequences(
 
 /// Reads `results_dir/NNNN.txt` (KITTI tracking result format) of every
 /// sequence of `seqmap`.
+///
+/// # Errors
+///
+/// [`TrackKittiError`] when a result file is missing or malformed.
 pub fn read_results_dir(
     results_dir: &Path,
     seqmap: &[SeqmapEntry],
@@ -606,6 +622,10 @@ pub fn read_results_dir(
 /// Scores result rows (one entry per `seqmap` entry, same order) against
 /// `training_dir/label_02` for class Car: the TrackEval 2D benchmark, the 3D
 /// CLEAR-MOT at IoU 0.25 and AB3DMOT's evaluate.py (see [`ab3dmot_evaluate`]).
+///
+/// # Errors
+///
+/// [`TrackKittiError`] when labels cannot be read or a sequence cannot be scored.
 pub fn score_results(
     training_dir: &Path,
     seqmap: &[SeqmapEntry],

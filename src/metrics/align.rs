@@ -58,6 +58,10 @@ impl Alignment {
 /// With `with_scale = false` this is the SE(3) alignment evo uses for ATE;
 /// with `true` the Sim(3) one (monocular convention). Needs at least two
 /// points; with scale, the source points must not all coincide.
+///
+/// # Errors
+///
+/// [`EvalError`] for empty or unequal-length inputs or non-finite points.
 pub fn umeyama(
     src: &[Vector3<f64>],
     dst: &[Vector3<f64>],

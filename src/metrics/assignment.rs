@@ -71,6 +71,10 @@ impl PartialOrd for Lex {
 
 /// Minimum-cost assignment on a `rows × cols` row-major cost matrix.
 /// `f64::INFINITY` marks a forbidden pair; NaN and −∞ are errors.
+///
+/// # Errors
+///
+/// [`EvalError`] for a non-finite cost or a ragged matrix.
 pub fn min_cost_assignment(
     rows: usize,
     cols: usize,

@@ -77,6 +77,10 @@ fn sorted_indices(
 /// trajectory with fewer poses (the estimate on a tie) is paired with the pose
 /// of the other one nearest in time (the earlier one on an exact tie), if that
 /// is within `max_dt_s`. Returns `(est index, truth index)` pairs in time order.
+///
+/// # Errors
+///
+/// [`EvalError`] for empty inputs, non-finite poses or a bad `max_dt_s`.
 pub fn associate(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],
@@ -129,6 +133,10 @@ fn nearest_in_time(
 }
 
 /// ATE with SE(3) alignment (the paper's ATE_T / ATE_R).
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid inputs or too few associated pairs.
 pub fn ate(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],
@@ -138,6 +146,10 @@ pub fn ate(
 }
 
 /// ATE with a chosen alignment.
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid inputs or too few associated pairs.
 pub fn ate_with(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],

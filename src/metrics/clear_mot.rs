@@ -431,6 +431,10 @@ struct GtHistory {
 
 /// Class-agnostic CLEAR-MOT over a sequence of frames (classes are ignored;
 /// use [`clear_mot_per_class`] for the per-class figures).
+///
+/// # Errors
+///
+/// [`EvalError`] for an invalid configuration or non-finite boxes.
 pub fn clear_mot<B: MotBox>(
     frames: &[MotFrame<B>],
     cfg: &ClearMotConfig,
@@ -575,6 +579,10 @@ pub fn combine_sequences(results: &[ClearMotResult]) -> ClearMotResult {
 
 /// CLEAR-MOT for every class that occurs in the ground truth or the tracks:
 /// boxes of other classes are dropped, DontCare regions apply to all classes.
+///
+/// # Errors
+///
+/// As [`clear_mot`].
 pub fn clear_mot_per_class<B: MotBox>(
     frames: &[MotFrame<B>],
     cfg: &ClearMotConfig,

@@ -59,6 +59,10 @@ impl FilterScore {
 /// Scores one scan. `removed[i]`: point `i` was filtered out; `labels[i]`: its
 /// ground-truth instance id (0 = static scene); `moving_ids`: the instances
 /// that move in this scan.
+///
+/// # Errors
+///
+/// [`EvalError::LengthMismatch`] when the masks differ in length.
 pub fn filter_precision_recall(
     removed: &[bool],
     labels: &[u32],

@@ -55,6 +55,10 @@ impl Box3 {
     }
 
     /// Checks finiteness and non-negative size; `why` names the first problem.
+    ///
+    /// # Errors
+    ///
+    /// The offending field and why, for a non-finite value or a negative size.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         let c = self.center;
         if !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite()) {
@@ -193,6 +197,10 @@ impl Box2 {
     }
 
     /// Checks finiteness and `left ≤ right`, `top ≤ bottom`.
+    ///
+    /// # Errors
+    ///
+    /// The offending field and why, for a non-finite or inverted box.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         for (field, v) in [
             ("left_px", self.left_px),

@@ -205,6 +205,10 @@ fn by_frame<'a>(
 /// TrackEval's preprocessing of one KITTI sequence for one class: ground-truth
 /// labels (`label_02` with DontCare rows) and tracker results, both in the
 /// KITTI tracking label format, frames `0..num_frames` (the seqmap length).
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid labels or preprocessing settings.
 pub fn kitti_2d_frames(
     gt: &[TrackingLabel],
     results: &[TrackingLabel],
@@ -321,6 +325,10 @@ pub fn kitti_2d_frames(
 
 /// CLEAR-MOT of one KITTI sequence and class as TrackEval's `Kitti2DBox`
 /// with its `CLEAR` metric computes it.
+///
+/// # Errors
+///
+/// As [`kitti_2d_frames`] and [`clear_mot`].
 pub fn kitti_2d_clear_mot(
     gt: &[TrackingLabel],
     results: &[TrackingLabel],
@@ -340,6 +348,10 @@ pub fn kitti_2d_clear_mot(
 /// (distractors, DontCare, small boxes; decided on the image boxes as the 2D
 /// benchmark does), then CLEAR-MOT on the 3D IoU of the kept boxes (LiDAR frame
 /// via `calib`) at `iou_threshold`, TrackEval's matching and ID-switch rules.
+///
+/// # Errors
+///
+/// As [`kitti_2d_frames`] and [`clear_mot`].
 pub fn kitti_3d_clear_mot(
     gt: &[TrackingLabel],
     results: &[TrackingLabel],

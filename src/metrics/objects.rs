@@ -46,6 +46,10 @@ fn wrap_angle(a: f64) -> f64 {
 
 /// Scores every ground-truth object (sorted by id). `cfg.iou_threshold` is the
 /// TP threshold (0.25 in the paper).
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid frames or boxes or a threshold outside (0, 1].
 pub fn object_scores(
     frames: &[MotFrame],
     cfg: &ClearMotConfig,

@@ -463,6 +463,10 @@ const INTENSITY_FINE_BINS: usize = 1000;
 
 impl RealismAccumulator {
     /// An empty accumulator; a configuration out of range is an error.
+    ///
+    /// # Errors
+    ///
+    /// [`EvalError::BadParameter`] for an invalid configuration.
     pub fn new(config: RealismConfig) -> Result<RealismAccumulator, EvalError> {
         let bad = |why: &str| EvalError::BadParameter {
             what: "realism config",
@@ -513,6 +517,10 @@ impl RealismAccumulator {
     /// `r_vehicle_lidar` the sensor's rotation in the vehicle frame (x
     /// forward). An empty sweep or a non-finite point, position or attitude
     /// is an error naming the sweep (0-based) and point.
+    ///
+    /// # Errors
+    ///
+    /// [`EvalError`] for non-finite points or poses.
     pub fn add_sweep(
         &mut self,
         points: &[LidarPoint],
@@ -667,6 +675,10 @@ impl RealismAccumulator {
 
     /// The statistics; fewer than two sweeps, no ground pair or no normal
     /// is an error.
+    ///
+    /// # Errors
+    ///
+    /// [`EvalError::TooFew`] when too few sweeps or points were added.
     pub fn finish(self) -> Result<RealismStats, EvalError> {
         let too_few =
             |what: &'static str, got: usize, need: usize| EvalError::TooFew { what, got, need };

@@ -128,6 +128,10 @@ fn pair_indices(
 }
 
 /// Relative pose error between an estimated and a true trajectory.
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid inputs; [`EvalError::TooFew`] when no pose pair spans the delta.
 pub fn rpe(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],

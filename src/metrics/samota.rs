@@ -177,6 +177,10 @@ struct Run {
 /// Evaluates results of several sequences together, exactly as AB3DMOT's
 /// evaluate.py does (see the module docs). Errors on a non-finite box or a
 /// track id used twice in one frame of the results.
+///
+/// # Errors
+///
+/// [`EvalError`] for invalid labels, boxes or configuration.
 pub fn ab3dmot_evaluate(
     sequences: &[Ab3dmotSequence<'_>],
     class: KittiEvalClass,

@@ -42,6 +42,10 @@ fn ego_cells(e: Option<&EgoScores>) -> Vec<Cell> {
 }
 
 /// Table I's shape: per scanned sequence, the paper's rows and ours.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn ego_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     let mut table = Table::new(
         "Ego: ATE (SE(3)) as in the paper's Table I, Sim(3) ATE and scale, RPE (RMSE) over 1 frame and 10 m",
@@ -162,6 +166,10 @@ fn run_tracks(s: &KittiSequenceResult, variant: Variant) -> Option<&TrackScores>
 
 /// Table II's shape, widened to CLEAR-MOT: the paper's MOTP rows, then ours
 /// and the peer's on the same sequences.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     let mut table = Table::new(
         "Tracking, class Car: 2D MOTA (TrackEval, image IoU 0.5) and 3D CLEAR-MOT at IoU 0.25 / 0.5 as in the paper's Table II [%]; IDSW / FP / FN of the 2D evaluation",
@@ -261,6 +269,10 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
 
 /// AB3DMOT's evaluate.py rows (sAMOTA, AMOTA, AMOTP, MOTA/MOTP at the best
 /// threshold, [%]).
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn ab3dmot_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     let mut table = Table::new(
         "Tracking, class Car: AB3DMOT's evaluate.py (3D IoU 0.25) [%]",
@@ -306,6 +318,10 @@ fn object_cells(o: Option<&ObjectSummary>) -> Vec<Cell> {
 
 /// Table III's shape: the paper's objects (its rows and our tracker alone on
 /// them), then the longest-labelled cars of each scanned sequence.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn object_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     let mut table = Table::new(
         "Objects as in the paper's Table III: TP [%] at 3D IoU 0.25, ATE_T [m], ATE_R [rad] of the associated track",
@@ -418,6 +434,10 @@ fn errors(results: &KittiSuiteResults) -> Vec<String> {
 }
 
 /// The report as sections.
+///
+/// # Errors
+///
+/// [`ReportError`] when a table cannot be built.
 pub fn kitti_report(results: &KittiSuiteResults) -> Result<Report, ReportError> {
     let scanned: Vec<String> = results
         .sequences

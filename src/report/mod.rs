@@ -238,6 +238,10 @@ pub struct Plot {
 
 impl Plot {
     /// Draws the plot to `path`.
+    ///
+    /// # Errors
+    ///
+    /// As the plot functions ([`plot_trajectories_xy`] and its siblings).
     pub fn draw(&self, path: &Path) -> Result<(), ReportError> {
         match &self.kind {
             PlotKind::TrajectoriesXy { series } => plot_trajectories_xy(path, &self.title, series),
@@ -300,6 +304,10 @@ fn link_target(name: &str) -> String {
 }
 
 /// The README text; plots are linked by file name, relative to the README.
+///
+/// # Errors
+///
+/// [`ReportError`] when a table does not render or plot names are invalid or repeated.
 pub fn render_readme(report: &Report) -> Result<String, ReportError> {
     let mut out = format!("# {}\n", report.title);
     for section in &report.sections {
@@ -326,6 +334,10 @@ pub fn render_readme(report: &Report) -> Result<String, ReportError> {
 /// then `dir/README.md` with the tables and links to the plots. Names and
 /// tables are checked before anything is written, so a bad report leaves no
 /// half-written README. Returns the README path.
+///
+/// # Errors
+///
+/// [`ReportError`] for invalid tables or plots or a failed write.
 pub fn write_report(dir: &Path, report: &Report) -> Result<PathBuf, ReportError> {
     let mut seen = BTreeSet::new();
     for plot in report.sections.iter().flat_map(|s| &s.plots) {

@@ -320,6 +320,10 @@ fn render_to_file(
 
 /// Top view (x_m, y_m) of ego trajectories, e.g. every variant's estimate and
 /// the truth (`Series2D::truth`), with equal metres per pixel on both axes.
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_trajectories_xy(
     path: &Path,
     title: &str,
@@ -330,6 +334,10 @@ pub fn plot_trajectories_xy(
 
 /// Top view of object tracks: truth tracks drawn black unless they carry a
 /// colour, estimated tracks in palette colours; equal axis scale.
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_object_tracks(
     path: &Path,
     title: &str,
@@ -349,12 +357,20 @@ pub fn plot_object_tracks(
 }
 
 /// Speed over time: points are (t_s, speed_mps).
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_speed(path: &Path, title: &str, series: &[Series2D]) -> Result<(), ReportError> {
     render_to_file(path, title, "t [s]", "speed [m/s]", series, false)
 }
 
 /// An error over time: points are (t_s, error) with `y_desc` naming the error
 /// and its unit, e.g. "translation error [m]".
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_error_over_time(
     path: &Path,
     title: &str,

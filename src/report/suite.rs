@@ -67,6 +67,10 @@ fn variants_with_metrics(results: &SuiteResults) -> Vec<Variant> {
 
 /// Paper Table "tab_ego_track": Seq | per variant ATE_T [m], ATE_R [rad];
 /// best per row in bold; a mean row.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn ego_table(results: &SuiteResults) -> Result<Table> {
     let rows: Vec<EgoAteRow> = results
         .sequences
@@ -103,6 +107,10 @@ pub fn ego_table(results: &SuiteResults) -> Result<Table> {
 }
 
 /// CLEAR-MOT per sequence × variant at one IoU kind ("3D"/"BEV"), thresholds 0.25 and 0.5.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn tracking_table_of(results: &SuiteResults, kind: &str) -> Result<Table> {
     let mut rows = Vec::new();
     for s in &results.sequences {
@@ -141,6 +149,10 @@ fn mean_of_all(values: &[Option<f64>]) -> Option<f64> {
 
 /// Paper Table "tab_ab3dmot_compare": Method | MOTP [%] at 3D IoU 0.25 and
 /// 0.5, mean over the sequences; the best in bold.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn motp_table(results: &SuiteResults) -> Result<Table> {
     let header = ["Method", "MOTP [%] (IoU 0.25)", "MOTP [%] (IoU 0.5)"]
         .map(String::from)
@@ -181,6 +193,10 @@ pub fn motp_table(results: &SuiteResults) -> Result<Table> {
 /// Dynamic-feature filtering per sequence × filtering variant: precision
 /// and recall of the removed features against the points of moving objects
 /// (per-point labels), and the share of static objects' features removed.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn filtering_table(results: &SuiteResults) -> Result<Table> {
     let header = [
         "Seq",
@@ -235,6 +251,10 @@ fn longest_moving_objects(s: &SequenceResult) -> Vec<u64> {
 
 /// Paper Table "tab_obj_track": Seq / Obj | per variant TP [%], ATE_T, ATE_R
 /// for the [`OBJECTS_PER_SEQUENCE`] longest-seen moving objects of each sequence.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn objects_table(results: &SuiteResults) -> Result<Table> {
     let mut rows = Vec::new();
     for s in &results.sequences {
@@ -273,6 +293,10 @@ pub fn objects_table(results: &SuiteResults) -> Result<Table> {
 
 /// Paper Table "tab_time_consume" for one variant: per-stage mean / p95 ms
 /// and FPS, pooled over every frame of every sequence.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn timing_table_of(results: &SuiteResults, variant: Variant) -> Result<Option<Table>> {
     let runs: Vec<&VariantMetrics> = results
         .sequences
@@ -299,6 +323,10 @@ pub fn timing_table_of(results: &SuiteResults, variant: Variant) -> Result<Optio
 }
 
 /// Seq | Variant | frames | before init | ATE max | RPE | wall FPS | status.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
 pub fn runs_table(results: &SuiteResults) -> Result<Table> {
     let header = [
         "Seq",
@@ -397,6 +425,10 @@ fn failures(results: &SuiteResults) -> Vec<String> {
 }
 
 /// The whole report; `suite_dir` is where the results' relative paths start.
+///
+/// # Errors
+///
+/// [`SuiteError`] when a table cannot be built (missing plot inputs become notes).
 pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> {
     let variant_names: Vec<&str> = results.variants.iter().map(|v| v.name()).collect();
     let seeds: Vec<String> = results.seeds.iter().map(u64::to_string).collect();
@@ -504,6 +536,10 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
 
 /// Builds the report of `results` (paths relative to `suite_dir`) and writes
 /// it into `report_dir` (README.md + SVGs). Returns the README path.
+///
+/// # Errors
+///
+/// [`SuiteError`] when the report cannot be built or written.
 pub fn write_suite_report(
     report_dir: &Path,
     results: &SuiteResults,

@@ -135,6 +135,10 @@ impl Table {
     }
 
     /// Appends a row after checking it has one cell per column.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError::TableShape`] when the row's length differs from the header's.
     pub fn push_row(&mut self, row: Vec<Cell>) -> Result<(), ReportError> {
         self.check_row(self.rows.len(), &row)?;
         self.rows.push(row);
@@ -145,6 +149,10 @@ impl Table {
     /// column over the current rows. A column's mean is only given when every
     /// row has a finite number there (a mean over a subset would not compare
     /// across variants); otherwise the cell is missing.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError::TableShape`] when the row's length differs from the header's.
     pub fn push_mean_row(&mut self, label: &str, label_column: usize) -> Result<(), ReportError> {
         if self.rows.is_empty() {
             return Ok(());
@@ -289,6 +297,10 @@ impl Table {
     /// GitHub markdown: the title in bold, a blank line, then the table with
     /// columns padded to a common width. Text columns are left-aligned, columns
     /// holding numbers right-aligned.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError`] when a row's shape or a bold rule's column is invalid.
     pub fn to_markdown(&self) -> Result<String, ReportError> {
         for (i, row) in self.rows.iter().enumerate() {
             self.check_row(i, row)?;
@@ -428,6 +440,10 @@ fn variants_of(maps: impl Iterator<Item = Vec<Variant>>) -> Vec<Variant> {
 
 /// Seq | per variant: ATE_T [m], ATE_R [rad]; a final "mean" row; the best
 /// variant per row and metric in bold.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn ego_ate_table(title: &str, rows: &[EgoAteRow]) -> Result<Table, ReportError> {
     let variants = variants_of(rows.iter().map(|r| r.per_variant.keys().copied().collect()));
     let mut header = vec!["Seq".to_string()];
@@ -506,6 +522,10 @@ impl TrackingRow {
 
 /// Seq | Variant | IoU thr | MOTA [%] | MOTP [%] | IDSW | FP | FN; the best
 /// variant per sequence and threshold in bold for every metric.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn tracking_table(title: &str, rows: &[TrackingRow]) -> Result<Table, ReportError> {
     let header = [
         "Seq", "Variant", "IoU thr", "MOTA [%]", "MOTP [%]", "IDSW", "FP", "FN",
@@ -579,6 +599,10 @@ pub struct ObjectRow {
 
 /// Seq / Obj | per variant: TP [%], ATE_T [m], ATE_R [rad]; a final "mean"
 /// row; the best variant per row and metric in bold.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn object_table(title: &str, rows: &[ObjectRow]) -> Result<Table, ReportError> {
     let variants = variants_of(rows.iter().map(|r| r.per_variant.keys().copied().collect()));
     let mut header = vec!["Seq / Obj".to_string()];
@@ -649,6 +673,10 @@ const NO_WORK_MS: f64 = 1e-3;
 
 /// Module | mean [ms] | p95 [ms] | FPS, one decimal each; FPS is missing
 /// for stages that did no work.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn timing_table(title: &str, rows: &[TimingRow]) -> Result<Table, ReportError> {
     let header = ["Module", "mean [ms]", "p95 [ms]", "FPS"]
         .map(String::from)

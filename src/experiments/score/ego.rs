@@ -65,6 +65,11 @@ impl FromStr for PoseFormat {
 /// Parses `--rpe-delta`: `N` frames (`1`, `10`) or `Xm` metres (`10m`, `2.5m`).
 /// A metre delta gets a path tolerance of 10 % of it (evo's default relative
 /// tolerance), used only with all pairs.
+///
+/// # Errors
+///
+/// [`EvaluateError::Argument`] unless the text is `N` (frames, N >= 1) or `Xm`
+/// (metres, X > 0).
 pub fn parse_rpe_delta(s: &str) -> Result<RpeDelta> {
     let bad = |why: &str| EvaluateError::Argument(format!("--rpe-delta `{s}`: {why}"));
     let s_trim = s.trim();
@@ -145,6 +150,10 @@ pub struct Trajectory {
 
 /// Detects the format of a pose file from its first data line (8 columns TUM,
 /// 12 KITTI; `#` comments skipped).
+///
+/// # Errors
+///
+/// [`EvaluateError::Input`] when the text is neither TUM nor KITTI poses.
 pub fn detect_pose_format(text: &str, path: &Path) -> Result<PoseFormat> {
     let first = content_lines(text).find(|(_, l)| !l.trim_start().starts_with('#'));
     let Some((line_no, line)) = first else {
@@ -249,6 +258,10 @@ fn read_kitti_dir(dir: &Path, sequence: u32) -> Result<Trajectory> {
 }
 
 /// Reads the ground-truth trajectory (see the module docs for the sources).
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the truth cannot be read or has no poses.
 pub fn load_truth(path: &Path, opts: &EgoEvalOptions) -> Result<Trajectory> {
     if is_limot_dataset(path) {
         let dataset = Dataset::open(path)?;
@@ -277,6 +290,10 @@ pub fn load_truth(path: &Path, opts: &EgoEvalOptions) -> Result<Trajectory> {
 
 /// Reads the estimated trajectory; a KITTI estimate takes `--times`, else the
 /// truth's frame times.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the estimate cannot be read or its times do not match.
 pub fn load_estimate(path: &Path, truth: &Trajectory, opts: &EgoEvalOptions) -> Result<Trajectory> {
     read_pose_file(path, opts.estimate_format, |n| {
         if let Some(t) = &opts.estimate_times {
@@ -336,6 +353,10 @@ fn time_range(traj: &[(f64, Isometry3<f64>)]) -> (f64, f64) {
 }
 
 /// Scores an estimate against the truth (both already read).
+///
+/// # Errors
+///
+/// [`EvaluateError::NoOverlap`] when too few poses associate; [`EvaluateError::Eval`] when a metric fails.
 pub fn evaluate_trajectories(
     truth: &Trajectory,
     estimate: &Trajectory,
@@ -402,6 +423,10 @@ pub fn evaluate_trajectories(
 }
 
 /// Reads both trajectories and scores the estimate.
+///
+/// # Errors
+///
+/// As [`load_truth`], [`load_estimate`] and [`evaluate_trajectories`].
 pub fn evaluate_ego(truth: &Path, estimate: &Path, opts: &EgoEvalOptions) -> Result<EgoEvaluation> {
     let truth = load_truth(truth, opts)?;
     let estimate = load_estimate(estimate, &truth, opts)?;
@@ -452,6 +477,10 @@ impl EgoEvaluation {
     }
 
     /// Metric | RMSE | mean | median | max | n.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError::Report`] when the table cannot be built.
     pub fn table(&self) -> Result<Table> {
         let header = ["Metric", "RMSE", "mean", "median", "max", "n"]
             .map(String::from)
@@ -511,6 +540,10 @@ impl EgoEvaluation {
     }
 
     /// Markdown: sources, the headline and the table.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError::Report`] when a table cannot be built.
     pub fn to_markdown(&self) -> Result<String> {
         let mut out = format!(
             "# limot eval ego\n\n- truth: `{}` ({})\n- estimate: `{}` ({})\n- association: max_dt = {} s\n",

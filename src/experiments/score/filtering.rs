@@ -49,6 +49,10 @@ impl FilterEvaluation {
 
 /// Scores `output` (run with `EstimatorConfig::record_feature_indices`)
 /// against `dataset`'s labels. `None` when the run recorded no features.
+///
+/// # Errors
+///
+/// [`RecordError`] when the dataset's labels or the run's filter output cannot be read.
 pub fn evaluate_filtering(
     dataset: &Dataset,
     output: &RunOutput,

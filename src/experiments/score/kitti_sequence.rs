@@ -146,6 +146,10 @@ pub struct KittiEgoTruth {
 /// ([`tracking_frame_times`]: on KITTI the camera trigger, half a sweep after
 /// the sweep start that limot stamps its poses with), without the frames
 /// that fail the accuracy gate.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the OXTS or calibration files cannot be read.
 pub fn read_ego_truth(
     training: &Path,
     sequence: u32,
@@ -341,6 +345,10 @@ pub fn score_run(
 }
 
 /// The sequence's `label_02` file, or `None` when it has none.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the label file exists but cannot be read.
 pub fn read_sequence_labels(training: &Path, sequence: u32) -> Result<Option<Vec<TrackingLabel>>> {
     let path = sequence_file(&training.join("label_02"), sequence);
     if !path.is_file() {

@@ -111,6 +111,10 @@ pub struct ResultBoxes {
 /// Reads a KITTI tracking result file into LiDAR-frame boxes for a sequence
 /// of `frame_count` frames. Errors name the file and line: a frame outside the
 /// sequence, a negative track id on a real object, a track id twice in a frame.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the file cannot be read or a line is malformed.
 pub fn read_results(path: &Path, frame_count: usize, calib: &Calib) -> Result<ResultBoxes> {
     let text = read_text(path)?;
     let mut out = ResultBoxes {
@@ -176,6 +180,10 @@ pub fn read_results(path: &Path, frame_count: usize, calib: &Calib) -> Result<Re
 
 /// `t_world_lidar` at `t_s` from the ground-truth samples (sorted by time):
 /// linear in translation, slerp in rotation; exact at a sample.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the ego truth cannot be read or does not cover `t_s`.
 pub fn ego_pose_at(truth: &[EgoTruth], t_s: f64, path: &Path) -> Result<Isometry3<f64>> {
     pose_at(truth, t_s, |e| (e.t_s, e.t_world_lidar)).ok_or_else(|| EvaluateError::Input {
         path: path.to_path_buf(),
@@ -223,6 +231,10 @@ fn camera_visible(
 }
 
 /// The dataset's calibration: the KITTI copy's file, else the synthetic one.
+///
+/// # Errors
+///
+/// [`EvaluateError`] when no calibration can be read.
 pub fn dataset_calib(dataset: &Dataset, sequence: u32) -> Result<(Calib, String)> {
     let path = sequence_file(&dataset.dir.join("kitti").join("calib"), sequence);
     if path.is_file() {
@@ -250,6 +262,10 @@ pub struct TrackingInput {
 }
 
 /// Builds the per-frame ground truth and tracks (see the module docs).
+///
+/// # Errors
+///
+/// [`EvaluateError`] when the dataset or the results cannot be read.
 pub fn tracking_input(
     dataset_dir: &Path,
     results: &Path,
@@ -352,6 +368,10 @@ pub struct TracksEvaluation {
 }
 
 /// Reads a dataset and a result file and scores the results.
+///
+/// # Errors
+///
+/// As [`tracking_input`]; [`EvaluateError::Eval`] when a metric fails.
 pub fn evaluate_tracks(
     dataset_dir: &Path,
     results: &Path,
@@ -476,6 +496,10 @@ impl TracksEvaluation {
     }
 
     /// IoU | thr | class | MOTA [%] | MOTP [%] | IDSW | FP | FN | TP | GT.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError::Report`] when the table cannot be built.
     pub fn clear_mot_table(&self) -> Result<Table> {
         let header = [
             "IoU", "thr", "Class", "MOTA [%]", "MOTP [%]", "IDSW", "FP", "FN", "TP", "GT",
@@ -498,6 +522,10 @@ impl TracksEvaluation {
     }
 
     /// Obj | Class | GT frames | TP [%] | Track | ATE_T [m] | ATE_R [rad].
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError::Report`] when the table cannot be built.
     pub fn object_table(&self) -> Result<Table> {
         let header = [
             "Obj",

@@ -220,6 +220,10 @@ pub struct SuiteResults {
 
 impl SuiteResults {
     /// Writes `dir/results.json` (a shard's: `dir/results-shard-K-of-N.json`).
+    ///
+    /// # Errors
+    ///
+    /// [`SuiteError::Io`] or [`SuiteError::Json`] when the file cannot be written.
     pub fn save(&self, dir: &Path) -> Result<PathBuf> {
         let path = dir.join(
             self.shard
@@ -238,6 +242,10 @@ impl SuiteResults {
 
     /// Reads `results.json` (or `DIR/results.json` when given a directory);
     /// returns the results and the suite directory their paths are relative to.
+    ///
+    /// # Errors
+    ///
+    /// [`SuiteError`] when the file cannot be read or parsed or has another format version.
     pub fn load(path: &Path) -> Result<(SuiteResults, PathBuf)> {
         let file = if path.is_dir() {
             path.join(RESULTS_FILE)
@@ -271,6 +279,10 @@ impl SuiteResults {
 /// each once, same families, seeds, duration and variants, in one
 /// directory, which the run paths inside are relative to) into the results
 /// of the whole suite, sequences in the order a whole run gives them.
+///
+/// # Errors
+///
+/// [`SuiteError`] when a file cannot be read or the shards do not make one suite.
 pub fn merge_shards(files: &[PathBuf]) -> Result<(SuiteResults, PathBuf)> {
     let spec_err = |text: String| SuiteError::Spec(text);
     let mut loaded = Vec::with_capacity(files.len());

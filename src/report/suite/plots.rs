@@ -15,6 +15,10 @@ pub struct TrackCsvRow {
 }
 
 /// Reads the columns of `tracks.csv` the plots need, by header name.
+///
+/// # Errors
+///
+/// [`SuiteError`] when the file cannot be read or lacks a needed column.
 pub fn read_tracks_csv(path: &Path) -> Result<Vec<TrackCsvRow>> {
     let text = std::fs::read_to_string(path).map_err(|source| SuiteError::Io {
         path: path.to_path_buf(),
