@@ -137,6 +137,41 @@ fn nearest_in_time(
 /// # Errors
 ///
 /// [`EvalError`] for invalid inputs or too few associated pairs.
+///
+/// # Examples
+///
+/// A rigidly moved copy of the truth has zero error after SE(3) alignment, and
+/// a copy shifted by 1 m has ATE_T = 1 m without alignment:
+///
+/// ```
+/// use limot::metrics::{AlignMode, ate, ate_with};
+/// use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+///
+/// let truth: Vec<(f64, Isometry3<f64>)> = (0..10)
+///     .map(|i| {
+///         let x = i as f64;
+///         let pose = Isometry3::from_parts(
+///             Translation3::new(x, 0.1 * x * x, 0.0),
+///             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1 * x),
+///         );
+///         (0.1 * x, pose)
+///     })
+///     .collect();
+/// let offset = Isometry3::from_parts(
+///     Translation3::new(5.0, -2.0, 1.0),
+///     UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+/// );
+/// let moved: Vec<_> = truth.iter().map(|(t, p)| (*t, offset * p)).collect();
+/// let r = ate(&moved, &truth, 0.01)?;
+/// assert_eq!(r.n, 10);
+/// assert!(r.ate_t_rmse_m < 1e-9 && r.ate_r_rmse_rad < 1e-9);
+///
+/// let shift = Translation3::new(0.0, 0.0, 1.0);
+/// let shifted: Vec<_> = truth.iter().map(|(t, p)| (*t, shift * p)).collect();
+/// let r = ate_with(&shifted, &truth, 0.01, AlignMode::None)?;
+/// assert!((r.ate_t_rmse_m - 1.0).abs() < 1e-12);
+/// # Ok::<(), limot::metrics::EvalError>(())
+/// ```
 pub fn ate(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],

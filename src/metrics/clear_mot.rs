@@ -435,6 +435,33 @@ struct GtHistory {
 /// # Errors
 ///
 /// [`EvalError`] for an invalid configuration or non-finite boxes.
+///
+/// # Examples
+///
+/// One car, tracked exactly in frame 0 and missed in frame 1, where the
+/// tracker reports a box far away instead: 1 match, 1 miss, 1 false positive,
+/// so MOTA = 1 − (1 + 1) / 2 = 0 and MOTP = 1.
+///
+/// ```
+/// use limot::metrics::{Box3, ClearMotConfig, MotFrame, TrackedBox, clear_mot};
+/// use limot_estimator::input::ObjectClass;
+/// use nalgebra::Vector3;
+///
+/// let car = |x: f64, id: u64| TrackedBox {
+///     id,
+///     class: ObjectClass::Car,
+///     bbox: Box3::new(Vector3::new(x, 0.0, 0.0), Vector3::new(4.0, 2.0, 1.5), 0.0),
+/// };
+/// let frames = [
+///     MotFrame { gt: vec![car(10.0, 1)], tracks: vec![car(10.0, 7)], dont_care: vec![] },
+///     MotFrame { gt: vec![car(11.0, 1)], tracks: vec![car(40.0, 8)], dont_care: vec![] },
+/// ];
+/// let r = clear_mot(&frames, &ClearMotConfig::default())?;
+/// assert_eq!((r.matches, r.false_negatives, r.false_positives), (1, 1, 1));
+/// assert_eq!(r.mota, Some(0.0));
+/// assert_eq!(r.motp, Some(1.0));
+/// # Ok::<(), limot::metrics::EvalError>(())
+/// ```
 pub fn clear_mot<B: MotBox>(
     frames: &[MotFrame<B>],
     cfg: &ClearMotConfig,

@@ -141,6 +141,22 @@ pub fn iou_bev(a: &Box3, b: &Box3) -> f64 {
 }
 
 /// 3D IoU in [0, 1] (0 when both volumes are empty).
+///
+/// # Examples
+///
+/// Two 2 m cubes offset by 1 m along x and along z share a 1 × 2 × 1 m block:
+/// 3D IoU = 2 / (8 + 8 − 2) = 1/7, and their footprints 2 / (4 + 4 − 2) = 1/3.
+///
+/// ```
+/// use limot::metrics::{Box3, iou_3d, iou_bev};
+/// use nalgebra::Vector3;
+///
+/// let cube = Vector3::new(2.0, 2.0, 2.0);
+/// let a = Box3::new(Vector3::new(0.0, 0.0, 0.0), cube, 0.0);
+/// let b = Box3::new(Vector3::new(1.0, 0.0, 1.0), cube, 0.0);
+/// assert!((iou_3d(&a, &b) - 1.0 / 7.0).abs() < 1e-12);
+/// assert!((iou_bev(&a, &b) - 1.0 / 3.0).abs() < 1e-12);
+/// ```
 pub fn iou_3d(a: &Box3, b: &Box3) -> f64 {
     let (a_lo, a_hi) = a.z_range();
     let (b_lo, b_hi) = b.z_range();

@@ -132,6 +132,25 @@ fn pair_indices(
 /// # Errors
 ///
 /// [`EvalError`] for invalid inputs; [`EvalError::TooFew`] when no pose pair spans the delta.
+///
+/// # Examples
+///
+/// An estimate that moves 2 m per frame where the truth moves 1 m has a
+/// relative translation error of 1 m over every one-frame pair:
+///
+/// ```
+/// use limot::metrics::{RpeDelta, rpe};
+/// use nalgebra::{Isometry3, Translation3};
+///
+/// let along_x = |k: f64| (0..5)
+///     .map(|i| (i as f64, Isometry3::from(Translation3::new(k * i as f64, 0.0, 0.0))))
+///     .collect::<Vec<_>>();
+/// let (truth, est) = (along_x(1.0), along_x(2.0));
+/// let r = rpe(&est, &truth, 0.01, RpeDelta::Frames(1), false)?;
+/// assert!((r.trans_rmse_m - 1.0).abs() < 1e-12);
+/// assert!(r.rot_max_rad < 1e-12);
+/// # Ok::<(), limot::metrics::EvalError>(())
+/// ```
 pub fn rpe(
     est: &[(f64, Isometry3<f64>)],
     truth: &[(f64, Isometry3<f64>)],

@@ -181,6 +181,28 @@ struct Run {
 /// # Errors
 ///
 /// [`EvalError`] for invalid labels, boxes or configuration.
+///
+/// # Examples
+///
+/// One car tracked exactly over two frames: MOTA and MOTP at the best
+/// threshold are 1; with a single object only the recall-1 sample of the 40
+/// is reached, so sAMOTA, AMOTA and AMOTP are 1/40.
+///
+/// ```
+/// use limot::kitti::labels::parse_labels;
+/// use limot::metrics::{Ab3dmotEvalConfig, Ab3dmotSequence, KittiEvalClass, ab3dmot_evaluate};
+/// use std::path::Path;
+///
+/// let car = "Car 0 0 0 500 150 600 250 1.5 1.6 4.0 1.0 1.7 20.0 -1.57";
+/// let gt = parse_labels(&format!("0 0 {car}\n1 0 {car}\n"), Path::new("gt.txt"))?;
+/// let results = parse_labels(&format!("0 7 {car} 0.9\n1 7 {car} 0.9\n"), Path::new("r.txt"))?;
+/// let sequence = Ab3dmotSequence { gt: &gt, results: &results, num_frames: 2 };
+/// let r = ab3dmot_evaluate(&[sequence], KittiEvalClass::Car, &Ab3dmotEvalConfig::default())?;
+/// assert_eq!(r.best.mota, Some(1.0));
+/// assert_eq!(r.best.motp, 1.0);
+/// assert!((r.samota - 1.0 / 40.0).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn ab3dmot_evaluate(
     sequences: &[Ab3dmotSequence<'_>],
     class: KittiEvalClass,
