@@ -7,8 +7,8 @@
 //! tracker fed these detections can reach).
 
 use crate::metrics::EvalError;
-use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
 use crate::metrics::{Box3, IouKind};
+use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
 use crate::report::Series2D;
 use crate::report::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};

@@ -844,8 +844,8 @@ fn run_eval_suite(
     shard: Option<&str>,
     jobs: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    use limot::report::Variant;
     use limot::experiments::{Shard, SuiteSpec, parse_list, run_suite};
+    use limot::report::Variant;
     let spec = SuiteSpec {
         families: parse_list("families", families, |s| Ok(s.to_string()))?,
         seeds: parse_list("seeds", seeds, |s| {
@@ -994,9 +994,9 @@ fn run_eval_kitti(
     ego_peer: Vec<String>,
     out: PathBuf,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::experiments::parse_list;
     use limot::experiments::{KittiSuiteSpec, run_kitti_suite};
     use limot::report::Variant;
-    use limot::experiments::parse_list;
     let spec = KittiSuiteSpec {
         training,
         detections,
@@ -1064,9 +1064,9 @@ fn print_suite_report(
 
 /// `limot track-kitti`: tracks, writes result files and prints the scores.
 fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error>> {
+    use limot::experiments::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use limot::kitti::results::write_results_file;
     use limot::kitti::seqmap::read_seqmap;
-    use limot::experiments::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule};
     let training = &args.training;
     let seqmap_path = args

@@ -571,8 +571,8 @@ pub fn kitti_track_labels(
     score_map: crate::kitti::detections::ScoreMap,
 ) -> Result<Vec<crate::kitti::labels::TrackingLabel>, RunError> {
     let frame_delay_s = label_frame.delay_s;
-    use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
     use crate::experiments::world_box_to_lidar;
+    use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
     let mut writer = crate::experiments::ResultWriter::new(result.clone());
     let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
         .estimates
@@ -582,11 +582,12 @@ pub fn kitti_track_labels(
     let mut labels = Vec::new();
     for e in &output.estimates {
         let t_frame_s = e.t_s + frame_delay_s;
-        let t_world_lidar = crate::metrics::pose_at(&poses, t_frame_s, |p| *p).unwrap_or_else(|| {
-            let mut pose = e.t_world_lidar;
-            pose.translation.vector += e.velocity_world_mps * frame_delay_s;
-            pose
-        });
+        let t_world_lidar =
+            crate::metrics::pose_at(&poses, t_frame_s, |p| *p).unwrap_or_else(|| {
+                let mut pose = e.t_world_lidar;
+                pose.translation.vector += e.velocity_world_mps * frame_delay_s;
+                pose
+            });
         for t in &e.tracks {
             let raw_score =
                 (!t.predicted).then(|| score_map.invert(t.detection_score.unwrap_or(1.0)));

@@ -1,4 +1,4 @@
-//! Property tests of the evaluation metrics (src/eval).
+//! Property tests of the evaluation metrics (src/metrics).
 
 use limot::metrics::{
     Box3, ClearMotConfig, EvalError, IouKind, MotFrame, RpeDelta, TrackedBox, ate, clear_mot,

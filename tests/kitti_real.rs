@@ -6,11 +6,11 @@
 //! `../shared/data` is absent; a failed unpack or run fails the test.
 
 use limot::experiments::TrackScores;
-use limot::kitti::detections::ScoreMap;
-use limot::report::write_kitti_report;
-use limot::experiments::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
-use limot::report::Variant;
 use limot::experiments::kitti_val_tuned_options;
+use limot::experiments::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
+use limot::kitti::detections::ScoreMap;
+use limot::report::Variant;
+use limot::report::write_kitti_report;
 use std::path::{Path, PathBuf};
 
 mod common;

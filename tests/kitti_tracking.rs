@@ -3,6 +3,11 @@
 //! OXTS ego poses, label_02 ground truth). Skips with a loud note only when
 //! `../shared/data` is absent; any unreadable file fails the test.
 
+use limot::experiments::{
+    BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
+    evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
+    lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
+};
 use limot::kitti::calib::Calib;
 use limot::kitti::detections::{
     ScoreMap, camera_box_to_lidar, parse_ab3dmot_csv, read_ab3dmot_csv,
@@ -11,11 +16,6 @@ use limot::kitti::labels::read_labels;
 use limot::kitti::oxts::{oxts_to_poses, read_oxts};
 use limot::kitti::seqmap::read_seqmap;
 use limot::kitti::sequence_file;
-use limot::experiments::{
-    BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
-    evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
-    lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
-};
 use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule, TrackerConfig};
 use nalgebra::Vector3;
 use std::collections::BTreeMap;

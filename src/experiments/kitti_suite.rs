@@ -18,21 +18,21 @@
 //! A run or sequence that fails is recorded with its error and the others go
 //! on; only a bad specification or an unwritable OUT stops the command.
 
-use crate::metrics::KittiEvalClass;
-use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::experiments::{
     KittiRunScores, KittiScoreOptions, TrackScores, read_sequence_labels, score_ego, score_run,
     score_tracks,
 };
+use crate::experiments::{SuiteError, error_chain, variant_name};
+use crate::experiments::{TrackKittiOptions, track_sequence_with};
 use crate::kitti::calib::Calib;
 use crate::kitti::labels::read_labels;
 use crate::kitti::oxts::read_oxts;
 use crate::kitti::poses::parse_tum;
 use crate::kitti::{read_text, sequence_file};
+use crate::metrics::KittiEvalClass;
+use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::report::Variant;
 use crate::run::{RunOptions, Source, kitti_tracking_config, run, write_output};
-use crate::experiments::{SuiteError, error_chain, variant_name};
-use crate::experiments::{TrackKittiOptions, track_sequence_with};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use std::fs;

@@ -11,16 +11,16 @@
 //! [`lidar_poses`], turned into the gravity-aligned frame of the first OXTS
 //! record; the vehicle frame is the IMU (OXTS) frame of `calib/SSSS.txt`.
 
-use crate::metrics::EvalError;
-use crate::metrics::{
-    RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare_realism,
-};
+use crate::experiments::lidar_poses;
 use crate::kitti::KittiError;
 use crate::kitti::calib::Calib;
 use crate::kitti::raw::RawDrive;
 use crate::kitti::sequence_file;
+use crate::metrics::EvalError;
+use crate::metrics::{
+    RealismAccumulator, RealismConfig, RealismStats, StatComparison, compare_realism,
+};
 use crate::simulate::frame_progress_bar;
-use crate::experiments::lidar_poses;
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;

@@ -21,8 +21,8 @@ pub(crate) mod json;
 pub(crate) mod kitti_sequence;
 pub(crate) mod tracks;
 
-use crate::metrics::EvalError;
 use crate::kitti::KittiError;
+use crate::metrics::EvalError;
 use crate::report::ReportError;
 use limot_sim::record::RecordError;
 use std::path::{Path, PathBuf};

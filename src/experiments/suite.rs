@@ -26,11 +26,11 @@
 //! suite specification (unknown family, empty lists, bad duration) or an
 //! unwritable OUT stops the suite.
 
+use crate::experiments::evaluate_filtering;
+use crate::experiments::{EgoEvalOptions, evaluate_ego};
+use crate::experiments::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::metrics::IouKind;
 use crate::metrics::MotSummary;
-use crate::experiments::{EgoEvalOptions, evaluate_ego};
-use crate::experiments::evaluate_filtering;
-use crate::experiments::{TrackEvalOptions, TracksEvaluation, dataset_calib, evaluate_tracks};
 use crate::report::Variant;
 use crate::run::{RunOptions, RunOutput, Source, run, write_dataset_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};

@@ -1,4 +1,4 @@
-//! The tracker alone on real KITTI tracking data (issue 4, part 3).
+//! The tracker alone on real KITTI tracking data.
 //!
 //! Per sequence: AB3DMOT's PointRCNN detection CSV → LiDAR-frame boxes (via
 //! the sequence's calibration) → world frame with the OXTS ego pose of the
@@ -24,21 +24,17 @@
 //! by their mean score over the sequence), which AB3DMOT's thresholded
 //! output, the peer of docs/tracking-kitti.md, has been through.
 
-use crate::metrics::EvalError;
-use crate::metrics::{ClearMotResult, combine_sequences};
-use crate::metrics::{kitti_3d_clear_mot,
-    KittiEvalClass, kitti_2d_clear_mot,
-};
-use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::kitti::calib::Calib;
-use crate::kitti::detections::{
-    LidarBox, ScoreMap, detections_by_frame, read_ab3dmot_csv,
-};
+use crate::kitti::detections::{LidarBox, ScoreMap, detections_by_frame, read_ab3dmot_csv};
 use crate::kitti::labels::{TrackingLabel, read_labels};
 use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::results::{ImageSize, TrackBox, track_to_label};
 use crate::kitti::seqmap::SeqmapEntry;
 use crate::kitti::{KittiError, sequence_file, wrap_angle_rad};
+use crate::metrics::EvalError;
+use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
+use crate::metrics::{ClearMotResult, combine_sequences};
+use crate::metrics::{KittiEvalClass, kitti_2d_clear_mot, kitti_3d_clear_mot};
 use limot_estimator::input::Detection;
 use limot_estimator::tracking::{
     Extrapolation, HeadingRule, Lifecycle, TrackOutput, Tracker, TrackerConfig, TrackerError,

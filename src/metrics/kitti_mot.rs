@@ -35,8 +35,8 @@ use super::iou::{AREA_EPS, Box2, Box3, IouKind, image_fraction_inside, iou_image
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::camera_box_to_lidar;
 use crate::kitti::labels::TrackingLabel;
-use std::collections::BTreeMap;
 use limot_estimator::input::ObjectClass;
+use std::collections::BTreeMap;
 
 /// The classes TrackEval's KITTI 2D box benchmark evaluates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -518,10 +518,10 @@ mod tests {
 
     #[test]
     fn three_d_evaluation_uses_3d_iou_after_kitti_preprocessing() {
-        use crate::metrics::iou::iou_3d;
         use crate::kitti::detections::camera_box_to_lidar;
-        use std::path::Path;
         use crate::kitti::labels::parse_labels;
+        use crate::metrics::iou::iou_3d;
+        use std::path::Path;
         let calib = crate::kitti::calib::tests::sample();
         let parse = |text: &str| parse_labels(text, Path::new("t.txt")).unwrap();
         // Frame 0: a car 20 m ahead and a van; frame 1: the car only.

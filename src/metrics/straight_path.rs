@@ -2,8 +2,7 @@
 //!
 //! Straight paths: positions on (nearly) a line do not determine the rotation
 //! of the alignment about that line, and Umeyama then returns a numerically
-//! arbitrary roll (a ground-truth copy of a straight 3 s drive scored
-//! ATE_R = 1.6e-3 rad and ATE_T = 2e-8 m). When the second eigenvalue of the
+//! arbitrary roll (docs/metrics.md gives an example). When the second eigenvalue of the
 //! associated estimate positions' scatter is below [`STRAIGHT_PATH_RATIO`]
 //! times the first, the roll about the path is taken from the orientations
 //! instead: `θ = mean_i ⟨Log(R_true,i · (R·R_est,i)ᵀ), a⟩` about the aligned

@@ -3,9 +3,9 @@
 //! for the same sequences beside them (values copied from the paper, cited
 //! per table; rows of methods we do not run are marked as such).
 
-use crate::metrics::MotSummary;
 use crate::experiments::{EgoScores, ObjectSummary, TrackScores};
 use crate::experiments::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
+use crate::metrics::MotSummary;
 use crate::report::table::{Better, BoldRule, Cell, Table};
 use crate::report::{Report, ReportError, Section, Variant, write_report};
 use std::path::{Path, PathBuf};

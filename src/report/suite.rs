@@ -8,15 +8,15 @@
 //! re-rendered from the same suite directory is identical. A plot whose files
 //! are gone is left out with a note rather than failing the report.
 
-use crate::metrics::Alignment;
 use crate::experiments::{EgoEvalOptions, evaluate_trajectories, load_estimate, load_truth};
+use crate::experiments::{SequenceResult, SuiteError, SuiteResults, VariantMetrics};
+use crate::metrics::Alignment;
 use crate::report::plot::Series2D;
 use crate::report::table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
 };
 use crate::report::{Plot, PlotKind, Report, Section, Variant, write_report};
-use crate::experiments::{SequenceResult, SuiteError, SuiteResults, VariantMetrics};
 use limot_sim::record::Dataset;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};

@@ -25,12 +25,14 @@
 
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times, is_limot_dataset, read_times};
-use crate::metrics::{AlignmentFix, complete_alignment};
-use crate::metrics::{AlignMode, AteResult, EvalError, RpeDelta, RpeResult, associate, ate_with, rpe};
 use crate::kitti::calib::Calib;
 use crate::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::kitti::poses::{parse_kitti_poses, parse_tum};
 use crate::kitti::{LineCtx, content_lines, read_text, sequence_file};
+use crate::metrics::{
+    AlignMode, AteResult, EvalError, RpeDelta, RpeResult, associate, ate_with, rpe,
+};
+use crate::metrics::{AlignmentFix, complete_alignment};
 use crate::report::{Cell, Table};
 use limot_sim::record::Dataset;
 use nalgebra::Isometry3;

@@ -125,7 +125,11 @@ impl Formatter for SummaryFormatter {
         self.0.end_array(w)
     }
 
-    fn begin_array_value<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+    fn begin_array_value<W: ?Sized + io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> io::Result<()> {
         self.0.begin_array_value(w, first)
     }
 
@@ -141,7 +145,11 @@ impl Formatter for SummaryFormatter {
         self.0.end_object(w)
     }
 
-    fn begin_object_key<W: ?Sized + io::Write>(&mut self, w: &mut W, first: bool) -> io::Result<()> {
+    fn begin_object_key<W: ?Sized + io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> io::Result<()> {
         self.0.begin_object_key(w, first)
     }
 
@@ -158,8 +166,10 @@ impl Json {
     /// Pretty-printed with two-space indentation and a final newline.
     pub fn render(&self) -> String {
         let mut out = Vec::new();
-        let mut ser =
-            serde_json::Serializer::with_formatter(&mut out, SummaryFormatter(PrettyFormatter::new()));
+        let mut ser = serde_json::Serializer::with_formatter(
+            &mut out,
+            SummaryFormatter(PrettyFormatter::new()),
+        );
         serde::Serialize::serialize(self, &mut ser).expect("writing JSON to memory cannot fail");
         let mut text = String::from_utf8(out).expect("serde_json writes UTF-8");
         text.push('\n');
@@ -262,8 +272,21 @@ mod tests {
             z ^ (z >> 31)
         };
         let mut nums: Vec<Json> = [
-            0.0, -0.0, 1.0, -1.0, 0.1, 1e-7, 1e21, 1e300, 5e-324, f64::MAX, f64::MIN_POSITIVE,
-            f64::NAN, f64::INFINITY, 123456.789, 2.5e-3,
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            1e-7,
+            1e21,
+            1e300,
+            5e-324,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            f64::NAN,
+            f64::INFINITY,
+            123456.789,
+            2.5e-3,
         ]
         .into_iter()
         .map(Json::Num)
@@ -281,9 +304,15 @@ mod tests {
             ("empty_obj".into(), Json::Obj(vec![])),
             (
                 "nested".into(),
-                Json::Arr(vec![obj([("a", Json::Arr(vec![Json::Obj(vec![])]))]), Json::Null]),
+                Json::Arr(vec![
+                    obj([("a", Json::Arr(vec![Json::Obj(vec![])]))]),
+                    Json::Null,
+                ]),
             ),
-            ("bools".into(), Json::Arr(vec![Json::Bool(true), Json::Bool(false)])),
+            (
+                "bools".into(),
+                Json::Arr(vec![Json::Bool(true), Json::Bool(false)]),
+            ),
         ]);
         let mut expected = String::new();
         reference(&v, &mut expected, 0);

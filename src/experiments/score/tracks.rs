@@ -26,19 +26,19 @@
 
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times};
-use crate::metrics::{
-    ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
-    clear_mot_per_class,
-};
-use crate::metrics::pose_at;
-use crate::metrics::{Box3, IouKind};
-use crate::metrics::{ObjectScore, object_scores};
 use crate::kitti::calib::Calib;
 use crate::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
 use crate::kitti::labels::TrackingLabel;
 use crate::kitti::results::{ImageSize, image_box};
 use crate::kitti::{LineCtx, content_lines, read_text, sequence_file};
 use crate::kitti_export::synthetic_calib;
+use crate::metrics::pose_at;
+use crate::metrics::{Box3, IouKind};
+use crate::metrics::{
+    ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
+    clear_mot_per_class,
+};
+use crate::metrics::{ObjectScore, object_scores};
 use crate::report::{Cell, Table};
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::{Dataset, EgoTruth};

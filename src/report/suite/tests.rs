@@ -8,12 +8,7 @@ use crate::experiments::{
     VariantResult,
 };
 
-fn object(
-    gt_id: u64,
-    gt_frames: usize,
-    tp_percent: f64,
-    ate: Option<f64>,
-) -> ObjectMetricsRecord {
+fn object(gt_id: u64, gt_frames: usize, tp_percent: f64, ate: Option<f64>) -> ObjectMetricsRecord {
     ObjectMetricsRecord {
         gt_id,
         class: "Car".into(),
