@@ -7,11 +7,11 @@
 //! tracker fed these detections can reach).
 #![warn(missing_docs)]
 
-use crate::eval::EvalError;
-use crate::eval::clear_mot::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
-use crate::eval::iou::{Box3, IouKind};
-use crate::report::plot::Series2D;
-use crate::report::table::{Cell, Table};
+use crate::metrics::EvalError;
+use crate::metrics::{Box3, IouKind};
+use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
+use crate::report::Series2D;
+use crate::report::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
 use limot_sim::record::points_per_instance;
 use limot_sim::scenario::ScenarioSpec;
@@ -39,7 +39,7 @@ pub enum DemoError {
     Run(Box<crate::run::RunError>),
     /// The run could not be scored.
     #[error(transparent)]
-    Evaluate(Box<crate::evaluate::EvaluateError>),
+    Evaluate(Box<crate::experiments::EvaluateError>),
     /// The dataset could not be read back.
     #[error(transparent)]
     Record(#[from] limot_sim::record::RecordError),
@@ -54,8 +54,8 @@ impl From<crate::run::RunError> for DemoError {
     }
 }
 
-impl From<crate::evaluate::EvaluateError> for DemoError {
-    fn from(e: crate::evaluate::EvaluateError) -> Self {
+impl From<crate::experiments::EvaluateError> for DemoError {
+    fn from(e: crate::experiments::EvaluateError) -> Self {
         DemoError::Evaluate(Box::new(e))
     }
 }
@@ -436,9 +436,9 @@ fn run_variant(
     let output = crate::run::run(source, dataset_dir, &run_options, None)?;
     let run_dir = out.join(variant.name());
     crate::run::write_output(&run_dir, &output)?;
-    let eval_options = crate::evaluate::ego::EgoEvalOptions::default();
-    let truth = crate::evaluate::ego::load_truth(dataset_dir, &eval_options)?;
-    let estimate = crate::evaluate::ego::Trajectory {
+    let eval_options = crate::experiments::EgoEvalOptions::default();
+    let truth = crate::experiments::load_truth(dataset_dir, &eval_options)?;
+    let estimate = crate::experiments::Trajectory {
         path: run_dir.join("poses_tum.txt"),
         kind: format!("{} estimate", variant.name()),
         poses: output
@@ -448,7 +448,7 @@ fn run_variant(
             .collect(),
         frame_times: None,
     };
-    let eval = crate::evaluate::ego::evaluate_trajectories(&truth, &estimate, &eval_options)?;
+    let eval = crate::experiments::evaluate_trajectories(&truth, &estimate, &eval_options)?;
     let xy = output
         .estimates
         .iter()
@@ -458,13 +458,13 @@ fn run_variant(
         })
         .collect();
     let dataset = limot_sim::record::Dataset::open(dataset_dir)?;
-    let (calib, _) = crate::evaluate::tracks::dataset_calib(&dataset, 0)?;
+    let (calib, _) = crate::experiments::dataset_calib(&dataset, 0)?;
     let results =
         crate::run::write_dataset_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
-    let tracks_eval = crate::evaluate::tracks::evaluate_tracks(
+    let tracks_eval = crate::experiments::evaluate_tracks(
         dataset_dir,
         &results,
-        &crate::evaluate::tracks::TrackEvalOptions::default(),
+        &crate::experiments::TrackEvalOptions::default(),
     )?;
     let tracks = tracks_eval
         .score(IouKind::ThreeD, 0.25)

@@ -269,7 +269,7 @@ pub struct LabelFrame {
 /// through `calib` (the dataset's KITTI copy uses
 /// [`crate::io::kitti::export::synthetic_calib`]). Boxes outside the camera image
 /// have no KITTI line. The tracker alone writes through the same
-/// [`ResultWriter`](crate::track_kitti::ResultWriter).
+/// [`ResultWriter`](crate::experiments::ResultWriter).
 ///
 /// Boxes are given where the labels were taken ([`LabelFrame`]): moved along
 /// their velocity to the label time, placed with the ego pose of that
@@ -282,13 +282,13 @@ pub fn kitti_track_labels(
     output: &RunOutput,
     calib: &crate::io::kitti::calib::Calib,
     label_frame: LabelFrame,
-    result: &crate::track_kitti::ResultPolicy,
+    result: &crate::experiments::ResultPolicy,
     score_map: crate::io::kitti::detections::ScoreMap,
 ) -> Result<Vec<crate::io::kitti::labels::TrackingLabel>, RunError> {
     let frame_delay_s = label_frame.delay_s;
+    use crate::experiments::world_box_to_lidar;
     use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
-    use crate::track_kitti::world_box_to_lidar;
-    let mut writer = crate::track_kitti::ResultWriter::new(result.clone());
+    let mut writer = crate::experiments::ResultWriter::new(result.clone());
     let poses: Vec<(f64, nalgebra::Isometry3<f64>)> = output
         .estimates
         .iter()
@@ -297,11 +297,12 @@ pub fn kitti_track_labels(
     let mut labels = Vec::new();
     for e in &output.estimates {
         let t_frame_s = e.t_s + frame_delay_s;
-        let t_world_lidar = crate::eval::pose_at(&poses, t_frame_s, |p| *p).unwrap_or_else(|| {
-            let mut pose = e.t_world_lidar;
-            pose.translation.vector += e.velocity_world_mps * frame_delay_s;
-            pose
-        });
+        let t_world_lidar =
+            crate::metrics::pose_at(&poses, t_frame_s, |p| *p).unwrap_or_else(|| {
+                let mut pose = e.t_world_lidar;
+                pose.translation.vector += e.velocity_world_mps * frame_delay_s;
+                pose
+            });
         for t in &e.tracks {
             let raw_score =
                 (!t.predicted).then(|| score_map.invert(t.detection_score.unwrap_or(1.0)));
@@ -352,7 +353,7 @@ pub fn write_dataset_kitti_tracks(
         output,
         calib,
         LabelFrame::default(),
-        &crate::track_kitti::ResultPolicy::default(),
+        &crate::experiments::ResultPolicy::default(),
         crate::io::kitti::detections::ScoreMap::Clamp01,
     )?;
     write_kitti_tracks(dir, 0, &labels)

@@ -1,12 +1,12 @@
 //! `limot eval` on a short simulated dataset: ego trajectories written as
 //! TUM / KITTI pose files and the KITTI copy's labels used as tracker results.
 
-use limot::eval::AlignMode;
-use limot::eval::iou::IouKind;
-use limot::evaluate::EvaluateError;
-use limot::evaluate::ego::{EgoEvalOptions, evaluate_ego, load_truth};
-use limot::evaluate::tracks::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
+use limot::experiments::EvaluateError;
+use limot::experiments::{EgoEvalOptions, evaluate_ego, load_truth};
+use limot::experiments::{GtFilter, TrackEvalOptions, ego_pose_at, evaluate_tracks};
 use limot::io::kitti::poses::{StampedPose, write_kitti_poses, write_tum};
+use limot::metrics::AlignMode;
+use limot::metrics::IouKind;
 use limot::simulate::{resolve_scenario, simulate};
 use limot_sim::record::Dataset;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};

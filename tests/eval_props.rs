@@ -1,6 +1,6 @@
-//! Property tests of the evaluation metrics (src/eval).
+//! Property tests of the evaluation metrics (src/metrics).
 
-use limot::eval::{
+use limot::metrics::{
     Box3, ClearMotConfig, EvalError, IouKind, MotFrame, RpeDelta, TrackedBox, ate, clear_mot,
     iou_3d, iou_bev, min_cost_assignment, rpe,
 };

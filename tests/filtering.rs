@@ -3,7 +3,7 @@
 //! moving objects (faster than 1 m/s) and keeps static ones (parked or
 //! stopped); `allfilt` removes both.
 
-use limot::evaluate::filtering::evaluate_filtering;
+use limot::experiments::evaluate_filtering;
 use limot::io::Source;
 use limot::report::Variant;
 use limot::run::{RunOptions, run};
@@ -41,7 +41,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             .expect("features recorded");
         if variant == Variant::Dynafilt {
             // The tracks, as KITTI tracking results, scored against the truth.
-            let (calib, _) = limot::evaluate::tracks::dataset_calib(&dataset, 0).unwrap();
+            let (calib, _) = limot::experiments::dataset_calib(&dataset, 0).unwrap();
             let results =
                 limot::run::write_dataset_kitti_tracks(&dir.join("kitti_results"), &output, &calib)
                     .unwrap();
@@ -54,10 +54,10 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
                 scores.iter().any(|&s| s < 0.99),
                 "scores all 1: not the detections'"
             );
-            let e = limot::evaluate::tracks::evaluate_tracks(
+            let e = limot::experiments::evaluate_tracks(
                 &dir,
                 &results,
-                &limot::evaluate::tracks::TrackEvalOptions::default(),
+                &limot::experiments::TrackEvalOptions::default(),
             )
             .unwrap();
             let s = &e.scores[0];

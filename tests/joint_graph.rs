@@ -28,7 +28,7 @@ const MOVING_MPS: f64 = 1.0;
 
 /// The true LiDAR pose at `t_s` (interpolated between the 100 Hz samples).
 fn ego_at(ego: &[EgoTruth], t_s: f64) -> Isometry3<f64> {
-    limot::evaluate::tracks::ego_pose_at(ego, t_s, Path::new("gt/ego.csv")).unwrap()
+    limot::experiments::ego_pose_at(ego, t_s, Path::new("gt/ego.csv")).unwrap()
 }
 
 /// An object's truth in a frame's LiDAR frame.

@@ -13,15 +13,11 @@
 //! The test reads `CARGO_MANIFEST_DIR/../shared/data/kitti_tracking`; without
 //! it, it prints a note and passes.
 
-use limot::eval::clear_mot::{
-    ClearMotConfig, ClearMotResult, MatchingRule, clear_mot, combine_sequences,
-};
-use limot::eval::kitti_mot::{
-    KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames,
-};
 use limot::io::kitti::labels::{TrackingLabel, read_labels};
 use limot::io::kitti::results::write_results;
 use limot::io::kitti::seqmap::read_seqmap;
+use limot::metrics::{ClearMotConfig, ClearMotResult, MatchingRule, clear_mot, combine_sequences};
+use limot::metrics::{KittiEvalClass, KittiPreprocessConfig, kitti_2d_clear_mot, kitti_2d_frames};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 

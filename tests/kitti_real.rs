@@ -5,12 +5,12 @@
 //! measured figures as bounds. Skips with a loud note only when
 //! `../shared/data` is absent; a failed unpack or run fails the test.
 
-use limot::evaluate::kitti_sequence::TrackScores;
+use limot::experiments::TrackScores;
+use limot::experiments::kitti_val_tuned_options;
+use limot::experiments::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::io::kitti::detections::ScoreMap;
-use limot::kitti_report::write_kitti_report;
-use limot::kitti_suite::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::report::Variant;
-use limot::track_kitti::kitti_val_tuned_options;
+use limot::report::write_kitti_report;
 use std::path::{Path, PathBuf};
 
 mod common;
@@ -189,7 +189,7 @@ fn partial_copy(training: &Path, name: &str, scans: usize) -> PathBuf {
 fn open_error(dir: &Path) -> String {
     match limot::io::Source::open_kitti_tracking(dir, 0, None, ScoreMap::Sigmoid) {
         Ok(_) => panic!("{} opened", dir.display()),
-        Err(e) => limot::suite::error_chain(&e),
+        Err(e) => limot::experiments::error_chain(&e),
     }
 }
 
@@ -246,7 +246,7 @@ fn damaged_sequences_name_the_file_and_missing_labels_give_no_mot_score() {
     let bytes = std::fs::read(&scan).unwrap();
     std::fs::write(&scan, &bytes[..1000]).unwrap();
     let source = limot::io::Source::open_kitti_tracking(&dir, 0, None, ScoreMap::Sigmoid).unwrap();
-    let e = limot::suite::error_chain(&source.frame(3).unwrap_err());
+    let e = limot::experiments::error_chain(&source.frame(3).unwrap_err());
     assert!(e.contains("000003.bin") && e.contains("byte offset"), "{e}");
     std::fs::write(&scan, &bytes).unwrap();
 
@@ -262,7 +262,7 @@ fn damaged_sequences_name_the_file_and_missing_labels_give_no_mot_score() {
         ..limot::run::RunOptions::default()
     };
     let output = limot::run::run(&source, &dir, &options, None).unwrap();
-    let (scores, results) = limot::evaluate::kitti_sequence::score_run(
+    let (scores, results) = limot::experiments::score_run(
         &dir,
         0,
         &output,

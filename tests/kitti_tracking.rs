@@ -3,6 +3,11 @@
 //! OXTS ego poses, label_02 ground truth). Skips with a loud note only when
 //! `../shared/data` is absent; any unreadable file fails the test.
 
+use limot::experiments::{
+    BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
+    evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
+    lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
+};
 use limot::io::kitti::calib::Calib;
 use limot::io::kitti::detections::{
     ScoreMap, camera_box_to_lidar, parse_ab3dmot_csv, read_ab3dmot_csv,
@@ -11,11 +16,6 @@ use limot::io::kitti::labels::read_labels;
 use limot::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use limot::io::kitti::seqmap::read_seqmap;
 use limot::io::kitti::sequence_file;
-use limot::track_kitti::{
-    BoxSource, OutputPolicy, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
-    evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
-    lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
-};
 use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule, TrackerConfig};
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -505,11 +505,11 @@ fn summary(e: &TrackingEvaluation) -> String {
 fn score_folds(root: &Path, options: &TrackKittiOptions) -> [TrackingEvaluation; 3] {
     let d = dirs(root);
     let all = present_val_seqmap(&d.training);
-    let results: Vec<limot::track_kitti::SequenceResults> = all
+    let results: Vec<limot::experiments::SequenceResults> = all
         .iter()
         .map(|e| {
             let t = track_sequence_with(&d.training, &d.detections, e.sequence, options).unwrap();
-            limot::track_kitti::SequenceResults {
+            limot::experiments::SequenceResults {
                 sequence: e.sequence,
                 labels: t.labels,
             }
@@ -706,7 +706,7 @@ fn cross_validate_kitti_settings() {
         }
         let results: Vec<_> = all
             .iter()
-            .map(|e| limot::track_kitti::SequenceResults {
+            .map(|e| limot::experiments::SequenceResults {
                 sequence: e.sequence,
                 labels: held_out[&e.sequence].clone(),
             })
@@ -764,7 +764,7 @@ fn startup_rule_and_track_score_gate_change_what_is_written() {
     gated.result.min_track_score = 5.0;
     let strict = track_sequence_with(&d.training, &d.detections, seq, &gated).unwrap();
     let count =
-        |t: &limot::track_kitti::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
+        |t: &limot::experiments::SequenceTracks| t.per_frame.iter().map(Vec::len).sum::<usize>();
     assert!(count(&strict) < count(&plain) && count(&strict) > 0);
     let mut per_track: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
     for l in &strict.labels {

@@ -6,8 +6,8 @@
 
 mod common;
 
-use limot::eval::realism::{RealismConfig, RealismStats};
-use limot::realism::{RealismReport, analyze_sequence};
+use limot::experiments::{RealismReport, analyze_sequence};
+use limot::metrics::{RealismConfig, RealismStats};
 use limot::simulate::{resolve_scenario, simulate};
 use std::fs;
 use std::path::{Path, PathBuf};

@@ -2,9 +2,9 @@
 //! 4 s) with lio, dynafilt and limot; a variant that fails is recorded as
 //! not available without aborting the suite.
 
+use limot::experiments::{RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite};
 use limot::report::Variant;
-use limot::suite::{RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite};
-use limot::suite_report::write_suite_report;
+use limot::report::write_suite_report;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;

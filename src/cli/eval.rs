@@ -3,13 +3,13 @@
 use super::EvalCommand;
 use super::options::{kitti_tracking_options, parse_score_map};
 use super::report::{print_kitti_report, print_suite_report};
-use crate::evaluate::EvaluateError;
-use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
-use crate::evaluate::tracks::{TrackEvalOptions, evaluate_tracks};
+use crate::experiments::EvaluateError;
+use crate::experiments::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
+use crate::experiments::{TrackEvalOptions, evaluate_tracks};
 use std::path::PathBuf;
 
-pub(super) fn parse_align(s: &str) -> Result<crate::eval::AlignMode, EvaluateError> {
-    use crate::eval::AlignMode;
+pub(super) fn parse_align(s: &str) -> Result<crate::metrics::AlignMode, EvaluateError> {
+    use crate::metrics::AlignMode;
     match s.to_ascii_lowercase().as_str() {
         "se3" => Ok(AlignMode::Se3),
         "sim3" => Ok(AlignMode::Sim3),
@@ -149,8 +149,8 @@ pub(super) fn run_eval_suite(
     shard: Option<&str>,
     jobs: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::experiments::{Shard, SuiteSpec, parse_list, run_suite};
     use crate::report::Variant;
-    use crate::suite::{Shard, SuiteSpec, parse_list, run_suite};
     let spec = SuiteSpec {
         families: parse_list("families", families, |s| Ok(s.to_string()))?,
         seeds: parse_list("seeds", seeds, |s| {
@@ -209,9 +209,9 @@ pub(super) fn run_eval_kitti(
     ego_peer: Vec<String>,
     out: PathBuf,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    use crate::kitti_suite::{KittiSuiteSpec, run_kitti_suite};
+    use crate::experiments::parse_list;
+    use crate::experiments::{KittiSuiteSpec, run_kitti_suite};
     use crate::report::Variant;
-    use crate::suite::parse_list;
     let spec = KittiSuiteSpec {
         training,
         detections,
@@ -241,6 +241,6 @@ pub(super) fn run_eval_kitti(
         spec.out_dir.display()
     );
     let results = run_kitti_suite(&spec, true)?;
-    let file = spec.out_dir.join(crate::suite::RESULTS_FILE);
+    let file = spec.out_dir.join(crate::experiments::RESULTS_FILE);
     print_kitti_report(&results, &file, &spec.out_dir.join("report"))
 }

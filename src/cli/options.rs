@@ -18,11 +18,11 @@ pub(super) fn parse_score_map(
 pub(super) fn kitti_tracking_options(
     name: &str,
     score_map: crate::io::kitti::detections::ScoreMap,
-) -> Result<crate::track_kitti::TrackKittiOptions, String> {
-    use crate::track_kitti::{TrackKittiOptions, kitti_val_offline_options};
+) -> Result<crate::experiments::TrackKittiOptions, String> {
+    use crate::experiments::{TrackKittiOptions, kitti_val_offline_options};
     let options = match name {
         "paper" => TrackKittiOptions::default(),
-        "tuned" => crate::track_kitti::kitti_val_tuned_options(),
+        "tuned" => crate::experiments::kitti_val_tuned_options(),
         "offline" => kitti_val_offline_options(),
         other => {
             return Err(format!(
@@ -30,7 +30,7 @@ pub(super) fn kitti_tracking_options(
             ));
         }
     };
-    Ok(crate::track_kitti::TrackKittiOptions {
+    Ok(crate::experiments::TrackKittiOptions {
         score_map,
         ..options
     })

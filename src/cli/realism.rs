@@ -10,7 +10,7 @@ pub(super) fn run_realism(
     reference: Option<PathBuf>,
     reference_sequence: u32,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    crate::realism::run_realism(&crate::realism::RealismOptions {
+    crate::experiments::run_realism(&crate::experiments::RealismOptions {
         path,
         sequence,
         out,

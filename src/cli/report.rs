@@ -10,7 +10,7 @@ pub(super) fn run_report(
     out: Option<PathBuf>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     if merge {
-        let (merged, suite_dir) = crate::suite::merge_shards(results)?;
+        let (merged, suite_dir) = crate::experiments::merge_shards(results)?;
         let file = merged.save(&suite_dir)?;
         println!(
             "merged {} shard(s), {} sequence(s): {}",
@@ -28,39 +28,39 @@ pub(super) fn run_report(
     };
     let results = results.as_path();
     let file = if results.is_dir() {
-        results.join(crate::suite::RESULTS_FILE)
+        results.join(crate::experiments::RESULTS_FILE)
     } else {
         results.to_path_buf()
     };
     let text = std::fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-    if crate::kitti_suite::is_kitti_results(&text) {
-        let kitti = crate::kitti_suite::KittiSuiteResults::parse(&text, &file)?;
+    if crate::experiments::is_kitti_results(&text) {
+        let kitti = crate::experiments::KittiSuiteResults::parse(&text, &file)?;
         let dir = file
             .parent()
             .map_or_else(|| PathBuf::from("."), PathBuf::from);
         let out = out.unwrap_or_else(|| dir.join("report"));
         return print_kitti_report(&kitti, &file, &out);
     }
-    let (results, suite_dir) = crate::suite::SuiteResults::load(results)?;
+    let (results, suite_dir) = crate::experiments::SuiteResults::load(results)?;
     let out = out.unwrap_or_else(|| suite_dir.join("report"));
     print_suite_report(&results, &suite_dir, &out)
 }
 
 pub(super) fn print_kitti_report(
-    results: &crate::kitti_suite::KittiSuiteResults,
+    results: &crate::experiments::KittiSuiteResults,
     results_file: &std::path::Path,
     report_dir: &std::path::Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let readme = crate::kitti_report::write_kitti_report(report_dir, results)?;
+    let readme = crate::report::write_kitti_report(report_dir, results)?;
     println!();
     print!(
         "{}",
-        crate::kitti_report::ego_table(results)?.to_markdown()?
+        crate::report::kitti_ego_table(results)?.to_markdown()?
     );
     println!();
     print!(
         "{}",
-        crate::kitti_report::tracking_table(results)?.to_markdown()?
+        crate::report::kitti_tracking_table(results)?.to_markdown()?
     );
     println!("results: {}", results_file.display());
     println!("report: {}", readme.display());
@@ -68,15 +68,15 @@ pub(super) fn print_kitti_report(
 }
 
 pub(super) fn print_suite_report(
-    results: &crate::suite::SuiteResults,
+    results: &crate::experiments::SuiteResults,
     suite_dir: &std::path::Path,
     report_dir: &std::path::Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let readme = crate::suite_report::write_suite_report(report_dir, results, suite_dir)?;
+    let readme = crate::report::write_suite_report(report_dir, results, suite_dir)?;
     println!();
     print!(
         "{}",
-        crate::suite_report::ego_table(results)?.to_markdown()?
+        crate::report::suite_ego_table(results)?.to_markdown()?
     );
     for s in &results.sequences {
         if let Some(e) = &s.error {
@@ -93,7 +93,7 @@ pub(super) fn print_suite_report(
     }
     println!(
         "results: {}",
-        suite_dir.join(crate::suite::RESULTS_FILE).display()
+        suite_dir.join(crate::experiments::RESULTS_FILE).display()
     );
     println!("report: {}", readme.display());
     Ok(())

@@ -1,8 +1,8 @@
 //! `limot run`: the estimator on a dataset, its outputs and scores.
 
 use super::options::{kitti_tracking_options, parse_score_map};
-use crate::evaluate::ego::{EgoEvalOptions, evaluate_ego};
-use crate::evaluate::tracks::{TrackEvalOptions, evaluate_tracks};
+use crate::experiments::{EgoEvalOptions, evaluate_ego};
+use crate::experiments::{TrackEvalOptions, evaluate_tracks};
 use std::path::PathBuf;
 
 /// `limot run --sequence N [--detections P] [--score-map M]`: a KITTI
@@ -93,7 +93,7 @@ pub(super) fn run_estimator(
         );
     }
     if let Some(sequence) = kitti_tracking.sequence {
-        use crate::evaluate::kitti_sequence::{KittiScoreOptions, score_run};
+        use crate::experiments::{KittiScoreOptions, score_run};
         let (scores, results) = score_run(
             dataset,
             sequence,
@@ -125,7 +125,7 @@ pub(super) fn run_estimator(
         println!("scores: {}", scores_path.display());
     }
     if let Source::Dataset(dataset) = &source {
-        let (calib, _) = crate::evaluate::tracks::dataset_calib(dataset, 0)?;
+        let (calib, _) = crate::experiments::dataset_calib(dataset, 0)?;
         let results =
             crate::run::write_dataset_kitti_tracks(&out.join("kitti_results"), &output, &calib)?;
         let e = evaluate_tracks(

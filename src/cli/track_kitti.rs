@@ -5,9 +5,9 @@ use super::options::kitti_tracking_options;
 
 /// `limot track-kitti`: tracks, writes result files and prints the scores.
 pub(super) fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::experiments::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use crate::io::kitti::results::write_results_file;
     use crate::io::kitti::seqmap::read_seqmap;
-    use crate::track_kitti::{OutputPolicy, evaluate_sequences, read_results_dir, score_results};
     use limot_estimator::tracking::{AssociationMetric, Extrapolation, HeadingRule};
     let training = &args.training;
     let seqmap_path = args
@@ -126,7 +126,7 @@ pub(super) fn run_track_kitti(args: TrackKittiArgs) -> Result<(), Box<dyn std::e
         result.coast_min_hits = n;
     }
     if args.detection_boxes {
-        options.box_source = crate::track_kitti::BoxSource::Detection;
+        options.box_source = crate::experiments::BoxSource::Detection;
     }
     std::fs::create_dir_all(&out)?;
     let (tracks, evaluation) = evaluate_sequences(training, &input_dir, &entries, &options)?;

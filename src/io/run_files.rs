@@ -137,7 +137,7 @@ pub fn write_run_files(out_dir: &Path, estimates: &[FrameEstimate]) -> Result<()
         for t in &e.tracks {
             let c = t.center_world;
             let v = t.velocity_world_mps;
-            let lidar = crate::track_kitti::world_box_to_lidar(
+            let lidar = crate::experiments::world_box_to_lidar(
                 &t.center_world,
                 &t.size_lwh,
                 t.yaw_rad,

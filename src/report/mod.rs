@@ -1,15 +1,25 @@
-//! Evaluation reports: markdown tables shaped like the paper's (`table`) and
-//! SVG plots (`plot`), gathered into a directory with a `README.md` by
-//! `write_report`. Everything works on plain data, so the evaluation runner
-//! only has to fill the row structs and series.
+//! Evaluation reports: markdown tables shaped like the paper's, SVG plots, and
+//! the two report directories built from them: the simulated suite's
+//! ([`write_suite_report`]) and the KITTI suite's ([`write_kitti_report`]).
+//! [`write_report`] gathers sections of tables and plots into a directory with a
+//! `README.md`. Everything works on plain data, so the runners in
+//! [`crate::experiments`] only fill the row structs and series.
+#![warn(missing_docs)]
 
-pub mod plot;
-pub mod table;
+mod kitti;
+mod plot;
+mod suite;
+mod table;
 
+pub use kitti::{
+    ab3dmot_table, ego_table as kitti_ego_table, kitti_report, object_table as kitti_object_table,
+    tracking_table as kitti_tracking_table, write_kitti_report,
+};
 pub use plot::{
     LineKind, Series2D, Style, plot_error_over_time, plot_object_tracks, plot_speed,
     plot_trajectories_xy,
 };
+pub use suite::{build_report, ego_table as suite_ego_table, write_suite_report};
 pub use table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
@@ -24,42 +34,92 @@ use std::str::FromStr;
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
     #[error("unknown variant {name:?} (expected lio, allfilt, dynafilt or limot)")]
-    UnknownVariant { name: String },
+    /// A variant name is not one of the four.
+    UnknownVariant {
+        /// The name given.
+        name: String,
+    },
     #[error("table {table:?}: row {row} has {found} cells, the header has {expected}")]
+    /// A row has another number of cells than the header.
     TableShape {
+        /// The table's title.
         table: String,
+        /// Row index.
         row: usize,
+        /// Header length.
         expected: usize,
+        /// Cells in the row.
         found: usize,
     },
     #[error("table {table:?}: bold rule names column {column}, the table has {columns}")]
+    /// A bold rule names a column the table does not have.
     TableColumn {
+        /// The table's title.
         table: String,
+        /// The column named.
         column: usize,
+        /// Columns of the table.
         columns: usize,
     },
     #[error("{path}: no series to plot")]
-    NoSeries { path: PathBuf },
-    #[error("{path}: series {label:?} has no points")]
-    EmptySeries { path: PathBuf, label: String },
-    #[error("{path}: series {label:?} point {index} is not finite ({x}, {y})")]
-    NonFinite {
+    /// A plot has no series.
+    NoSeries {
+        /// The plot file.
         path: PathBuf,
+    },
+    #[error("{path}: series {label:?} has no points")]
+    /// A series has no points.
+    EmptySeries {
+        /// The plot file.
+        path: PathBuf,
+        /// The series' label.
         label: String,
+    },
+    #[error("{path}: series {label:?} point {index} is not finite ({x}, {y})")]
+    /// A point of a series is not finite.
+    NonFinite {
+        /// The plot file.
+        path: PathBuf,
+        /// The series' label.
+        label: String,
+        /// Index of the point.
         index: usize,
+        /// Its x.
         x: f64,
+        /// Its y.
         y: f64,
     },
     #[error("{path}: plotting failed: {message}")]
-    Plot { path: PathBuf, message: String },
+    /// The plotting library failed.
+    Plot {
+        /// The plot file.
+        path: PathBuf,
+        /// Its message.
+        message: String,
+    },
     #[error("{path}: plot file name {name:?} must be a plain `*.svg` file name")]
-    BadPlotName { path: PathBuf, name: String },
+    /// A plot's file name is not a plain `*.svg` name.
+    BadPlotName {
+        /// The report directory.
+        path: PathBuf,
+        /// The name.
+        name: String,
+    },
     #[error("{path}: plot file {name:?} appears twice in the report")]
-    DuplicatePlot { path: PathBuf, name: String },
+    /// Two plots of a report have the same file name.
+    DuplicatePlot {
+        /// The report directory.
+        path: PathBuf,
+        /// The name.
+        name: String,
+    },
     #[error("{path}: {source}")]
+    /// A file could not be written.
     Io {
+        /// The file.
         path: PathBuf,
         #[source]
+        /// The cause.
         source: std::io::Error,
     },
 }
@@ -78,6 +138,7 @@ pub enum Variant {
 }
 
 impl Variant {
+    /// Every variant, in the tables' order.
     pub const ALL: [Variant; 4] = [
         Variant::Lio,
         Variant::Allfilt,
@@ -139,17 +200,27 @@ impl FromStr for Variant {
 #[derive(Debug, Clone, PartialEq)]
 pub enum PlotKind {
     /// Ego trajectories, top view (`plot_trajectories_xy`).
-    TrajectoriesXy { series: Vec<Series2D> },
+    TrajectoriesXy {
+        /// One series per trajectory.
+        series: Vec<Series2D>,
+    },
     /// Object tracks vs truth, top view (`plot_object_tracks`).
     ObjectTracks {
+        /// True object trajectories.
         truth: Vec<Series2D>,
+        /// Estimated object trajectories.
         est: Vec<Series2D>,
     },
     /// Speed over time (`plot_speed`).
-    Speed { series: Vec<Series2D> },
+    Speed {
+        /// One series per object or variant.
+        series: Vec<Series2D>,
+    },
     /// An error over time (`plot_error_over_time`); `y_desc` names it and its unit.
     ErrorOverTime {
+        /// Axis label: the error and its unit.
         y_desc: String,
+        /// One series per variant.
         series: Vec<Series2D>,
     },
 }
@@ -159,12 +230,18 @@ pub enum PlotKind {
 pub struct Plot {
     /// A plain file name ending in `.svg` (no directories).
     pub file_name: String,
+    /// Title drawn above the plot.
     pub title: String,
+    /// What it shows.
     pub kind: PlotKind,
 }
 
 impl Plot {
     /// Draws the plot to `path`.
+    ///
+    /// # Errors
+    ///
+    /// As the plot functions ([`plot_trajectories_xy`] and its siblings).
     pub fn draw(&self, path: &Path) -> Result<(), ReportError> {
         match &self.kind {
             PlotKind::TrajectoriesXy { series } => plot_trajectories_xy(path, &self.title, series),
@@ -180,17 +257,24 @@ impl Plot {
 }
 
 #[derive(Debug, Clone, PartialEq, Default)]
+/// A titled part of a report: text, tables and plots, in that order.
 pub struct Section {
+    /// Heading.
     pub heading: String,
     /// Markdown paragraph(s) placed under the heading; may be empty.
     pub text: String,
+    /// Tables.
     pub tables: Vec<Table>,
+    /// Plots.
     pub plots: Vec<Plot>,
 }
 
 #[derive(Debug, Clone, PartialEq, Default)]
+/// A report: its title and sections, written by [`write_report`].
 pub struct Report {
+    /// Title.
     pub title: String,
+    /// Sections, in order.
     pub sections: Vec<Section>,
 }
 
@@ -220,6 +304,10 @@ fn link_target(name: &str) -> String {
 }
 
 /// The README text; plots are linked by file name, relative to the README.
+///
+/// # Errors
+///
+/// [`ReportError`] when a table does not render or plot names are invalid or repeated.
 pub fn render_readme(report: &Report) -> Result<String, ReportError> {
     let mut out = format!("# {}\n", report.title);
     for section in &report.sections {
@@ -246,6 +334,10 @@ pub fn render_readme(report: &Report) -> Result<String, ReportError> {
 /// then `dir/README.md` with the tables and links to the plots. Names and
 /// tables are checked before anything is written, so a bad report leaves no
 /// half-written README. Returns the README path.
+///
+/// # Errors
+///
+/// [`ReportError`] for invalid tables or plots or a failed write.
 pub fn write_report(dir: &Path, report: &Report) -> Result<PathBuf, ReportError> {
     let mut seen = BTreeSet::new();
     for plot in report.sections.iter().flat_map(|s| &s.plots) {

@@ -42,13 +42,18 @@ pub const TRUTH_RGB: (u8, u8, u8) = (0, 0, 0);
 /// How a series is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LineKind {
+    /// A line through the points.
     Line,
+    /// A marker per point.
     Markers,
+    /// Both.
     LineMarkers,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How a series looks.
 pub struct Style {
+    /// Line, markers or both.
     pub kind: LineKind,
     /// `None` picks the next palette colour.
     pub rgb: Option<(u8, u8, u8)>,
@@ -67,8 +72,11 @@ impl Default for Style {
 /// the world frame or (t_s, speed_mps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series2D {
+    /// Legend label.
     pub label: String,
+    /// The points, in drawing order.
     pub points: Vec<(f64, f64)>,
+    /// How it is drawn.
     pub style: Style,
 }
 
@@ -87,11 +95,13 @@ impl Series2D {
         Series2D::line(label, points).with_rgb(TRUTH_RGB)
     }
 
+    /// The same series in a fixed colour.
     pub fn with_rgb(mut self, rgb: (u8, u8, u8)) -> Series2D {
         self.style.rgb = Some(rgb);
         self
     }
 
+    /// The same series drawn as `kind`.
     pub fn with_kind(mut self, kind: LineKind) -> Series2D {
         self.style.kind = kind;
         self
@@ -310,6 +320,10 @@ fn render_to_file(
 
 /// Top view (x_m, y_m) of ego trajectories, e.g. every variant's estimate and
 /// the truth (`Series2D::truth`), with equal metres per pixel on both axes.
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_trajectories_xy(
     path: &Path,
     title: &str,
@@ -320,6 +334,10 @@ pub fn plot_trajectories_xy(
 
 /// Top view of object tracks: truth tracks drawn black unless they carry a
 /// colour, estimated tracks in palette colours; equal axis scale.
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_object_tracks(
     path: &Path,
     title: &str,
@@ -339,12 +357,20 @@ pub fn plot_object_tracks(
 }
 
 /// Speed over time: points are (t_s, speed_mps).
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_speed(path: &Path, title: &str, series: &[Series2D]) -> Result<(), ReportError> {
     render_to_file(path, title, "t [s]", "speed [m/s]", series, false)
 }
 
 /// An error over time: points are (t_s, error) with `y_desc` naming the error
 /// and its unit, e.g. "translation error [m]".
+///
+/// # Errors
+///
+/// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_error_over_time(
     path: &Path,
     title: &str,

@@ -4,7 +4,7 @@
 //! ego-ATE, tracking (MOTA/MOTP), per-object and timing tables.
 
 use super::{ReportError, Variant};
-use crate::eval::{ClearMotResult, ObjectScore, TimingAccumulator};
+use crate::metrics::{ClearMotResult, ObjectScore, TimingAccumulator};
 use std::collections::BTreeMap;
 
 /// What a missing cell renders as (an en dash, like the paper's "--").
@@ -16,11 +16,13 @@ pub const DEFAULT_DECIMALS: usize = 3;
 /// One table cell.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Cell {
+    /// Text, rendered as is.
     Text(String),
     /// Rendered with the column's fixed decimals.
     Num(f64),
     /// Rendered as is (counts such as IDSW, FP, FN).
     Int(i64),
+    /// No value, rendered as [`MISSING`].
     Missing,
 }
 
@@ -58,7 +60,9 @@ impl From<usize> for Cell {
 /// Which direction of a metric is better.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Better {
+    /// Lower is better.
     Lower,
+    /// Higher is better.
     Higher,
 }
 
@@ -69,13 +73,21 @@ pub enum Better {
 #[derive(Debug, Clone, PartialEq)]
 pub enum BoldRule {
     /// In every row, the best among `columns` (e.g. ATE_T of each variant).
-    BestInRow { columns: Vec<usize>, better: Better },
+    BestInRow {
+        /// The compared columns.
+        columns: Vec<usize>,
+        /// Which direction wins.
+        better: Better,
+    },
     /// In `column`, the best over the rows that agree in the text of every
     /// `group_by` column (e.g. the best variant per sequence); no grouping
     /// compares the whole column.
     BestInColumn {
+        /// The column.
         column: usize,
+        /// Which direction wins.
         better: Better,
+        /// Columns whose text defines a group.
         group_by: Vec<usize>,
     },
 }
@@ -83,12 +95,16 @@ pub enum BoldRule {
 /// A table of typed cells; every row has one cell per header entry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
+    /// Title, rendered as a heading.
     pub title: String,
+    /// Column names.
     pub header: Vec<String>,
+    /// Rows of cells.
     pub rows: Vec<Vec<Cell>>,
     /// Fixed decimals of `Cell::Num` per column; columns past its end use
     /// `DEFAULT_DECIMALS`.
     pub decimals: Vec<usize>,
+    /// Which cells are bold.
     pub bold: Vec<BoldRule>,
 }
 
@@ -99,6 +115,7 @@ enum Align {
 }
 
 impl Table {
+    /// An empty table with the given title and header.
     pub fn new(title: impl Into<String>, header: Vec<String>) -> Table {
         let decimals = vec![DEFAULT_DECIMALS; header.len()];
         Table {
@@ -118,6 +135,10 @@ impl Table {
     }
 
     /// Appends a row after checking it has one cell per column.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError::TableShape`] when the row's length differs from the header's.
     pub fn push_row(&mut self, row: Vec<Cell>) -> Result<(), ReportError> {
         self.check_row(self.rows.len(), &row)?;
         self.rows.push(row);
@@ -128,6 +149,10 @@ impl Table {
     /// column over the current rows. A column's mean is only given when every
     /// row has a finite number there (a mean over a subset would not compare
     /// across variants); otherwise the cell is missing.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError::TableShape`] when the row's length differs from the header's.
     pub fn push_mean_row(&mut self, label: &str, label_column: usize) -> Result<(), ReportError> {
         if self.rows.is_empty() {
             return Ok(());
@@ -272,6 +297,10 @@ impl Table {
     /// GitHub markdown: the title in bold, a blank line, then the table with
     /// columns padded to a common width. Text columns are left-aligned, columns
     /// holding numbers right-aligned.
+    ///
+    /// # Errors
+    ///
+    /// [`ReportError`] when a row's shape or a bold rule's column is invalid.
     pub fn to_markdown(&self) -> Result<String, ReportError> {
         for (i, row) in self.rows.iter().enumerate() {
             self.check_row(i, row)?;
@@ -386,14 +415,18 @@ fn escape_cell(text: &str) -> String {
 /// Ego-pose ATE of one variant on one sequence.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoAte {
+    /// ATE_T, m.
     pub ate_t_m: f64,
+    /// ATE_R, rad.
     pub ate_r_rad: f64,
 }
 
 /// One sequence of the ego ATE table (paper Table "tab_ego_track").
 #[derive(Debug, Clone, PartialEq)]
 pub struct EgoAteRow {
+    /// Sequence name.
     pub sequence: String,
+    /// ATE per variant.
     pub per_variant: BTreeMap<Variant, EgoAte>,
 }
 
@@ -407,6 +440,10 @@ fn variants_of(maps: impl Iterator<Item = Vec<Variant>>) -> Vec<Variant> {
 
 /// Seq | per variant: ATE_T [m], ATE_R [rad]; a final "mean" row; the best
 /// variant per row and metric in bold.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn ego_ate_table(title: &str, rows: &[EgoAteRow]) -> Result<Table, ReportError> {
     let variants = variants_of(rows.iter().map(|r| r.per_variant.keys().copied().collect()));
     let mut header = vec!["Seq".to_string()];
@@ -444,13 +481,21 @@ pub fn ego_ate_table(title: &str, rows: &[EgoAteRow]) -> Result<Table, ReportErr
 /// (paper Table "tab_ab3dmot_compare" reports MOTP at 0.25 and 0.5).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingRow {
+    /// Sequence name.
     pub sequence: String,
+    /// The variant.
     pub variant: Variant,
+    /// The 3D IoU threshold.
     pub iou_threshold: f64,
+    /// MOTA, %.
     pub mota_percent: Option<f64>,
+    /// MOTP, %.
     pub motp_percent: Option<f64>,
+    /// ID switches.
     pub idsw: usize,
+    /// False positives.
     pub fp: usize,
+    /// False negatives.
     pub fn_: usize,
 }
 
@@ -477,6 +522,10 @@ impl TrackingRow {
 
 /// Seq | Variant | IoU thr | MOTA [%] | MOTP [%] | IDSW | FP | FN; the best
 /// variant per sequence and threshold in bold for every metric.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn tracking_table(title: &str, rows: &[TrackingRow]) -> Result<Table, ReportError> {
     let header = [
         "Seq", "Variant", "IoU thr", "MOTA [%]", "MOTP [%]", "IDSW", "FP", "FN",
@@ -523,6 +572,7 @@ pub struct ObjectMetrics {
     pub tp_percent: f64,
     /// `None` when the object was never matched.
     pub ate_t_m: Option<f64>,
+    /// ATE_R of the object's track, rad.
     pub ate_r_rad: Option<f64>,
 }
 
@@ -539,13 +589,20 @@ impl From<&ObjectScore> for ObjectMetrics {
 /// One object of the per-object table (paper Table "tab_obj_track").
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectRow {
+    /// Sequence name.
     pub sequence: String,
+    /// Ground-truth object id.
     pub object_id: u64,
+    /// Scores per variant.
     pub per_variant: BTreeMap<Variant, ObjectMetrics>,
 }
 
 /// Seq / Obj | per variant: TP [%], ATE_T [m], ATE_R [rad]; a final "mean"
 /// row; the best variant per row and metric in bold.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn object_table(title: &str, rows: &[ObjectRow]) -> Result<Table, ReportError> {
     let variants = variants_of(rows.iter().map(|r| r.per_variant.keys().copied().collect()));
     let mut header = vec!["Seq / Obj".to_string()];
@@ -586,8 +643,11 @@ pub fn object_table(title: &str, rows: &[ObjectRow]) -> Result<Table, ReportErro
 /// Runtime of one module (paper Table "tab_time_consume").
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimingRow {
+    /// Pipeline stage.
     pub module: String,
+    /// Mean wall time, ms.
     pub mean_ms: f64,
+    /// 95th-percentile wall time, ms.
     pub p95_ms: f64,
     /// Scans per second this module alone allows (1000 / mean_ms).
     pub fps: f64,
@@ -613,6 +673,10 @@ const NO_WORK_MS: f64 = 1e-3;
 
 /// Module | mean [ms] | p95 [ms] | FPS, one decimal each; FPS is missing
 /// for stages that did no work.
+///
+/// # Errors
+///
+/// [`ReportError`] when the table cannot be built.
 pub fn timing_table(title: &str, rows: &[TimingRow]) -> Result<Table, ReportError> {
     let header = ["Module", "mean [ms]", "p95 [ms]", "FPS"]
         .map(String::from)
@@ -637,305 +701,4 @@ pub fn timing_table(title: &str, rows: &[TimingRow]) -> Result<Table, ReportErro
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn markdown_aligns_rounds_bolds_and_marks_missing() {
-        let header = ["Seq", "A [m]", "B [m]", "n"].map(String::from).to_vec();
-        let mut t = Table::new("ATE", header);
-        t.set_decimals(2, 1);
-        t.push_row(vec![
-            "00".into(),
-            Cell::Num(0.8456),
-            Cell::Num(0.91),
-            Cell::Int(12),
-        ])
-        .unwrap();
-        t.push_row(vec![
-            "01|x".into(),
-            Cell::Missing,
-            Cell::Num(-0.04),
-            Cell::Int(3),
-        ])
-        .unwrap();
-        t.push_row(vec![
-            "02".into(),
-            Cell::Num(1.2),
-            Cell::Num(1.24),
-            Cell::Int(3),
-        ])
-        .unwrap();
-        t.bold = vec![
-            BoldRule::BestInRow {
-                columns: vec![1, 2],
-                better: Better::Lower,
-            },
-            BoldRule::BestInColumn {
-                column: 3,
-                better: Better::Higher,
-                group_by: vec![],
-            },
-        ];
-        // Row 00: 0.846 < 0.9 → A bold. Row 01: one value only → no bold, and
-        // -0.04 at one decimal prints "0.0" not "-0.0". Row 02: 1.200 and 1.2
-        // print equal at their precision → an all-way tie, no bold. Column n:
-        // 12 is best. Widths follow the widest cell including "**".
-        let expected = "**ATE**\n\
-                        \n\
-                        | Seq   |     A [m] | B [m] |      n |\n\
-                        | :---- | --------: | ----: | -----: |\n\
-                        | 00    | **0.846** |   0.9 | **12** |\n\
-                        | 01\\|x |         – |   0.0 |      3 |\n\
-                        | 02    |     1.200 |   1.2 |      3 |\n";
-        assert_eq!(t.to_markdown().unwrap(), expected);
-    }
-
-    #[test]
-    fn grouped_column_best_and_shape_errors() {
-        let header = ["Seq", "Variant", "MOTA"].map(String::from).to_vec();
-        let mut t = Table::new("", header);
-        t.set_decimals(2, 1);
-        for (seq, var, mota) in [
-            ("a", "x", 50.0),
-            ("a", "y", 60.0),
-            ("b", "x", 70.0),
-            ("b", "y", 65.0),
-            ("b", "z", 70.04),
-        ] {
-            t.push_row(vec![seq.into(), var.into(), Cell::Num(mota)])
-                .unwrap();
-        }
-        t.bold = vec![BoldRule::BestInColumn {
-            column: 2,
-            better: Better::Higher,
-            group_by: vec![0],
-        }];
-        let md = t.to_markdown().unwrap();
-        // No title line when the title is empty; best per sequence, not
-        // overall; 70.04 prints as 70.0 and ties with 70.0 (both bold).
-        assert!(md.starts_with("| Seq |"), "{md}");
-        assert!(md.contains("| a   | y       | **60.0** |"), "{md}");
-        assert!(md.contains("| b   | x       | **70.0** |"), "{md}");
-        assert!(md.contains("| b   | z       | **70.0** |"), "{md}");
-        assert_eq!(md.matches("**").count(), 6, "{md}");
-
-        let err = t.push_row(vec!["c".into()]).unwrap_err();
-        assert!(
-            matches!(
-                err,
-                ReportError::TableShape {
-                    row: 5,
-                    expected: 3,
-                    found: 1,
-                    ..
-                }
-            ),
-            "{err:?}"
-        );
-        t.rows.push(vec![Cell::Missing]);
-        assert!(matches!(
-            t.to_markdown(),
-            Err(ReportError::TableShape { row: 5, .. })
-        ));
-        t.rows.pop();
-        t.bold.push(BoldRule::BestInRow {
-            columns: vec![2, 7],
-            better: Better::Lower,
-        });
-        assert!(matches!(
-            t.to_markdown(),
-            Err(ReportError::TableColumn { column: 7, .. })
-        ));
-    }
-
-    #[test]
-    fn non_finite_numbers_stay_visible_and_never_bold() {
-        assert_eq!(format_fixed(f64::NAN, 3), "NaN");
-        assert_eq!(format_fixed(f64::NEG_INFINITY, 1), "-inf");
-        assert_eq!(format_fixed(-0.0004, 3), "0.000");
-        assert_eq!(format_fixed(-0.0006, 3), "-0.001");
-        let mut t = Table::new("", vec!["a".into(), "b".into()]);
-        t.push_row(vec![Cell::Num(f64::NAN), Cell::Num(1.0)])
-            .unwrap();
-        t.bold = vec![BoldRule::BestInRow {
-            columns: vec![0, 1],
-            better: Better::Lower,
-        }];
-        let md = t.to_markdown().unwrap();
-        assert!(md.contains("| NaN | 1.000 |"), "{md}");
-    }
-
-    fn ego(t: f64, r: f64) -> EgoAte {
-        EgoAte {
-            ate_t_m: t,
-            ate_r_rad: r,
-        }
-    }
-
-    #[test]
-    fn ego_ate_table_has_paper_shape_and_mean_row() {
-        let rows = vec![
-            EgoAteRow {
-                sequence: "00".into(),
-                per_variant: [
-                    (Variant::Limot, ego(0.846, 0.024)),
-                    (Variant::Lio, ego(0.856, 0.020)),
-                ]
-                .into(),
-            },
-            EgoAteRow {
-                sequence: "01".into(),
-                per_variant: [
-                    (Variant::Limot, ego(1.681, 0.045)),
-                    (Variant::Lio, ego(1.683, 0.044)),
-                ]
-                .into(),
-            },
-            EgoAteRow {
-                sequence: "02".into(),
-                per_variant: [
-                    (Variant::Dynafilt, ego(0.25, 0.011)),
-                    (Variant::Lio, ego(0.3, 0.010)),
-                    (Variant::Limot, ego(0.2, 0.012)),
-                ]
-                .into(),
-            },
-        ];
-        let t = ego_ate_table("Ego ATE", &rows).unwrap();
-        // Variants in enum order regardless of insertion order.
-        assert_eq!(
-            t.header,
-            [
-                "Seq",
-                "LIO ATE_T [m]",
-                "LIO ATE_R [rad]",
-                "LIO-Dynafilt ATE_T [m]",
-                "LIO-Dynafilt ATE_R [rad]",
-                "LIMOT ATE_T [m]",
-                "LIMOT ATE_R [rad]"
-            ]
-        );
-        assert_eq!(t.rows.len(), 4);
-        let mean = &t.rows[3];
-        assert_eq!(mean[0], Cell::Text("mean".into()));
-        // LIO-Dynafilt misses two sequences: its mean is missing, not partial.
-        assert_eq!(mean[3], Cell::Missing);
-        let Cell::Num(lio_mean_t) = mean[1] else {
-            panic!("{:?}", mean[1])
-        };
-        assert!((lio_mean_t - (0.856 + 1.683 + 0.3) / 3.0).abs() < 1e-12);
-        let md = t.to_markdown().unwrap();
-        let cells_of = |prefix: &str| -> Vec<String> {
-            let line = md.lines().find(|l| l.starts_with(prefix)).unwrap();
-            line.split('|').map(|c| c.trim().to_string()).collect()
-        };
-        // Seq 00: LIMOT has the lower ATE_T, LIO the lower ATE_R; Dynafilt missing.
-        assert_eq!(
-            cells_of("| 00")[2..8],
-            ["0.856", "**0.020**", "–", "–", "**0.846**", "0.024"]
-        );
-        // Mean row: LIO ATE_R 0.074/3 → 0.025, LIMOT ATE_T 2.727/3 → 0.909.
-        assert_eq!(
-            cells_of("| mean")[2..8],
-            ["0.946", "**0.025**", "–", "–", "**0.909**", "0.027"]
-        );
-    }
-
-    #[test]
-    fn tracking_object_and_timing_tables() {
-        let tr = |variant, mota, idsw| TrackingRow {
-            sequence: "0001".into(),
-            variant,
-            iou_threshold: 0.25,
-            mota_percent: Some(mota),
-            motp_percent: None,
-            idsw,
-            fp: 3,
-            fn_: 4,
-        };
-        let t = tracking_table(
-            "MOT",
-            &[tr(Variant::Lio, 70.0, 5), tr(Variant::Limot, 80.0, 2)],
-        )
-        .unwrap();
-        let md = t.to_markdown().unwrap();
-        assert!(
-            md.contains("| LIMOT   |    0.25 | **80.00** | –        | **2** |   3 |   4 |"),
-            "{md}"
-        );
-        assert!(
-            md.contains("| LIO     |    0.25 |     70.00 | –        |     5 |   3 |   4 |"),
-            "{md}"
-        );
-
-        let m = |tp, t| ObjectMetrics {
-            tp_percent: tp,
-            ate_t_m: t,
-            ate_r_rad: Some(0.1),
-        };
-        let rows = vec![ObjectRow {
-            sequence: "04".into(),
-            object_id: 2,
-            per_variant: [
-                (Variant::Lio, m(27.07, Some(0.7))),
-                (Variant::Limot, m(27.07, None)),
-                (Variant::Dynafilt, m(25.0, Some(0.8))),
-            ]
-            .into(),
-        }];
-        let t = object_table("Objects", &rows).unwrap();
-        assert_eq!(t.header.len(), 10);
-        let md = t.to_markdown().unwrap();
-        let line = md.lines().find(|l| l.starts_with("| 04 / 2")).unwrap();
-        // Equal best TP ties (both bold, Dynafilt's 25.00 not); a
-        // never-matched object has no ATE, the best of the others is bold.
-        assert_eq!(line.matches("**27.07**").count(), 2, "{line}");
-        assert!(
-            line.contains(" **0.700** ") && line.contains(" – "),
-            "{line}"
-        );
-        // Every ATE_R is 0.1: an all-way tie has no best.
-        assert!(!line.contains("**0.100**"), "{line}");
-
-        let mut acc = TimingAccumulator::new();
-        for ms in [10u64, 20, 30, 40] {
-            acc.record("odometry", std::time::Duration::from_millis(ms));
-        }
-        let row = TimingRow::from_accumulator(&acc, "odometry").unwrap();
-        assert!((row.mean_ms - 25.0).abs() < 1e-9 && (row.fps - 40.0).abs() < 1e-9);
-        assert!((row.p95_ms - 38.5).abs() < 1e-9, "{}", row.p95_ms);
-        assert!(TimingRow::from_accumulator(&acc, "nope").is_none());
-        let md = timing_table("Timing", &[row])
-            .unwrap()
-            .to_markdown()
-            .unwrap();
-        assert!(
-            md.contains("| odometry |      25.0 |     38.5 | 40.0 |"),
-            "{md}"
-        );
-        // A stage that did no work has no FPS.
-        acc.record("filter", std::time::Duration::from_nanos(40));
-        let idle = TimingRow::from_accumulator(&acc, "filter").unwrap();
-        let md = timing_table("Timing", &[idle])
-            .unwrap()
-            .to_markdown()
-            .unwrap();
-        assert!(
-            md.contains("| filter |       0.0 |      0.0 | –   |"),
-            "{md}"
-        );
-    }
-
-    #[test]
-    fn variant_names_round_trip() {
-        for v in Variant::ALL {
-            assert_eq!(Variant::parse(v.name()).unwrap(), v);
-            assert_eq!(Variant::parse(v.label()).unwrap(), v);
-            assert_eq!(v.to_string().parse::<Variant>().unwrap(), v);
-        }
-        assert_eq!(Variant::parse(" LIMOT ").unwrap(), Variant::Limot);
-        let err = Variant::parse("segmot").unwrap_err();
-        assert!(err.to_string().contains("segmot"));
-    }
-}
+mod tests;

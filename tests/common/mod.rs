@@ -57,7 +57,7 @@ pub fn simulate(spec: &limot_sim::scenario::ScenarioSpec, name: &str) -> PathBuf
 /// dataset's ground truth.
 #[allow(dead_code)]
 pub fn ate(dataset: &std::path::Path, output: &limot::run::RunOutput) -> (f64, f64) {
-    use limot::evaluate::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
+    use limot::experiments::{EgoEvalOptions, Trajectory, evaluate_trajectories, load_truth};
     let opts = EgoEvalOptions::default();
     let truth = load_truth(dataset, &opts).unwrap();
     let estimate = Trajectory {
