@@ -10,8 +10,9 @@ use limot::io::kitti::detections::{
 use limot::io::kitti::labels::{TrackingLabel, read_labels};
 use limot::io::kitti::oxts::{OxtsRecord, oxts_to_imu, oxts_to_poses, read_oxts};
 use limot::io::kitti::seqmap::read_seqmap;
+use limot::io::kitti::sequence_file;
 use limot::io::kitti::velodyne::{RingSource, read_bin, ring_from_elevation};
-use limot::io::kitti::{sequence_file, wrap_angle_rad};
+use limot_estimator::geometry::wrap_angle_rad;
 use nalgebra::{Isometry3, Rotation3, Vector3};
 use std::collections::BTreeMap;
 use std::path::PathBuf;

@@ -14,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod eigen3;
+pub mod geometry;
 pub mod graph;
 pub mod imu;
 pub mod input;

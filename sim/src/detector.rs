@@ -5,6 +5,7 @@
 
 use crate::lidar::LidarConfig;
 use crate::scene::{Agent, Ego, Scene};
+use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::{Detection, InputError, ObjectClass};
 use nalgebra::{Point3, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -12,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Poisson, StandardNormal};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::PI;
 
 /// Per-class noise of detected boxes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -401,7 +402,7 @@ impl Detector {
         Detection {
             center_lidar,
             size_lwh,
-            yaw_rad: wrap_angle(yaw_rad),
+            yaw_rad: wrap_angle_rad(yaw_rad),
             class: truth.class,
             score: score.clamp(0.0, 1.0),
             time_offset_s: truth.time_offset_s,
@@ -437,7 +438,7 @@ impl Detector {
         let size_lwh = Vector3::from_fn(|i, _| {
             (FALSE_SIZE_MEAN_M[i] + FALSE_SIZE_SIGMA_M[i] * gaussian(rng)).max(MIN_SIZE_M)
         });
-        let yaw_rad = wrap_angle(rng.random_range(-PI..PI));
+        let yaw_rad = wrap_angle_rad(rng.random_range(-PI..PI));
         let score = rng.random_range(FALSE_SCORE_MIN..FALSE_SCORE_MAX);
 
         let time_offset_s = lidar.time_offset_of_azimuth(azimuth);
@@ -466,12 +467,6 @@ impl Detector {
     }
 }
 
-/// Wraps an angle to (-pi, pi].
-pub fn wrap_angle(a: f64) -> f64 {
-    let w = (a + PI).rem_euclid(TAU) - PI;
-    if w <= -PI { w + TAU } else { w }
-}
-
 fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
     rng.sample(StandardNormal)
 }
@@ -483,18 +478,6 @@ fn gaussian_vector(rng: &mut ChaCha8Rng) -> Vector3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn wrap_angle_lands_in_half_open_interval() {
-        assert_eq!(wrap_angle(PI), PI);
-        assert_eq!(wrap_angle(-PI), PI);
-        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
-        assert!((wrap_angle(-7.0) - (-7.0 + TAU)).abs() < 1e-12);
-        for i in -100..100 {
-            let w = wrap_angle(i as f64 * 0.37);
-            assert!(w > -PI && w <= PI);
-        }
-    }
 
     #[test]
     fn recall_shape_matches_the_documented_figures() {

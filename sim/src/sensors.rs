@@ -5,7 +5,7 @@
 //! one seed per sensor from the scenario seed.
 
 pub use crate::detector::{
-    ClassNoise, DetectionWithTruth, Detector, DetectorConfig, DetectorError, wrap_angle,
+    ClassNoise, DetectionWithTruth, Detector, DetectorConfig, DetectorError,
 };
 pub use crate::imu::{ImuConfig, ImuError, ImuSimulator, ImuStream};
 pub use crate::lidar::LidarConfig;

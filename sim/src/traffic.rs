@@ -37,7 +37,7 @@ pub use lift::{lift_onto, lift_to_ground};
 pub use overlap::{Body, Overlap, first_overlap};
 pub use suspension::{BodyAttitude, RideInput, Suspension, ride};
 
-use lane_path::wrap_angle;
+use limot_estimator::geometry::wrap_angle_rad;
 use spec::validate;
 pub use spec::{
     DriverParams, LaneChange, PlanarSample, PlanarTrack, StopLine, TrafficError, TrafficSpec,
@@ -141,7 +141,7 @@ fn global_lane_frame(lane: &LanePath, v: &Vehicle, vs: &VehicleSpec) -> LaneFram
 }
 
 fn frame_from(lane: &LanePath, v: &Vehicle, vs: &VehicleSpec, s: f64, d: f64) -> LaneFrame {
-    let dpsi = wrap_angle(v.yaw - lane.heading_at(s));
+    let dpsi = wrap_angle_rad(v.yaw - lane.heading_at(s));
     let (sn, cs) = dpsi.sin_cos();
     let (l2, w2) = (0.5 * vs.size_lwh_m.x, 0.5 * vs.size_lwh_m.y);
     LaneFrame {

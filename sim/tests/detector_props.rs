@@ -2,11 +2,12 @@
 //! an ego car driving an S-curve over sloped, undulating ground among cars,
 //! trucks, cyclists and pedestrians driving along with it, plus parked cars.
 
+use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::{Detection, ObjectClass};
 use limot_sim::scene::{Agent, Ego, Ground, Scene, Undulation};
 use limot_sim::scene::{Jet, Knot, Trajectory};
 use limot_sim::sensors::LidarConfig;
-use limot_sim::sensors::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig, wrap_angle};
+use limot_sim::sensors::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -298,7 +299,7 @@ fn zero_noise_returns_the_true_time_aligned_boxes() {
                 agent.id
             );
             assert_eq!(got.size_lwh, want.size_lwh);
-            assert!(wrap_angle(got.yaw_rad - want.yaw_rad).abs() < 1e-9);
+            assert!(wrap_angle_rad(got.yaw_rad - want.yaw_rad).abs() < 1e-9);
             assert!((got.time_offset_s - want.time_offset_s).abs() < 1e-12);
             assert_eq!(got.class, want.class);
             // the sweep time matters: at the scan start the box is elsewhere
@@ -369,10 +370,10 @@ fn box_errors_match_the_configured_class_noise() {
             e.center
                 .extend((got.center_lidar - want.center_lidar).iter());
             e.size.extend((got.size_lwh - want.size_lwh).iter());
-            let dyaw = wrap_angle(got.yaw_rad - want.yaw_rad);
+            let dyaw = wrap_angle_rad(got.yaw_rad - want.yaw_rad);
             if dyaw.abs() > PI / 2.0 {
                 e.flips += 1;
-                e.yaw.push(wrap_angle(dyaw - PI));
+                e.yaw.push(wrap_angle_rad(dyaw - PI));
             } else {
                 e.yaw.push(dyaw);
             }

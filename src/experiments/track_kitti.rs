@@ -30,11 +30,12 @@ use crate::io::kitti::labels::{TrackingLabel, read_labels};
 use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
 use crate::io::kitti::seqmap::SeqmapEntry;
-use crate::io::kitti::{KittiError, sequence_file, wrap_angle_rad};
+use crate::io::kitti::{KittiError, sequence_file};
 use crate::metrics::EvalError;
 use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::metrics::{ClearMotResult, combine_sequences};
 use crate::metrics::{KittiEvalClass, kitti_2d_clear_mot, kitti_3d_clear_mot};
+use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::Detection;
 use limot_estimator::tracking::{
     Extrapolation, HeadingRule, Lifecycle, TrackOutput, Tracker, TrackerConfig, TrackerError,

@@ -14,8 +14,8 @@
 
 use super::EvalError;
 use super::clear_mot::{ClearMotConfig, MotFrame, clear_mot};
+use limot_estimator::geometry::wrap_angle_rad;
 use std::collections::BTreeMap;
-use std::f64::consts::{PI, TAU};
 
 #[derive(Debug, Clone, PartialEq)]
 /// TP % and ATE of one ground-truth object.
@@ -36,12 +36,6 @@ pub struct ObjectScore {
     pub ate_t_rmse_m: Option<f64>,
     /// Yaw-difference RMSE over `ate_frames`; `None` if never matched.
     pub ate_r_rmse_rad: Option<f64>,
-}
-
-/// Wraps an angle to (−π, π].
-fn wrap_angle(a: f64) -> f64 {
-    let w = (a + PI).rem_euclid(TAU) - PI;
-    if w == -PI { PI } else { w }
 }
 
 /// Scores every ground-truth object (sorted by id). `cfg.iou_threshold` is the
@@ -74,7 +68,7 @@ pub fn object_scores(
             let e = a.per_track.entry(m.track_id).or_insert((0, 0.0, 0.0));
             e.0 += 1;
             e.1 += (g.center - t.center).norm_squared();
-            e.2 += wrap_angle(t.yaw_rad - g.yaw_rad).powi(2);
+            e.2 += wrap_angle_rad(t.yaw_rad - g.yaw_rad).powi(2);
         }
     }
     Ok(acc
@@ -112,18 +106,6 @@ pub fn object_scores(
             }
         })
         .collect())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn wrap_angle_range() {
-        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
-        assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
-        assert!((wrap_angle(0.3) - 0.3).abs() < 1e-15);
-    }
 }
 
 #[cfg(test)]

@@ -25,6 +25,7 @@
 
 use super::EvalError;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::LidarPoint;
 use limot_estimator::lidar::voxel_downsample;
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
@@ -574,9 +575,9 @@ impl RealismAccumulator {
             && moving
         {
             self.roll_changes_deg
-                .push(wrap_pi(roll - roll0).abs().to_degrees());
+                .push(wrap_angle_rad(roll - roll0).abs().to_degrees());
             self.pitch_changes_deg
-                .push(wrap_pi(pitch - pitch0).abs().to_degrees());
+                .push(wrap_angle_rad(pitch - pitch0).abs().to_degrees());
         }
         self.previous_attitude = Some((roll, pitch));
 
@@ -722,11 +723,6 @@ impl RealismAccumulator {
             intensity_histogram,
         })
     }
-}
-
-fn wrap_pi(angle_rad: f64) -> f64 {
-    let a = (angle_rad + PI).rem_euclid(TAU) - PI;
-    if a == -PI { PI } else { a }
 }
 
 /// Bin of `v` among `bins` bins of `width` from `start`, clamped to the ends.

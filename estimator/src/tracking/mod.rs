@@ -29,8 +29,6 @@ pub use trajectory_fit::{
     FitError, FitPrediction, FitPrior, FitSample, MAX_DEGREE, TrajectoryFit, degree_for_samples,
 };
 
-pub(crate) use tracker::wrap_angle;
-
 /// Tracker parameters. Defaults are the paper's where it gives them
 /// (window 5, alpha 100, v_thres 1 m/s, initialised after 5 frames, cubic);
 /// the static/dynamic decision adds noise-aware hysteresis (see the module

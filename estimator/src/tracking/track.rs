@@ -403,7 +403,7 @@ impl Track {
 /// so an unwrapped history stays unwrapped.
 pub(crate) fn rotated_yaw(t_new_old: &Isometry3<f64>, yaw_rad: f64) -> f64 {
     let heading = t_new_old.rotation * Vector3::new(yaw_rad.cos(), yaw_rad.sin(), 0.0);
-    yaw_rad + super::tracker::wrap_angle(heading.y.atan2(heading.x) - yaw_rad)
+    yaw_rad + crate::geometry::wrap_angle_rad(heading.y.atan2(heading.x) - yaw_rad)
 }
 
 fn fit_sample(b: &TimedBox) -> FitSample {

@@ -7,10 +7,10 @@ use super::association::{associate_by_class, matching_matrix};
 use super::track::{Lifecycle, Motion, TimedBox, Track, rotated_yaw};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
+use crate::geometry::wrap_angle_rad;
 use crate::input::ObjectClass;
 use crate::object_removal::OrientedBox;
 use nalgebra::{Isometry3, Vector3};
-use std::f64::consts::PI;
 
 /// A detection already transformed into the world frame by the caller
 /// (with the ego pose at the detection time).
@@ -161,20 +161,10 @@ impl TrackOutput {
     pub fn transformed(&self, t_new_old: &Isometry3<f64>) -> TrackOutput {
         TrackOutput {
             center_world: t_new_old.transform_point(&self.center_world.into()).coords,
-            yaw_rad: wrap_angle(rotated_yaw(t_new_old, self.yaw_rad)),
+            yaw_rad: wrap_angle_rad(rotated_yaw(t_new_old, self.yaw_rad)),
             velocity_world_mps: t_new_old.rotation * self.velocity_world_mps,
             ..*self
         }
-    }
-}
-
-/// Wraps an angle to (−π, π].
-pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
-    let wrapped = (angle_rad + PI).rem_euclid(2.0 * PI) - PI;
-    if wrapped <= -PI {
-        wrapped + 2.0 * PI
-    } else {
-        wrapped
     }
 }
 
@@ -232,7 +222,7 @@ impl Tracker {
         }
         let track = self.tracks.iter().find(|t| t.id() == id)?;
         let p = track.predict(t_s);
-        Some((p.center_world, wrap_angle(p.yaw_rad)))
+        Some((p.center_world, wrap_angle_rad(p.yaw_rad)))
     }
 
     /// Re-expresses every track in another world frame (`t_new_old` maps
@@ -434,7 +424,7 @@ impl Tracker {
                     id: t.id(),
                     class: t.class(),
                     center_world: p.center_world,
-                    yaw_rad: wrap_angle(p.yaw_rad),
+                    yaw_rad: wrap_angle_rad(p.yaw_rad),
                     size_lwh: t.size_lwh(),
                     velocity_world_mps: p.velocity_world_mps,
                     lifecycle: t.lifecycle(),
@@ -453,6 +443,7 @@ impl Tracker {
 mod tests {
     use super::super::{AssociationMetric, HeadingRule};
     use super::*;
+    use std::f64::consts::PI;
 
     fn car_at(x: f64, y: f64) -> WorldDetection {
         WorldDetection {
@@ -515,28 +506,20 @@ mod tests {
             (center - moved[0].center_world).norm() < 1e-6,
             "{center} vs {moved:?}"
         );
-        assert!(wrap_angle(yaw - moved[0].yaw_rad).abs() < 1e-6);
-        assert!((wrap_angle(moved[0].yaw_rad - (0.3 + 0.5))).abs() < 0.01);
+        assert!(wrap_angle_rad(yaw - moved[0].yaw_rad).abs() < 1e-6);
+        assert!((wrap_angle_rad(moved[0].yaw_rad - (0.3 + 0.5))).abs() < 0.01);
         assert!(
             (moved[0].velocity_world_mps.norm() - before[0].velocity_world_mps.norm()).abs() < 1e-9
         );
         // The next detection, seen in the new world, continues the same track.
         let mut next = drive(6);
         next.center_world = t_new_old.transform_point(&next.center_world.into()).coords;
-        next.yaw_rad = wrap_angle(rotated_yaw(&t_new_old, next.yaw_rad));
+        next.yaw_rad = wrap_angle_rad(rotated_yaw(&t_new_old, next.yaw_rad));
         let after = tracker.update(0.6, &[next]).unwrap();
         assert_eq!(after.len(), 1);
         assert_eq!(after[0].id, before[0].id);
         assert_eq!(after[0].lifecycle, Lifecycle::Confirmed);
         assert_eq!(after[0].detection_index, Some(0));
-    }
-
-    #[test]
-    fn wrap_angle_range() {
-        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
-        assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
-        assert!((wrap_angle(0.5) - 0.5).abs() < 1e-15);
-        assert!((wrap_angle(-7.0) - (-7.0 + 2.0 * PI)).abs() < 1e-12);
     }
 
     #[test]
@@ -660,12 +643,15 @@ mod tests {
         let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
         for k in 0..10 {
             let mut det = car_at(0.0, k as f64);
-            det.yaw_rad = wrap_angle(PI - 0.3 + 0.06 * k as f64);
+            det.yaw_rad = wrap_angle_rad(PI - 0.3 + 0.06 * k as f64);
             tracker.update(0.1 * k as f64, &[det]).unwrap();
         }
         // Turning at 0.6 rad/s through ±π: the fit sees a smooth ramp.
         let (_, yaw) = tracker.predict_box(0, 1.0).unwrap();
-        assert!((wrap_angle(yaw - (PI - 0.3 + 0.6))).abs() < 1e-6, "{yaw}");
+        assert!(
+            (wrap_angle_rad(yaw - (PI - 0.3 + 0.6))).abs() < 1e-6,
+            "{yaw}"
+        );
         assert!(tracker.predict_box(99, 1.0).is_none());
     }
 
@@ -776,19 +762,19 @@ mod tests {
                 det.yaw_rad = yaw;
                 out = tracker.update(t, &[det]).unwrap();
             }
-            wrap_angle(out[0].yaw_rad)
+            wrap_angle_rad(out[0].yaw_rad)
         };
         // Parked: the first box backwards, the next four forwards.
         let parked = [PI - 0.02, 0.01, -0.01, 0.0, 0.02];
         let first = final_yaw(HeadingRule::FirstDetection, 0.0, &parked);
         let majority = final_yaw(HeadingRule::MotionOrMajority, 0.0, &parked);
-        assert!(wrap_angle(first - PI).abs() < 0.05, "{first}");
+        assert!(wrap_angle_rad(first - PI).abs() < 0.05, "{first}");
         assert!(majority.abs() < 0.05, "{majority}");
         // Driving along +x at 10 m/s, every box backwards: the motion wins.
         let backwards = [PI; 12];
         let first = final_yaw(HeadingRule::FirstDetection, 10.0, &backwards);
         let moving = final_yaw(HeadingRule::MotionOrMajority, 10.0, &backwards);
-        assert!(wrap_angle(first - PI).abs() < 0.05, "{first}");
+        assert!(wrap_angle_rad(first - PI).abs() < 0.05, "{first}");
         assert!(moving.abs() < 0.05, "{moving}");
     }
 }

@@ -5,6 +5,7 @@
 //! interpolated linearly in arc length, which is exact on straights and arcs.
 
 use super::TrafficError;
+use limot_estimator::geometry::wrap_angle_rad;
 use nalgebra::{Point2, Vector2};
 use std::collections::HashMap;
 
@@ -211,7 +212,7 @@ impl LanePath {
         let mut prev = dense_tangent[0].y.atan2(dense_tangent[0].x);
         for t in &dense_tangent {
             let h = t.y.atan2(t.x);
-            let unwrapped = prev + wrap_angle(h - prev);
+            let unwrapped = prev + wrap_angle_rad(h - prev);
             heading.push(unwrapped);
             prev = unwrapped;
         }
@@ -382,16 +383,6 @@ fn unit(h: f64) -> Vector2<f64> {
     Vector2::new(h.cos(), h.sin())
 }
 
-/// Wraps an angle to (-pi, pi].
-pub(crate) fn wrap_angle(a: f64) -> f64 {
-    let w = a.rem_euclid(std::f64::consts::TAU);
-    if w > std::f64::consts::PI {
-        w - std::f64::consts::TAU
-    } else {
-        w
-    }
-}
-
 /// Moves along a circle (or line for k = 0) by arc length u.
 fn advance(p: Point2<f64>, h: f64, k: f64, u: f64) -> (Point2<f64>, f64) {
     let h1 = h + k * u;
@@ -490,7 +481,7 @@ mod tests {
             let s = left.length_m() * i as f64 / 100.0;
             let (s_ref, d) = reference.project(&left.point_at(s));
             assert!((d - 3.5).abs() < 1e-6, "lateral {d} at s {s}");
-            let dh = wrap_angle(left.heading_at(s) - reference.heading_at(s_ref));
+            let dh = wrap_angle_rad(left.heading_at(s) - reference.heading_at(s_ref));
             assert!(dh.abs() < 1e-6);
         }
     }

@@ -354,7 +354,7 @@ fn lifted_trajectory_follows_the_dense_samples() {
         worst_xy = worst_xy.max(((v.x - p.x).powi(2) + (v.y - p.y).powi(2)).sqrt());
         worst_z = worst_z.max((v.z - ground.height(p.x, p.y) - 0.75).abs());
         let (_, _, yaw) = pose.rotation.euler_angles();
-        worst_yaw = worst_yaw.max(wrap_angle(yaw - p.yaw).abs());
+        worst_yaw = worst_yaw.max(wrap_angle_rad(yaw - p.yaw).abs());
     }
     eprintln!("lift error: xy {worst_xy:.2e} m, z {worst_z:.2e} m, yaw {worst_yaw:.2e} rad");
     assert!(worst_xy < 1e-3 && worst_z < 1e-3 && worst_yaw < 1e-4);

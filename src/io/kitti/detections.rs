@@ -22,7 +22,8 @@
 use super::calib::Calib;
 use super::labels::{CameraBox, TrackingLabel};
 use super::velodyne::sweep_time_offset_s;
-use super::{LineCtx, Result, content_lines, read_text, wrap_angle_rad};
+use super::{LineCtx, Result, content_lines, read_text};
+use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::{Detection, ObjectClass};
 use nalgebra::Vector3;
 use std::f64::consts::FRAC_PI_2;

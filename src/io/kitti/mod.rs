@@ -208,16 +208,6 @@ pub(crate) fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
         .filter(|(_, l)| !l.trim().is_empty())
 }
 
-/// Wraps an angle to (-pi, pi].
-pub fn wrap_angle_rad(angle_rad: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let mut a = angle_rad.rem_euclid(TAU);
-    if a > PI {
-        a -= TAU;
-    }
-    a
-}
-
 /// Path of a per-sequence file, e.g. `root/training/calib/0001.txt`.
 pub fn sequence_file(dir: &Path, sequence: u32) -> PathBuf {
     dir.join(format!("{sequence:04}.txt"))
@@ -226,17 +216,6 @@ pub fn sequence_file(dir: &Path, sequence: u32) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn wrap_angle_stays_in_range() {
-        use std::f64::consts::PI;
-        for k in -20..=20 {
-            let a = 0.3 + k as f64 * 2.0 * PI;
-            assert!((wrap_angle_rad(a) - 0.3).abs() < 1e-9);
-        }
-        assert_eq!(wrap_angle_rad(PI), PI);
-        assert!((wrap_angle_rad(-PI) - PI).abs() < 1e-12);
-    }
 
     #[test]
     fn number_parsing_rejects_nan_and_names_the_field() {

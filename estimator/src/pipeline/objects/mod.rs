@@ -38,6 +38,7 @@ mod config;
 
 pub use config::ObjectGraphConfig;
 
+use crate::geometry::wrap_angle_rad;
 use crate::graph::{
     ConditionedFactor, Factor, Key, NoiseModel, ObjectMotionFactor, ObjectObservationFactor,
     RobustKernel, SlidingWindowSmoother, SmoothMotionFactor, SolverConfig, Values, Variable,
@@ -45,7 +46,6 @@ use crate::graph::{
 };
 use crate::input::{Detection, ObjectClass};
 use crate::lidar::SweepMotion;
-use crate::tracking::wrap_angle;
 use crate::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
@@ -113,7 +113,7 @@ impl FrameObservation {
     /// symmetric under a half turn, and detectors confuse front and back.
     fn folded(&self, t_world_lidar: &Isometry3<f64>, reference_yaw_rad: f64) -> FrameObservation {
         let mut out = *self;
-        if wrap_angle(yaw_of(&(t_world_lidar * self.t_lidar_object)) - reference_yaw_rad).abs()
+        if wrap_angle_rad(yaw_of(&(t_world_lidar * self.t_lidar_object)) - reference_yaw_rad).abs()
             > 0.5 * PI
         {
             out.t_lidar_object.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);

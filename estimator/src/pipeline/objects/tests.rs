@@ -311,7 +311,7 @@ fn noisy_and_flipped_detected_headings_do_not_turn_the_chain() {
         let e = scene.step(k, &sighting).expect("an estimate every frame");
         let error = (e.t_world_object.translation.vector - center).norm();
         assert!(error < 0.03, "frame {k}: error {error}");
-        let heading_error = wrap_angle(yaw_of(&e.t_world_object) - walk_yaw);
+        let heading_error = wrap_angle_rad(yaw_of(&e.t_world_object) - walk_yaw);
         assert!(
             heading_error.abs() < 0.3,
             "frame {k}: heading off by {heading_error}"

@@ -344,7 +344,8 @@ fn synthetic_100hz_drive_reads_back() {
         let p = pose.translation.vector;
         worst_pos_m = worst_pos_m.max((p - Vector3::new(east, north, 0.0)).norm());
         let (_, _, pose_yaw) = pose.rotation.euler_angles();
-        worst_yaw_rad = worst_yaw_rad.max(crate::io::kitti::wrap_angle_rad(pose_yaw - yaw).abs());
+        worst_yaw_rad =
+            worst_yaw_rad.max(limot_estimator::geometry::wrap_angle_rad(pose_yaw - yaw).abs());
     }
     // 2 s at 0.5 rad/s: a full 1 rad of arc, 20 m of travel.
     let last = poses.last().unwrap().translation.vector;
