@@ -193,7 +193,10 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
     let source = crate::io::Source::open(&dataset_dir).map_err(crate::run::RunError::from)?;
     let mut estimators = Vec::new();
     let mut estimated_xy = Vec::new();
-    for variant in [crate::report::Variant::Lio, crate::report::Variant::Limot] {
+    for variant in [
+        limot_estimator::Variant::Lio,
+        limot_estimator::Variant::Limot,
+    ] {
         let (summary, xy) = run_variant(&source, &dataset_dir, out, variant, progress)?;
         estimators.push(summary);
         estimated_xy.push(xy);
@@ -425,7 +428,7 @@ fn run_variant(
     source: &crate::io::Source,
     dataset_dir: &Path,
     out: &Path,
-    variant: crate::report::Variant,
+    variant: limot_estimator::Variant,
     progress: bool,
 ) -> Result<(EstimatorSummary, Vec<(f64, f64)>), DemoError> {
     let run_options = crate::run::RunOptions {

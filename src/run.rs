@@ -12,10 +12,9 @@ use crate::io::kitti::KittiError;
 use crate::io::kitti::poses::StampedPose;
 use crate::io::kitti::velodyne::raise_elevation;
 use crate::io::{ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, write_run_files};
-use crate::report::Variant;
 use limot_estimator::input::{Extrinsics, ImuSample};
 use limot_estimator::pipeline::{
-    Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant as EstimatorVariant,
+    Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant,
 };
 use limot_estimator::tracking::TrackerConfig;
 use std::fs;
@@ -229,12 +228,7 @@ fn estimator_config(
     imu_samples: &[ImuSample],
 ) -> EstimatorConfig {
     let mut config = config.unwrap_or_default();
-    config.variant = match variant {
-        Variant::Lio => EstimatorVariant::Lio,
-        Variant::Allfilt => EstimatorVariant::Allfilt,
-        Variant::Dynafilt => EstimatorVariant::Dynafilt,
-        Variant::Limot => EstimatorVariant::Limot,
-    };
+    config.variant = variant;
     if !has_imu {
         config.mode = Mode::LidarOnly;
     }

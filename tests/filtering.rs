@@ -5,9 +5,9 @@
 
 use limot::experiments::evaluate_filtering;
 use limot::io::Source;
-use limot::report::Variant;
 use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
+use limot_estimator::Variant;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::Simulation;
 use limot_sim::record::Dataset;

@@ -9,9 +9,9 @@ mod common;
 
 use common::{ate, simulate};
 use limot::io::Source;
-use limot::report::Variant;
 use limot::run::{RunOptions, RunOutput, run};
 use limot::simulate::resolve_scenario;
+use limot_estimator::Variant;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_estimator::tracking::Lifecycle;
 use limot_sim::record::{BoxTruth, Dataset, EgoTruth};

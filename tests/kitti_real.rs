@@ -9,8 +9,8 @@ use limot::experiments::TrackScores;
 use limot::experiments::kitti_val_tuned_options;
 use limot::experiments::{KittiSuiteResults, KittiSuiteSpec, run_kitti_suite};
 use limot::io::kitti::detections::ScoreMap;
-use limot::report::Variant;
 use limot::report::write_kitti_report;
+use limot_estimator::Variant;
 use std::path::{Path, PathBuf};
 
 mod common;

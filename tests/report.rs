@@ -1,9 +1,10 @@
 //! Report layer end to end: SVG plots on disk and the report directory.
 
 use limot::report::{
-    Cell, LineKind, Plot, PlotKind, Report, ReportError, Section, Series2D, Table, Variant,
+    Cell, LineKind, Plot, PlotKind, Report, ReportError, Section, Series2D, Table,
     plot_error_over_time, plot_object_tracks, plot_speed, plot_trajectories_xy, write_report,
 };
+use limot_estimator::Variant;
 use std::path::{Path, PathBuf};
 
 /// A fresh directory per test under cargo's integration-test scratch dir.

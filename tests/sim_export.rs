@@ -148,8 +148,8 @@ fn simulate_refuses_to_mix_with_existing_files() {
 #[test]
 fn the_estimator_runs_on_the_kitti_copy_as_on_the_dataset() {
     use limot::io::Source;
-    use limot::report::Variant;
     use limot::run::{RunOptions, run};
+    use limot_estimator::Variant;
     use limot_estimator::tracking::Lifecycle;
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = 12.0;

@@ -3,8 +3,8 @@
 //! not available without aborting the suite.
 
 use limot::experiments::{RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite};
-use limot::report::Variant;
 use limot::report::write_suite_report;
+use limot_estimator::Variant;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;

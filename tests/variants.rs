@@ -8,9 +8,9 @@ mod common;
 
 use common::{ate, simulate};
 use limot::io::Source;
-use limot::report::Variant;
 use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
+use limot_estimator::Variant;
 use std::path::Path;
 
 fn ate_of(dir: &Path, variant: Variant) -> f64 {

@@ -150,7 +150,7 @@ pub(super) fn run_eval_suite(
     jobs: Option<usize>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::experiments::{Shard, SuiteSpec, parse_list, run_suite};
-    use crate::report::Variant;
+    use limot_estimator::Variant;
     let spec = SuiteSpec {
         families: parse_list("families", families, |s| Ok(s.to_string()))?,
         seeds: parse_list("seeds", seeds, |s| {
@@ -158,7 +158,7 @@ pub(super) fn run_eval_suite(
         })?,
         duration_s,
         variants: parse_list("variants", variants, |s| {
-            Variant::parse(s).map_err(|e| e.to_string())
+            s.parse::<Variant>().map_err(|e| e.to_string())
         })?,
         out_dir: out,
         shard: shard.map(Shard::parse).transpose()?,
@@ -211,13 +211,13 @@ pub(super) fn run_eval_kitti(
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::experiments::parse_list;
     use crate::experiments::{KittiSuiteSpec, run_kitti_suite};
-    use crate::report::Variant;
+    use limot_estimator::Variant;
     let spec = KittiSuiteSpec {
         training,
         detections,
         tracking: kitti_tracking_options(tracker, parse_score_map(score_map)?)?,
         variants: parse_list("variants", variants, |s| {
-            Variant::parse(s).map_err(|e| e.to_string())
+            s.parse::<Variant>().map_err(|e| e.to_string())
         })?,
         sequences: sequences
             .map(|s| {

@@ -25,8 +25,8 @@ pub(super) fn run_estimator(
     tracker: &str,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::io::Source;
-    use crate::report::Variant;
     use crate::run::{RunOptions, run, write_output};
+    use limot_estimator::Variant;
     let variant = Variant::ALL
         .into_iter()
         .find(|v| v.name() == variant)

@@ -32,10 +32,10 @@ use crate::experiments::{TrackEvalOptions, TracksEvaluation, dataset_calib, eval
 use crate::io::Source;
 use crate::metrics::IouKind;
 use crate::metrics::MotSummary;
-use crate::report::Variant;
 use crate::run::{RunOptions, RunOutput, run, write_dataset_kitti_tracks, write_output};
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use indicatif::{ProgressBar, ProgressStyle};
+use limot_estimator::Variant;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::record::Dataset;
 use serde::{Deserialize, Serialize};
@@ -666,7 +666,7 @@ mod tests {
     #[test]
     fn list_parsing_trims_and_reports_the_option() {
         let v = parse_list("variants", " lio, dynafilt ,", |s| {
-            Variant::parse(s).map_err(|e| e.to_string())
+            s.parse::<Variant>().map_err(|e| e.to_string())
         })
         .unwrap();
         assert_eq!(v, vec![Variant::Lio, Variant::Dynafilt]);

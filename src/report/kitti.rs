@@ -7,7 +7,9 @@ use crate::experiments::{EgoScores, ObjectSummary, TrackScores};
 use crate::experiments::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
 use crate::metrics::MotSummary;
 use crate::report::table::{Better, BoldRule, Cell, Table};
-use crate::report::{Report, ReportError, Section, Variant, write_report};
+use crate::report::{Report, ReportError, Section, write_report};
+
+use limot_estimator::Variant;
 use std::path::{Path, PathBuf};
 
 mod paper;

@@ -26,19 +26,11 @@ pub use table::{
 };
 
 use std::collections::BTreeSet;
-use std::fmt;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 
 /// Why a report, table or plot could not be produced.
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
-    #[error("unknown variant {name:?} (expected lio, allfilt, dynafilt or limot)")]
-    /// A variant name is not one of the four.
-    UnknownVariant {
-        /// The name given.
-        name: String,
-    },
     #[error("table {table:?}: row {row} has {found} cells, the header has {expected}")]
     /// A row has another number of cells than the header.
     TableShape {
@@ -122,78 +114,6 @@ pub enum ReportError {
         /// The cause.
         source: std::io::Error,
     },
-}
-
-/// The four system variants compared in the paper's ablation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum Variant {
-    /// LiDAR-inertial odometry without object handling (LIO-SAM-like).
-    Lio,
-    /// LIO dropping every point inside any detected box.
-    Allfilt,
-    /// LIO dropping points of objects judged dynamic.
-    Dynafilt,
-    /// Full system: dynamic filtering plus joint ego/object optimisation.
-    Limot,
-}
-
-impl Variant {
-    /// Every variant, in the tables' order.
-    pub const ALL: [Variant; 4] = [
-        Variant::Lio,
-        Variant::Allfilt,
-        Variant::Dynafilt,
-        Variant::Limot,
-    ];
-
-    /// Machine name, as on the command line and in file names.
-    pub fn name(self) -> &'static str {
-        match self {
-            Variant::Lio => "lio",
-            Variant::Allfilt => "allfilt",
-            Variant::Dynafilt => "dynafilt",
-            Variant::Limot => "limot",
-        }
-    }
-
-    /// Display name, as in the paper's tables.
-    pub fn label(self) -> &'static str {
-        match self {
-            Variant::Lio => "LIO",
-            Variant::Allfilt => "LIO-Allfilt",
-            Variant::Dynafilt => "LIO-Dynafilt",
-            Variant::Limot => "LIMOT",
-        }
-    }
-
-    /// Whether the variant runs the tracker (every variant but `lio`).
-    pub fn tracks_objects(self) -> bool {
-        self != Variant::Lio
-    }
-
-    /// Accepts the machine name or the display name, in any case.
-    pub fn parse(s: &str) -> Result<Variant, ReportError> {
-        let t = s.trim();
-        Variant::ALL
-            .into_iter()
-            .find(|v| t.eq_ignore_ascii_case(v.name()) || t.eq_ignore_ascii_case(v.label()))
-            .ok_or_else(|| ReportError::UnknownVariant {
-                name: s.to_string(),
-            })
-    }
-}
-
-impl fmt::Display for Variant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Variant {
-    type Err = ReportError;
-    fn from_str(s: &str) -> Result<Variant, ReportError> {
-        Variant::parse(s)
-    }
 }
 
 /// What a plot shows; each maps to one function of `plot`.

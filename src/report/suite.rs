@@ -16,7 +16,9 @@ use crate::report::table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,
 };
-use crate::report::{Plot, PlotKind, Report, Section, Variant, write_report};
+use crate::report::{Plot, PlotKind, Report, Section, write_report};
+
+use limot_estimator::Variant;
 use limot_sim::record::Dataset;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};

@@ -3,8 +3,10 @@
 //! the best value in bold, and missing cells as "–"; plus builders for the
 //! ego-ATE, tracking (MOTA/MOTP), per-object and timing tables.
 
-use super::{ReportError, Variant};
+use super::ReportError;
+
 use crate::metrics::{ClearMotResult, ObjectScore, TimingAccumulator};
+use limot_estimator::Variant;
 use std::collections::BTreeMap;
 
 /// What a missing cell renders as (an en dash, like the paper's "--").

@@ -4,7 +4,7 @@
 use super::{RESULTS_FILE, RESULTS_FORMAT_VERSION, Result, Shard, SuiteError, sequence_name};
 use crate::experiments::FilterEvaluation;
 use crate::metrics::{MotSummary, TimingAccumulator};
-use crate::report::Variant;
+use limot_estimator::Variant;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fs;
@@ -13,7 +13,7 @@ use std::time::Duration;
 
 /// Serde helpers storing a [`Variant`] by its machine name.
 pub(crate) mod variant_name {
-    use crate::report::Variant;
+    use limot_estimator::Variant;
     use serde::{Deserialize, Deserializer, Serializer, de::Error};
 
     pub fn serialize<S: Serializer>(v: &Variant, s: S) -> Result<S::Ok, S::Error> {
@@ -22,7 +22,7 @@ pub(crate) mod variant_name {
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Variant, D::Error> {
         let name = String::deserialize(d)?;
-        Variant::parse(&name).map_err(D::Error::custom)
+        name.parse::<Variant>().map_err(D::Error::custom)
     }
 
     pub mod list {
@@ -40,7 +40,7 @@ pub(crate) mod variant_name {
         pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Variant>, D::Error> {
             Vec::<String>::deserialize(d)?
                 .iter()
-                .map(|n| Variant::parse(n).map_err(D::Error::custom))
+                .map(|n| n.parse::<Variant>().map_err(D::Error::custom))
                 .collect()
         }
     }

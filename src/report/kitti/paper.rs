@@ -1,7 +1,7 @@
 //! The paper's published figures that the KITTI report sets beside ours
 //! (Tables I-III of the LIMOT paper, copied by hand).
 
-use crate::report::Variant;
+use limot_estimator::Variant;
 
 /// A row of the paper's Table I: sequence, then (ATE_T m, ATE_R rad) for
 /// LIO-SAM, DL-SLOT, LIO-SEGMOT, LIO-Allfilt, LIO-Dynafilt, LIMOT.

@@ -288,15 +288,3 @@ fn tracking_object_and_timing_tables() {
         "{md}"
     );
 }
-
-#[test]
-fn variant_names_round_trip() {
-    for v in Variant::ALL {
-        assert_eq!(Variant::parse(v.name()).unwrap(), v);
-        assert_eq!(Variant::parse(v.label()).unwrap(), v);
-        assert_eq!(v.to_string().parse::<Variant>().unwrap(), v);
-    }
-    assert_eq!(Variant::parse(" LIMOT ").unwrap(), Variant::Limot);
-    let err = Variant::parse("segmot").unwrap_err();
-    assert!(err.to_string().contains("segmot"));
-}
