@@ -5,8 +5,6 @@
 //! The detector model is scored too, as an oracle-associated "tracker"
 //! (detections carry their true ids, so its MOTA and MOTP are the ceiling a
 //! tracker fed these detections can reach).
-#![warn(missing_docs)]
-
 use crate::metrics::EvalError;
 use crate::metrics::{Box3, IouKind};
 use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};

@@ -1,5 +1,7 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 
+#![warn(missing_docs)]
+
 pub mod cli;
 pub mod demo;
 pub mod experiments;

@@ -5,8 +5,6 @@
 //! samples due before it, [`ImuFeed`]) -> [`write_output`] (the files of
 //! [`write_run_files`]) and, for tracking, KITTI result files
 //! ([`kitti_track_labels`], [`write_kitti_tracks`]).
-#![warn(missing_docs)]
-
 use crate::cli::frame_progress_bar;
 use crate::io::kitti::KittiError;
 use crate::io::kitti::poses::StampedPose;

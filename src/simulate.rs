@@ -1,7 +1,5 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
-#![warn(missing_docs)]
-
 use crate::cli::frame_progress_bar;
 use crate::io::kitti::export::{self, ExportError};
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};

@@ -1,7 +1,5 @@
 //! The `limot` command line: argument types (clap) and one module per
 //! subcommand. `main.rs` parses [`Cli`] and calls [`Cli::run`].
-#![warn(missing_docs)]
-
 mod demo;
 mod eval;
 mod options;

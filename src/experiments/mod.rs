@@ -12,8 +12,6 @@
 //!   [`track_sequence`], [`evaluate_sequences`], [`score_results`].
 //! - Realism statistics of a simulated dataset against a KITTI sequence:
 //!   [`run_realism`].
-#![warn(missing_docs)]
-
 mod kitti_suite;
 mod realism;
 mod score;

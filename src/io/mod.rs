@@ -9,8 +9,6 @@
 //!   which hands the estimator the IMU samples due before each sweep.
 //! - [`write_run_files`]: the files of a run of the estimator (poses,
 //!   estimates, timings, tracks).
-#![warn(missing_docs)]
-
 pub mod kitti;
 mod run_files;
 mod source;

@@ -12,8 +12,6 @@
 //! [`iou_image`], [`clear_mot`], [`kitti_2d_clear_mot`] / [`kitti_3d_clear_mot`],
 //! [`ab3dmot_evaluate`] (sAMOTA), [`object_scores`], [`filter_precision_recall`],
 //! [`RealismAccumulator`] and [`TimingAccumulator`].
-#![warn(missing_docs)]
-
 mod align;
 mod assignment;
 mod ate;

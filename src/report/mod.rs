@@ -4,8 +4,6 @@
 //! [`write_report`] gathers sections of tables and plots into a directory with a
 //! `README.md`. Everything works on plain data, so the runners in
 //! [`crate::experiments`] only fill the row structs and series.
-#![warn(missing_docs)]
-
 mod kitti;
 mod plot;
 mod suite;
