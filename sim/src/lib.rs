@@ -16,12 +16,7 @@
 
 #![warn(missing_docs)]
 
-mod detector;
 mod fast_trig;
-mod hdl64;
-mod imu;
-mod lidar;
-mod lidar_scan;
 pub mod record;
 mod roughness;
 pub mod scenario;

@@ -28,7 +28,7 @@
 //! `gt/imu_bias.csv`; non-positive box sizes, scores outside [0, 1] and
 //! detection time offsets outside the sweep; `parked` other than 0 or 1.
 
-use crate::detector::DetectionWithTruth;
+use crate::sensors::DetectionWithTruth;
 use limot_estimator::input::{
     Detection, Extrinsics, Frame, ImuSample, InputError, LidarScan, ObjectClass,
 };

@@ -14,10 +14,10 @@ mod roadside;
 mod streetscape;
 mod urban;
 
-use crate::detector::DetectorConfig;
-use crate::imu::ImuConfig;
-use crate::lidar::LidarConfig;
 use crate::scene::Scene;
+use crate::sensors::DetectorConfig;
+use crate::sensors::ImuConfig;
+use crate::sensors::LidarConfig;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -338,13 +338,13 @@ impl ScenarioSpec {
         }
         validate_lidar(&self.lidar)?;
         self.imu.validate().map_err(|e| match e {
-            crate::imu::ImuError::BadConfig { field, .. } => {
+            crate::sensors::ImuError::BadConfig { field, .. } => {
                 invalid(format!("imu.{field}"), e.to_string())
             }
             other => invalid("imu", other.to_string()),
         })?;
         self.detector.validate().map_err(|e| match &e {
-            crate::detector::DetectorError::BadConfig { field, .. } => {
+            crate::sensors::DetectorError::BadConfig { field, .. } => {
                 invalid(format!("detector.{field}"), e.to_string())
             }
             _ => invalid("detector", e.to_string()),

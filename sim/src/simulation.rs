@@ -5,15 +5,15 @@
 //! every frame is a pure function of (spec, frame index), so a dataset is
 //! byte-identical whenever the spec is, whatever the thread count.
 
-use crate::detector::{Detector, DetectorError};
-use crate::imu::{ImuError, ImuSimulator, ImuStream};
-use crate::lidar_scan::{LidarError, LidarSimulator};
 use crate::record::{
     BiasTruth, BoxTruth, DatasetWriter, EgoTruth, FORMAT_VERSION, Meta, RecordError, RecordedFrame,
     points_per_instance, pose_to_array,
 };
 use crate::scenario::{Family, ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
+use crate::sensors::{Detector, DetectorError};
+use crate::sensors::{ImuError, ImuSimulator, ImuStream};
+use crate::sensors::{LidarError, LidarSimulator};
 use crate::world::World;
 use std::path::{Path, PathBuf};
 
@@ -253,7 +253,7 @@ impl Simulation {
             frame_count: self.frame_count(),
             imu_rate_hz: self.spec.imu.rate_hz,
             sweep_duration_s: self.sweep_duration_s(),
-            num_rings: crate::hdl64::NUM_LASERS as u16,
+            num_rings: crate::sensors::hdl64::NUM_LASERS as u16,
             t_lidar_imu: pose_to_array(&self.scene.ego.t_lidar_imu),
         }
     }

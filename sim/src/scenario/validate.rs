@@ -2,7 +2,7 @@
 //! rely on (capacities, spacings, signal timing).
 
 use super::{EgoSpec, GroundParams, HighwayParams, ScenarioError, UrbanParams, invalid};
-use crate::lidar::LidarConfig;
+use crate::sensors::LidarConfig;
 
 pub(super) fn positive_finite(field: &str, value: f64) -> Result<(), ScenarioError> {
     if value.is_finite() && value > 0.0 {

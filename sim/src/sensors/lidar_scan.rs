@@ -4,7 +4,7 @@
 //!
 //! Points are delivered raw: in the LiDAR frame at their own firing time,
 //! with `time_offset_s` = the column time and `ring` (0 = lowest beam, see
-//! [`crate::hdl64`]). Each point carries the ground-truth instance id of what
+//! [`crate::sensors::hdl64`]). Each point carries the ground-truth instance id of what
 //! it hit (0 = static scene).
 //!
 //! Intensity, in [0, 1], models the HDL-64E's calibrated reflectance as
@@ -21,9 +21,9 @@
 //! keyed by (seed, f) with stream number `c`, and columns are concatenated in
 //! firing order, so a scan is byte-identical whatever the thread count.
 
-use crate::hdl64::{NUM_LASERS, elevation_table_rad, ring_of_beam};
-use crate::lidar::LidarConfig;
 use crate::scene::{Scene, StaticKind};
+use crate::sensors::LidarConfig;
+use crate::sensors::hdl64::{NUM_LASERS, elevation_table_rad, ring_of_beam};
 use crate::world::{RayHit, Surface, World};
 use limot_estimator::input::{LidarPoint, LidarScan, ObjectClass};
 use nalgebra::{Point3, Unit, Vector3};

@@ -3,8 +3,8 @@
 //!
 //! Where the default figures come from: `docs/simulator-notes.md`.
 
-use crate::lidar::LidarConfig;
 use crate::scene::{Agent, Ego, Scene};
+use crate::sensors::LidarConfig;
 use limot_estimator::geometry::wrap_angle_rad;
 use limot_estimator::input::{Detection, InputError, ObjectClass};
 use nalgebra::{Point3, Vector3};

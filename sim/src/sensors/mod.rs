@@ -1,0 +1,20 @@
+//! The sensor models: the rolling 64-beam LiDAR ray-cast against the
+//! [`World`], the IMU, and the object detector.
+//!
+//! Each model is deterministic given its seed; [`crate::Simulation`] derives
+//! one seed per sensor from the scenario seed.
+
+mod detector;
+mod imu;
+mod lidar;
+mod lidar_scan;
+
+pub use crate::world::{RayHit, Surface, World};
+pub use detector::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig, DetectorError};
+pub use imu::{ImuConfig, ImuError, ImuSimulator, ImuStream};
+pub use lidar::LidarConfig;
+pub use lidar_scan::{LidarError, LidarSimulator, SimulatedScan};
+
+/// The Velodyne HDL-64E: beam elevations and the beam -> ring order, and a
+/// reader for its calibration file.
+pub mod hdl64;
