@@ -12,34 +12,8 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-// ---------- jets of analytic paths ----------
-
-fn add(a: Jet, b: Jet) -> Jet {
-    Jet::new(a.value + b.value, a.rate + b.rate, a.accel + b.accel)
-}
-
-fn scale(a: Jet, s: f64) -> Jet {
-    Jet::new(a.value * s, a.rate * s, a.accel * s)
-}
-
-fn compose(f0: f64, f1: f64, f2: f64, g: Jet) -> Jet {
-    Jet::new(f0, f1 * g.rate, f2 * g.rate * g.rate + f1 * g.accel)
-}
-
-fn sin(g: Jet) -> Jet {
-    let (s, c) = g.value.sin_cos();
-    compose(s, c, -s, g)
-}
-
-fn cos(g: Jet) -> Jet {
-    let (s, c) = g.value.sin_cos();
-    compose(c, -s, -c, g)
-}
-
-fn atan(g: Jet) -> Jet {
-    let d = 1.0 + g.value * g.value;
-    compose(g.value.atan(), 1.0 / d, -2.0 * g.value / (d * d), g)
-}
+mod common;
+use common::{add, atan, cos, scale, sin};
 
 /// A body weaving along x: x = x0 + v t, y = y0 + a sin(w t + phase), on the
 /// ground at `height_m` above it, heading along the path, pitched and rolled

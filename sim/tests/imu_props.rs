@@ -4,56 +4,13 @@
 
 use limot_estimator::input::ImuSample;
 use limot_sim::scene::Ego;
-use limot_sim::scene::{Jet, Knot, Trajectory};
+use limot_sim::scene::{Knot, Trajectory};
 use limot_sim::sensors::{ImuConfig, ImuSimulator};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 
-// ---------- jet arithmetic: exact derivatives of analytic paths ----------
-
-fn add(a: Jet, b: Jet) -> Jet {
-    Jet::new(a.value + b.value, a.rate + b.rate, a.accel + b.accel)
-}
-
-fn scale(a: Jet, s: f64) -> Jet {
-    Jet::new(a.value * s, a.rate * s, a.accel * s)
-}
-
-/// f(g(t)) given f, f', f'' evaluated at g.
-fn compose(f0: f64, f1: f64, f2: f64, g: Jet) -> Jet {
-    Jet::new(f0, f1 * g.rate, f2 * g.rate * g.rate + f1 * g.accel)
-}
-
-fn sin(g: Jet) -> Jet {
-    let (s, c) = g.value.sin_cos();
-    compose(s, c, -s, g)
-}
-
-fn cos(g: Jet) -> Jet {
-    let (s, c) = g.value.sin_cos();
-    compose(c, -s, -c, g)
-}
-
-fn atan(g: Jet) -> Jet {
-    let d = 1.0 + g.value * g.value;
-    compose(g.value.atan(), 1.0 / d, -2.0 * g.value / (d * d), g)
-}
-
-fn mul(a: Jet, b: Jet) -> Jet {
-    Jet::new(
-        a.value * b.value,
-        a.rate * b.value + a.value * b.rate,
-        a.accel * b.value + 2.0 * a.rate * b.rate + a.value * b.accel,
-    )
-}
-
-fn time(t: f64) -> Jet {
-    Jet::new(t, 1.0, 0.0)
-}
-
-fn constant(c: f64) -> Jet {
-    Jet::new(c, 0.0, 0.0)
-}
+mod common;
+use common::{add, atan, constant, cos, mul, scale, sin, time};
 
 // ---------- a car driving an S-curve over a sloped, bumpy road ----------
 
