@@ -1,4 +1,4 @@
-//! Per-scan cost of the joint ego + object factor graph (issue 5) against
+//! Per-scan cost of the joint ego + object factor graph against
 //! the number of tracked objects, one thread:
 //! `cargo bench -p limot --bench joint_graph [-- N1 N2 ...]` (default 0 10 30 60).
 //!

@@ -393,7 +393,7 @@ fn matched_tracks_carry_their_detection_score() {
 /// The two folds of the 10 val sequences for cross-validation.
 const FOLDS: [[u32; 5]; 2] = [[1, 6, 8, 10, 12], [13, 14, 15, 16, 18]];
 
-/// Model-selection objective, the aim (ahead of AB3DMOT in 2D MOTA,
+/// Model-selection objective, the tracker's aim (ahead of AB3DMOT in 2D MOTA,
 /// 3D MOTA at the best threshold and sAMOTA): the smallest of the three
 /// margins over AB3DMOT's own output scored on the same sequences.
 fn objective(e: &TrackingEvaluation, peer: &TrackingEvaluation) -> f64 {

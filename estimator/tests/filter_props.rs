@@ -442,7 +442,7 @@ fn timing_120k_points_30_boxes() {
 /// Sensitivity of the synthetic sweep's precision/recall to the inflation,
 /// the number of time bins and a box error like the detector's (centre
 /// 0.15 m off along and across the car, 0.03 rad yaw). The default config must
-/// meet the targets (recall >= 0.9, precision >= 0.8) with that error.
+/// meet the filter targets (recall >= 0.9, precision >= 0.8) with that error.
 #[test]
 fn sensitivity_to_inflation_bins_and_box_error() {
     let sweep = synthetic_sweep();
