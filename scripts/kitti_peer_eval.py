@@ -48,7 +48,7 @@ Options worth knowing:
                             that its heading and yaw rate imply (0.1036 s on
                             0000); see docs/kitti-real-data.md.
 
-Conventions (the same as limot, src/kitti/oxts.rs, src/track_kitti.rs):
+Conventions (the same as limot, src/io/kitti/oxts.rs, src/experiments/track_kitti.rs):
 - OXTS -> pose exactly as the KITTI devkit's convertOxtsToPose: Mercator with
   scale cos(lat of the first record), rotation Rz(yaw) Ry(pitch) Rx(roll),
   relative to the first record (T_w_imu); then
