@@ -12,7 +12,7 @@
 //! the whole union). Per cloud the map then rebuilds:
 //! * a hash grid for the radius-bounded k-NN that LOAM matching needs
 //!   ([`MapCloud::nearest_k_within`]), several times faster than the k-d
-//!   tree on these clouds (figures in `docs/estimator-frontend-notes.md`);
+//!   tree on these clouds (figures in `docs/estimator-notes.md`);
 //! * a kiddo [`ImmutableKdTree`] for general k-NN ([`MapCloud::nearest_k`]),
 //!   built lazily on first use. Immutable rather than mutable: it is kiddo's
 //!   fastest to query, and kiddo's mutable tree fails to build
