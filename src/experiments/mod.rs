@@ -28,9 +28,8 @@ pub use realism::{
     run_realism,
 };
 pub use score::ego::{
-    EgoEvalOptions, EgoEvaluation, KITTI_FRAME_PERIOD_S, PoseFormat, Trajectory,
-    detect_pose_format, evaluate_ego, evaluate_trajectories, load_estimate, load_truth,
-    parse_rpe_delta,
+    EgoEvalOptions, EgoEvaluation, PoseFormat, Trajectory, detect_pose_format, evaluate_ego,
+    evaluate_trajectories, load_estimate, load_truth, parse_rpe_delta,
 };
 pub use score::filtering::{FILTER_MOVING_SPEED_MPS, FilterEvaluation, evaluate_filtering};
 pub use score::kitti_sequence::{
@@ -50,9 +49,9 @@ pub use suite::{
     sequence_name,
 };
 pub use track_kitti::{
-    BoxSource, FRAME_PERIOD_S, OutputPolicy, ResultPolicy, ResultWriter, SequenceResults,
-    SequenceScores, SequenceTracks, TrackKittiError, TrackKittiOptions, TrackingEvaluation,
-    detection_to_world, evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config,
-    kitti_val_tuned_options, lidar_poses, read_results_dir, score_results, track_sequence,
-    track_sequence_with, world_box_to_lidar,
+    BoxSource, OutputPolicy, ResultPolicy, ResultWriter, SequenceResults, SequenceScores,
+    SequenceTracks, TrackKittiError, TrackKittiOptions, TrackingEvaluation, detection_to_world,
+    evaluate_sequences, kitti_val_offline_options, kitti_val_tuned_config, kitti_val_tuned_options,
+    lidar_poses, read_results_dir, score_results, track_sequence, track_sequence_with,
+    world_box_to_lidar,
 };

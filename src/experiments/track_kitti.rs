@@ -30,7 +30,7 @@ use crate::io::kitti::labels::{TrackingLabel, read_labels};
 use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
 use crate::io::kitti::seqmap::SeqmapEntry;
-use crate::io::kitti::{KittiError, sequence_file};
+use crate::io::kitti::{KITTI_FRAME_PERIOD_S, KittiError, sequence_file};
 use crate::metrics::EvalError;
 use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::metrics::{ClearMotResult, combine_sequences};
@@ -44,9 +44,6 @@ use limot_estimator::tracking::{
 use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-
-/// KITTI tracking runs at 10 Hz.
-pub const FRAME_PERIOD_S: f64 = 0.1;
 
 /// Tracker settings for KITTI with PointRCNN detections (the paper's
 /// defaults otherwise), chosen by two-fold cross-validation over the val
@@ -466,7 +463,7 @@ pub fn track_sequence_with(
     };
     for (frame, (dets, pose)) in frames.iter().zip(&t_world_lidar).enumerate() {
         let world: Vec<WorldDetection> = dets.iter().map(|d| detection_to_world(d, pose)).collect();
-        let t_s = frame as f64 * FRAME_PERIOD_S;
+        let t_s = frame as f64 * KITTI_FRAME_PERIOD_S;
         let outputs = tracker.update(t_s, &world).map_err(tracker_error)?;
         let mut written = Vec::new();
         for o in &outputs {

@@ -28,7 +28,7 @@ use super::{EvaluateError, Result, dataset_frame_times, is_limot_dataset, read_t
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::io::kitti::poses::{parse_kitti_poses, parse_tum};
-use crate::io::kitti::{LineCtx, content_lines, read_text, sequence_file};
+use crate::io::kitti::{KITTI_FRAME_PERIOD_S, LineCtx, content_lines, read_text, sequence_file};
 use crate::metrics::{
     AlignMode, AteResult, EvalError, RpeDelta, RpeResult, associate, ate_with, rpe,
 };
@@ -38,9 +38,6 @@ use limot_sim::record::Dataset;
 use nalgebra::Isometry3;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
-
-/// KITTI's frame period (10 Hz), used when a frame-indexed file has no times.
-pub const KITTI_FRAME_PERIOD_S: f64 = 0.1;
 
 /// Pose file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

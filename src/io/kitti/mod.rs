@@ -27,6 +27,9 @@ pub mod velodyne;
 
 use std::path::{Path, PathBuf};
 
+/// KITTI's frame period (10 Hz): the time step of frame-indexed files that carry no times.
+pub const KITTI_FRAME_PERIOD_S: f64 = 0.1;
+
 /// Why a KITTI file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum KittiError {
