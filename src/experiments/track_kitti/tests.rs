@@ -79,9 +79,11 @@ fn result_writer_applies_the_policy_frame_by_frame() {
 fn world_round_trip_is_exact_for_level_boxes() {
     let t_world_lidar = pose();
     let det = Detection {
-        center_lidar: Vector3::new(12.0, -2.5, -0.8),
-        size_lwh: Vector3::new(4.2, 1.7, 1.5),
-        yaw_rad: 0.7,
+        box_lidar: OrientedBox {
+            center: Vector3::new(12.0, -2.5, -0.8),
+            size_lwh: Vector3::new(4.2, 1.7, 1.5),
+            yaw_rad: 0.7,
+        },
         class: ObjectClass::Car,
         score: 0.8,
         time_offset_s: 0.05,

@@ -132,9 +132,11 @@ impl CameraDetection {
     pub fn to_detection(&self, calib: &Calib, score_map: ScoreMap) -> Detection {
         let lidar = camera_box_to_lidar(&self.cam_box, calib);
         Detection {
-            center_lidar: lidar.center_lidar,
-            size_lwh: lidar.size_lwh,
-            yaw_rad: lidar.yaw_rad,
+            box_lidar: OrientedBox {
+                center: lidar.center_lidar,
+                size_lwh: lidar.size_lwh,
+                yaw_rad: lidar.yaw_rad,
+            },
             class: self.class,
             score: score_map.apply(self.score_raw),
             time_offset_s: sweep_time_offset_s(&lidar.center_lidar),
