@@ -234,7 +234,7 @@ impl Detection {
             why,
         };
         if !self.box_lidar.center.iter().all(|v| v.is_finite()) {
-            return Err(bad("box_lidar.center", "not finite"));
+            return Err(bad("center_lidar", "not finite"));
         }
         if !self
             .box_lidar
@@ -242,10 +242,10 @@ impl Detection {
             .iter()
             .all(|v| v.is_finite() && *v > 0.0)
         {
-            return Err(bad("box_lidar.size_lwh", "not finite and positive"));
+            return Err(bad("size_lwh", "not finite and positive"));
         }
         if !self.box_lidar.yaw_rad.is_finite() {
-            return Err(bad("box_lidar.yaw_rad", "not finite"));
+            return Err(bad("yaw_rad", "not finite"));
         }
         if !(0.0..=1.0).contains(&self.score) {
             return Err(bad("score", "outside [0, 1]"));
@@ -314,7 +314,7 @@ mod tests {
         det.box_lidar.size_lwh.x = 4.0;
         det.box_lidar.center.y = f64::NAN;
         let err = det.validate(1.5, 3).unwrap_err();
-        assert!(err.to_string().contains("box_lidar.center"), "{err}");
+        assert!(err.to_string().contains("center_lidar"), "{err}");
     }
 
     #[test]

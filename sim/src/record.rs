@@ -551,7 +551,11 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
             // name the column of the offending field, not just the row
             let column = match &e {
                 InputError::BadDetection { field, .. } => match *field {
-                    "size_lwh" => 6 + (0..3).find(|&k| detection.box_lidar.size_lwh[k] <= 0.0).unwrap_or(0),
+                    "size_lwh" => {
+                        6 + (0..3)
+                            .find(|&k| detection.box_lidar.size_lwh[k] <= 0.0)
+                            .unwrap_or(0)
+                    }
                     "yaw_rad" => 9,
                     "score" => 10,
                     "time_offset_s" => 1,

@@ -371,7 +371,8 @@ fn box_errors_match_the_configured_class_noise() {
             e.count += 1;
             e.center
                 .extend((got.box_lidar.center - want.box_lidar.center).iter());
-            e.size.extend((got.box_lidar.size_lwh - want.box_lidar.size_lwh).iter());
+            e.size
+                .extend((got.box_lidar.size_lwh - want.box_lidar.size_lwh).iter());
             let dyaw = wrap_angle_rad(got.box_lidar.yaw_rad - want.box_lidar.yaw_rad);
             if dyaw.abs() > PI / 2.0 {
                 e.flips += 1;
@@ -584,7 +585,10 @@ fn false_positives_are_poisson_low_scored_cars_on_the_ground() {
             assert_eq!(d.truth_id, None);
             let det = d.detection;
             assert_eq!(det.class, ObjectClass::Car);
-            assert!((3.0..6.0).contains(&det.box_lidar.size_lwh.x) && (1.3..2.3).contains(&det.box_lidar.size_lwh.y));
+            assert!(
+                (3.0..6.0).contains(&det.box_lidar.size_lwh.x)
+                    && (1.3..2.3).contains(&det.box_lidar.size_lwh.y)
+            );
             let range = det.box_lidar.center.xy().norm();
             assert!((2.5..=config.max_range_m).contains(&range), "range {range}");
             assert!((0.0..lidar.sweep_duration_s()).contains(&det.time_offset_s));

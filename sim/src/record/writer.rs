@@ -63,7 +63,16 @@ impl DatasetWriter {
             let _ = writeln!(
                 self.detections_csv,
                 "{index},{},{},{},{},{},{},{},{},{},{},{truth}",
-                det.time_offset_s, det.class, c.x, c.y, c.z, s.x, s.y, s.z, det.box_lidar.yaw_rad, det.score
+                det.time_offset_s,
+                det.class,
+                c.x,
+                c.y,
+                c.z,
+                s.x,
+                s.y,
+                s.z,
+                det.box_lidar.yaw_rad,
+                det.score
             );
         }
         for b in boxes {

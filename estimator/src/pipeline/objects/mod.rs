@@ -409,7 +409,10 @@ impl ObjectGraph {
                     * motion.pose_at(t_det_s)
                     * Isometry3::from_parts(
                         Translation3::from(detection.box_lidar.center),
-                        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), detection.box_lidar.yaw_rad),
+                        UnitQuaternion::from_axis_angle(
+                            &Vector3::z_axis(),
+                            detection.box_lidar.yaw_rad,
+                        ),
                     ),
                 time_offset_s: detection.time_offset_s,
                 class: track.class,
