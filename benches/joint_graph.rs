@@ -12,6 +12,7 @@
 //! estimation error as a sanity check that the graph timed is a well-posed
 //! one.
 
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::graph::{
     BiasRandomWalkFactor, ImuFactor, Key, NoiseModel, PriorFactor, SlidingWindowSmoother,
     SolverConfig, Variable,

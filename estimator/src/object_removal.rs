@@ -345,7 +345,7 @@ pub fn dynamic_feature_mask(
 
 /// The `allfilt` variant: marks the points inside any inflated box of
 /// `boxes_world` (every detection of the scan, mapped into the world at the
-/// scan time, e.g. with [`OrientedBox::from_detection`]), with no motion.
+/// scan time, e.g. with [`OrientedBox::transformed`](crate::geometry::OrientedBox::transformed)), with no motion.
 /// Points and poses are handled as in [`dynamic_feature_mask`].
 ///
 /// # Errors

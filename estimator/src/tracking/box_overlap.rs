@@ -41,10 +41,9 @@ fn volumes(a: &OrientedBox, b: &OrientedBox) -> (f64, f64, f64) {
 
 /// 3D IoU of two upright boxes, in [0, 1] (0 for empty boxes).
 ///
-/// The tracker's affinity; the evaluation's `limot::metrics::iou_3d` is kept
-/// apart because it rejects empty footprints and boxes whose circumscribed
-/// circles are apart before clipping, so near-touching pairs can differ in
-/// the last bits.
+/// Kept apart from the evaluation's `limot::metrics::iou_3d`, which returns
+/// exactly 0 for empty footprints and for circumscribed circles apart before
+/// clipping; here such pairs are clipped and may give a rounding-sized sliver.
 pub fn iou_3d(a: &OrientedBox, b: &OrientedBox) -> f64 {
     let (inter, union, _) = volumes(a, b);
     if union > 0.0 {
