@@ -345,7 +345,7 @@ pub fn dynamic_feature_mask(
 
 /// The `allfilt` variant: marks the points inside any inflated box of
 /// `boxes_world` (every detection of the scan, mapped into the world at the
-/// scan time, e.g. with [`OrientedBox::transformed`](crate::geometry::OrientedBox::transformed)), with no motion.
+/// scan time, e.g. with [`OrientedBox::transformed`]), with no motion.
 /// Points and poses are handled as in [`dynamic_feature_mask`].
 ///
 /// # Errors
@@ -435,7 +435,7 @@ mod tests {
 
     fn car(center: Vector3<f64>, yaw_rad: f64) -> OrientedBox {
         OrientedBox {
-            center: center,
+            center,
             yaw_rad,
             size_lwh: Vector3::new(4.0, 2.0, 1.5),
         }
