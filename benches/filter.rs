@@ -9,7 +9,7 @@
 
 use limot::simulate::resolve_scenario;
 use limot_estimator::object_removal::{
-    BoxAtTime, ConstantVelocityBox, FilterConfig, OrientedBox, dynamic_feature_mask,
+    BoxAtTime, ConstantVelocityBox, FilterConfig, dynamic_feature_mask,
 };
 use limot_sim::Simulation;
 use nalgebra::{Isometry3, Vector3};
@@ -43,7 +43,7 @@ fn main() {
             .detections
             .iter()
             .map(|d| {
-                let b = OrientedBox::from_detection(&d.detection, &ego(t0_s));
+                let b = d.detection.box_lidar.transformed(&ego(t0_s));
                 ConstantVelocityBox {
                     box_ref: b,
                     t_ref_s: t0_s,

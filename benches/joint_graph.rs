@@ -12,6 +12,7 @@
 //! estimation error as a sanity check that the graph timed is a well-posed
 //! one.
 
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::graph::{
     BiasRandomWalkFactor, ImuFactor, Key, NoiseModel, PriorFactor, SlidingWindowSmoother,
     SolverConfig, Variable,
@@ -289,9 +290,11 @@ fn run(n_objects: usize, seed: u64) -> (Vec<FrameTiming>, FinalErrors) {
                 x.y.atan2(x.x)
             };
             detections.push(Detection {
-                center_lidar: center_lidar.coords + rng.normal3(0.12),
-                size_lwh: object.size_lwh,
-                yaw_rad: object.yaw_rad - lidar_yaw + 0.03 * rng.normal(),
+                box_lidar: OrientedBox {
+                    center: center_lidar.coords + rng.normal3(0.12),
+                    size_lwh: object.size_lwh,
+                    yaw_rad: object.yaw_rad - lidar_yaw + 0.03 * rng.normal(),
+                },
                 class: object.class,
                 score: 0.9,
                 time_offset_s,

@@ -6,11 +6,12 @@
 //! (detections carry their true ids, so its MOTA and MOTP are the ceiling a
 //! tracker fed these detections can reach).
 use crate::metrics::EvalError;
-use crate::metrics::{Box3, IouKind};
+use crate::metrics::IouKind;
 use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
 use crate::report::Series2D;
 use crate::report::{Cell, Table};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
+use limot_estimator::geometry::OrientedBox;
 use limot_sim::record::points_per_instance;
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::sensors::Detector;
@@ -124,11 +125,15 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
                 Detector::sighted_box(a, &scene.ego, frame.t_s, &spec.lidar),
             )
         })
-        .filter(|(_, d)| d.center_lidar.xy().norm() <= spec.detector.max_range_m)
+        .filter(|(_, d)| d.box_lidar.center.xy().norm() <= spec.detector.max_range_m)
         .map(|(id, d)| TrackedBox {
             id: u64::from(id),
             class: d.class,
-            bbox: Box3::new(d.center_lidar, d.size_lwh, d.yaw_rad),
+            bbox: OrientedBox::new(
+                d.box_lidar.center,
+                d.box_lidar.size_lwh,
+                d.box_lidar.yaw_rad,
+            ),
         })
         .collect();
     let tracks = frame
@@ -142,10 +147,10 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
                 u64::from,
             ),
             class: d.detection.class,
-            bbox: Box3::new(
-                d.detection.center_lidar,
-                d.detection.size_lwh,
-                d.detection.yaw_rad,
+            bbox: OrientedBox::new(
+                d.detection.box_lidar.center,
+                d.detection.box_lidar.size_lwh,
+                d.detection.box_lidar.yaw_rad,
             ),
         })
         .collect();

@@ -307,10 +307,8 @@ pub fn kitti_track_labels(
                 t.yaw_rad,
                 &t_world_lidar,
             );
-            lidar_box.center_lidar = raise_elevation(
-                &lidar_box.center_lidar,
-                -label_frame.elevation_correction_rad,
-            );
+            lidar_box.center =
+                raise_elevation(&lidar_box.center, -label_frame.elevation_correction_rad);
             let track = TrackBox {
                 frame: e.frame_index as u32,
                 track_id: u32::try_from(t.id)

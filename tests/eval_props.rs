@@ -1,9 +1,10 @@
 //! Property tests of the evaluation metrics (src/metrics).
 
 use limot::metrics::{
-    Box3, ClearMotConfig, EvalError, IouKind, MotFrame, RpeDelta, TrackedBox, ate, clear_mot,
-    iou_3d, iou_bev, min_cost_assignment, rpe,
+    ClearMotConfig, EvalError, IouKind, MotFrame, RpeDelta, TrackedBox, ate, clear_mot, iou_3d,
+    iou_bev, min_cost_assignment, rpe,
 };
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
@@ -59,13 +60,13 @@ fn se3_strategy() -> impl Strategy<Value = Isometry3<f64>> {
         })
 }
 
-fn box_strategy() -> impl Strategy<Value = Box3> {
+fn box_strategy() -> impl Strategy<Value = OrientedBox> {
     (
         prop::array::uniform3(-3.0..3.0f64),
         prop::array::uniform3(0.2..5.0f64),
         -4.0..4.0f64,
     )
-        .prop_map(|(c, s, yaw)| Box3::new(Vector3::from(c), Vector3::from(s), yaw))
+        .prop_map(|(c, s, yaw)| OrientedBox::new(Vector3::from(c), Vector3::from(s), yaw))
 }
 
 /// Brute force: the maximum number of allowed pairs, then the minimum cost.
@@ -148,7 +149,7 @@ proptest! {
         prop_assert!((iou_3d(&a, &a) - 1.0).abs() < 1e-12);
         // Invariant under a common yaw rotation and translation of both boxes.
         let motion = Isometry3::new(Vector3::from(shift), Vector3::z() * turn);
-        let moved = |x: &Box3| Box3::new((motion * nalgebra::Point3::from(x.center)).coords, x.size_lwh, x.yaw_rad + turn);
+        let moved = |x: &OrientedBox| OrientedBox::new((motion * nalgebra::Point3::from(x.center)).coords, x.size_lwh, x.yaw_rad + turn);
         let (ma, mb) = (moved(&a), moved(&b));
         prop_assert!((iou_3d(&ma, &mb) - i3).abs() < 1e-9);
         prop_assert!((iou_bev(&ma, &mb) - ib).abs() < 1e-9);
@@ -171,7 +172,7 @@ proptest! {
                     .map(|id| TrackedBox {
                         id,
                         class: ObjectClass::Car,
-                        bbox: Box3::new(
+                        bbox: OrientedBox::new(
                             Vector3::new(3.0 * id as f64 + 0.1 * f as f64, rng.range(-1.0, 1.0), 0.8),
                             Vector3::new(rng.range(3.0, 5.0), rng.range(1.6, 2.2), 1.6),
                             rng.range(-0.5, 0.5),
@@ -248,7 +249,7 @@ fn ate_of_gaussian_noise_matches_sigma() {
 /// The exact BEV intersection agrees with a dense grid count.
 #[test]
 fn bev_intersection_matches_grid_count() {
-    let inside = |b: &Box3, p: Vector2<f64>| {
+    let inside = |b: &OrientedBox, p: Vector2<f64>| {
         let d = p - b.center.xy();
         let (s, c) = b.yaw_rad.sin_cos();
         let along = d.x * c + d.y * s;
@@ -259,7 +260,7 @@ fn bev_intersection_matches_grid_count() {
     let mut checked = 0;
     while checked < 5 {
         let mk = |rng: &mut Rng| {
-            Box3::new(
+            OrientedBox::new(
                 Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0),
                 Vector3::new(rng.range(1.0, 4.0), rng.range(1.0, 3.0), 1.0),
                 rng.range(-3.0, 3.0),

@@ -167,7 +167,7 @@ fn detection_errors(dataset: &Dataset) -> ErrorStats {
         for d in &frame.detections {
             let t_s = frame.scan.t_s + d.detection.time_offset_s;
             let truth = truth_in_lidar(&boxes, index, &ego_at(&ego, t_s), t_s);
-            stats.add(&truth, d.detection.center_lidar, None);
+            stats.add(&truth, d.detection.box_lidar.center, None);
         }
     }
     stats

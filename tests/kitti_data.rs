@@ -122,14 +122,14 @@ fn label_lidar_label_round_trip_on_every_label() {
             if l.type_name == "Car" {
                 cars += 1;
                 // Labelled cars are in the camera's field of view: ahead of the LiDAR.
-                assert!(lidar.center_lidar.x > 0.0, "seq {seq} frame {}", l.frame);
+                assert!(lidar.center.x > 0.0, "seq {seq} frame {}", l.frame);
                 // Box centre roughly at car-centre height (LiDAR at 1.73 m).
                 // Roads climb: allow a few metres of height at long range.
                 assert!(
-                    (-4.0..4.0).contains(&lidar.center_lidar.z),
+                    (-4.0..4.0).contains(&lidar.center.z),
                     "seq {seq} frame {}: {}",
                     l.frame,
-                    lidar.center_lidar
+                    lidar.center
                 );
             }
         }
@@ -151,7 +151,7 @@ fn label_lidar_label_round_trip_on_every_label() {
 /// `T_w_imu · T_imu_velo · (R_rect · Tr_velo_cam)⁻¹ · centre_rect`.
 fn world_centre(calib: &Calib, t_w_imu: &Isometry3<f64>, l: &TrackingLabel) -> Vector3<f64> {
     let lidar = camera_box_to_lidar(&l.cam_box, calib);
-    let p_imu = calib.velo_to_imu(&lidar.center_lidar);
+    let p_imu = calib.velo_to_imu(&lidar.center);
     t_w_imu.transform_point(&p_imu.into()).coords
 }
 

@@ -314,12 +314,12 @@ fn parked_cars_stand_still_in_the_world_frame() {
         {
             let b = camera_box_to_lidar(&l.cam_box, &calib);
             let world = poses[l.frame as usize]
-                .transform_point(&b.center_lidar.into())
+                .transform_point(&b.center.into())
                 .coords;
             per_track
                 .entry(l.track_id)
                 .or_default()
-                .push((b.center_lidar, world));
+                .push((b.center, world));
         }
         for boxes in per_track.values().filter(|b| b.len() >= 20) {
             let travel_lidar = (boxes[0].0 - boxes[boxes.len() - 1].0).norm();

@@ -81,7 +81,7 @@ fn kitti_copy_matches_the_simulated_dataset() {
         let center_truth =
             t_world_lidar.inverse_transform_point(&b.t_world_box.translation.vector.into());
         let lidar_box = camera_box_to_lidar(&label.cam_box, &calib);
-        let err = (lidar_box.center_lidar - center_truth.coords).norm();
+        let err = (lidar_box.center - center_truth.coords).norm();
         assert!(
             err < 1e-6,
             "label {} frame {frame}: {err} m",
@@ -96,7 +96,7 @@ fn kitti_copy_matches_the_simulated_dataset() {
     assert_eq!(dets.len(), ours.len());
     for (cam, ours) in dets.iter().zip(ours) {
         let d = cam.to_detection(&calib, ScoreMap::Clamp01);
-        assert!((d.center_lidar - ours.detection.center_lidar).norm() < 1e-6);
+        assert!((d.box_lidar.center - ours.detection.box_lidar.center).norm() < 1e-6);
         assert_eq!(d.class, ours.detection.class);
         assert!((d.score - ours.detection.score).abs() < 1e-12);
     }

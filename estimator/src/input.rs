@@ -3,6 +3,7 @@
 //! Frames: the LiDAR frame is the ego frame (x forward, y left, z up).
 //! Times are seconds on one clock shared by all streams. Units are SI.
 
+use crate::geometry::OrientedBox;
 use nalgebra::{Isometry3, Vector3};
 use std::fmt;
 
@@ -109,12 +110,8 @@ impl fmt::Display for ObjectClass {
 /// A 3D bounding box detection in the LiDAR frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Detection {
-    /// Geometric centre of the box, LiDAR frame.
-    pub center_lidar: Vector3<f64>,
-    /// Length (along the heading), width, height.
-    pub size_lwh: Vector3<f64>,
-    /// Heading about the LiDAR z axis, radians, 0 = along +x.
-    pub yaw_rad: f64,
+    /// The box, LiDAR frame (heading about the LiDAR z axis, 0 = along +x).
+    pub box_lidar: OrientedBox,
     /// Detected class.
     pub class: ObjectClass,
     /// Detector confidence in [0, 1].
@@ -236,13 +233,18 @@ impl Detection {
             field,
             why,
         };
-        if !self.center_lidar.iter().all(|v| v.is_finite()) {
+        if !self.box_lidar.center.iter().all(|v| v.is_finite()) {
             return Err(bad("center_lidar", "not finite"));
         }
-        if !self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0) {
+        if !self
+            .box_lidar
+            .size_lwh
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0)
+        {
             return Err(bad("size_lwh", "not finite and positive"));
         }
-        if !self.yaw_rad.is_finite() {
+        if !self.box_lidar.yaw_rad.is_finite() {
             return Err(bad("yaw_rad", "not finite"));
         }
         if !(0.0..=1.0).contains(&self.score) {
@@ -296,19 +298,21 @@ mod tests {
     #[test]
     fn detection_validation_names_the_field() {
         let mut det = Detection {
-            center_lidar: Vector3::new(10.0, 0.0, 0.0),
-            size_lwh: Vector3::new(4.0, 1.8, 1.5),
-            yaw_rad: 0.0,
+            box_lidar: OrientedBox {
+                center: Vector3::new(10.0, 0.0, 0.0),
+                size_lwh: Vector3::new(4.0, 1.8, 1.5),
+                yaw_rad: 0.0,
+            },
             class: ObjectClass::Car,
             score: 0.9,
             time_offset_s: 0.05,
         };
         assert!(det.validate(0.0, 0).is_ok());
-        det.size_lwh.x = -1.0;
+        det.box_lidar.size_lwh.x = -1.0;
         let err = det.validate(1.5, 3).unwrap_err();
         assert!(err.to_string().contains("size_lwh"), "{err}");
-        det.size_lwh.x = 4.0;
-        det.center_lidar.y = f64::NAN;
+        det.box_lidar.size_lwh.x = 4.0;
+        det.box_lidar.center.y = f64::NAN;
         let err = det.validate(1.5, 3).unwrap_err();
         assert!(err.to_string().contains("center_lidar"), "{err}");
     }

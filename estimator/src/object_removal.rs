@@ -27,64 +27,9 @@
 //! and the boxes are still evaluated at each point's own time, which is
 //! where the object was when the point was measured.
 
-use crate::input::Detection;
+use crate::geometry::OrientedBox;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use thiserror::Error;
-
-/// An upright 3D box in the world frame (yaw about world z only).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OrientedBox {
-    /// Geometric centre, world frame, metres.
-    pub center_world: Vector3<f64>,
-    /// Heading about world z, radians; the box length runs along the heading.
-    pub yaw_rad: f64,
-    /// Length (along the heading), width, height, metres.
-    pub size_lwh: Vector3<f64>,
-}
-
-impl OrientedBox {
-    /// True when `p_world` lies inside the box grown by `inflate_m` on every
-    /// face (boundary included). A negative inflation shrinks the box.
-    pub fn contains(&self, p_world: &Vector3<f64>, inflate_m: f64) -> bool {
-        self.contains_inflated(p_world, inflate_m, inflate_m)
-    }
-
-    /// As [`OrientedBox::contains`], but the bottom face moves by
-    /// `inflate_bottom_m` (down for positive values) while the four sides and
-    /// the top move by `inflate_m`.
-    pub fn contains_inflated(
-        &self,
-        p_world: &Vector3<f64>,
-        inflate_m: f64,
-        inflate_bottom_m: f64,
-    ) -> bool {
-        let d = p_world - self.center_world;
-        let (sin_yaw, cos_yaw) = self.yaw_rad.sin_cos();
-        // world offset rotated into the box frame (x along the heading)
-        let x_box = cos_yaw * d.x + sin_yaw * d.y;
-        let y_box = -sin_yaw * d.x + cos_yaw * d.y;
-        let half = 0.5 * self.size_lwh;
-        x_box.abs() <= half.x + inflate_m
-            && y_box.abs() <= half.y + inflate_m
-            && d.z <= half.z + inflate_m
-            && d.z >= -half.z - inflate_bottom_m
-    }
-
-    /// The world box of a detection made in the LiDAR frame whose pose is
-    /// `t_world_lidar`. The heading is the detection's heading direction
-    /// mapped into the world and levelled (boxes stay upright even when the
-    /// ego pitches or rolls).
-    pub fn from_detection(det: &Detection, t_world_lidar: &Isometry3<f64>) -> OrientedBox {
-        let center_world = t_world_lidar * nalgebra::Point3::from(det.center_lidar);
-        let heading_lidar = Vector3::new(det.yaw_rad.cos(), det.yaw_rad.sin(), 0.0);
-        let heading_world = t_world_lidar.rotation * heading_lidar;
-        OrientedBox {
-            center_world: center_world.coords,
-            yaw_rad: heading_world.y.atan2(heading_world.x),
-            size_lwh: det.size_lwh,
-        }
-    }
-}
 
 /// A box that may move: the tracker's predicted box of one track at time
 /// `t_s` (seconds on the sensor clock).
@@ -118,7 +63,7 @@ impl BoxAtTime for ConstantVelocityBox {
     fn box_at(&self, t_s: f64) -> OrientedBox {
         let dt_s = t_s - self.t_ref_s;
         OrientedBox {
-            center_world: self.box_ref.center_world + self.velocity_world_mps * dt_s,
+            center: self.box_ref.center + self.velocity_world_mps * dt_s,
             yaw_rad: self.box_ref.yaw_rad + self.yaw_rate_radps * dt_s,
             size_lwh: self.box_ref.size_lwh,
         }
@@ -244,7 +189,7 @@ impl BinBox {
     fn new(b: &OrientedBox, t_world_lidar: &Isometry3<f64>, config: &FilterConfig) -> BinBox {
         let rot_lidar_world = t_world_lidar.rotation.inverse();
         let center_lidar = t_world_lidar
-            .inverse_transform_point(&nalgebra::Point3::from(b.center_world))
+            .inverse_transform_point(&nalgebra::Point3::from(b.center))
             .coords;
         let (sin_yaw, cos_yaw) = b.yaw_rad.sin_cos();
         let x_axis = rot_lidar_world * Vector3::new(cos_yaw, sin_yaw, 0.0);
@@ -400,7 +345,7 @@ pub fn dynamic_feature_mask(
 
 /// The `allfilt` variant: marks the points inside any inflated box of
 /// `boxes_world` (every detection of the scan, mapped into the world at the
-/// scan time, e.g. with [`OrientedBox::from_detection`]), with no motion.
+/// scan time, e.g. with [`OrientedBox::transformed`]), with no motion.
 /// Points and poses are handled as in [`dynamic_feature_mask`].
 ///
 /// # Errors
@@ -485,12 +430,12 @@ pub fn filter_stats(mask: &[bool], labels_moving: &[bool]) -> Result<FilterStats
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::input::ObjectClass;
+    use crate::input::{Detection, ObjectClass};
     use nalgebra::{Translation3, UnitQuaternion};
 
     fn car(center: Vector3<f64>, yaw_rad: f64) -> OrientedBox {
         OrientedBox {
-            center_world: center,
+            center,
             yaw_rad,
             size_lwh: Vector3::new(4.0, 2.0, 1.5),
         }
@@ -523,7 +468,7 @@ mod tests {
             yaw_rate_radps: 0.5,
         };
         let b = cv.box_at(2.1);
-        assert!((b.center_world - Vector3::new(1.5, -0.1, 0.75)).norm() < 1e-12);
+        assert!((b.center - Vector3::new(1.5, -0.1, 0.75)).norm() < 1e-12);
         assert!((b.yaw_rad - 0.15).abs() < 1e-12);
         assert_eq!(b.size_lwh, cv.box_ref.size_lwh);
         let still = cv.box_ref;
@@ -537,19 +482,21 @@ mod tests {
             UnitQuaternion::from_euler_angles(0.02, -0.01, 0.8),
         );
         let det = Detection {
-            center_lidar: Vector3::new(8.0, 3.0, -0.9),
-            size_lwh: Vector3::new(4.2, 1.8, 1.5),
-            yaw_rad: 0.3,
+            box_lidar: OrientedBox {
+                center: Vector3::new(8.0, 3.0, -0.9),
+                size_lwh: Vector3::new(4.2, 1.8, 1.5),
+                yaw_rad: 0.3,
+            },
             class: ObjectClass::Car,
             score: 0.9,
             time_offset_s: 0.0,
         };
-        let b = OrientedBox::from_detection(&det, &t_world_lidar);
-        let c = t_world_lidar * nalgebra::Point3::from(det.center_lidar);
-        assert!((b.center_world - c.coords).norm() < 1e-12);
+        let b = det.box_lidar.transformed(&t_world_lidar);
+        let c = t_world_lidar * nalgebra::Point3::from(det.box_lidar.center);
+        assert!((b.center - c.coords).norm() < 1e-12);
         // small roll/pitch: world yaw ~ ego yaw + detection yaw
         assert!((b.yaw_rad - 1.1).abs() < 1e-3, "{}", b.yaw_rad);
-        assert_eq!(b.size_lwh, det.size_lwh);
+        assert_eq!(b.size_lwh, det.box_lidar.size_lwh);
     }
 
     #[test]
@@ -647,7 +594,7 @@ mod tests {
         for ((p, &t), &m) in pts.iter().zip(&times).zip(&mask) {
             let p_world = pose(t) * nalgebra::Point3::from(*p);
             let b = cv.box_at(t);
-            let dist_to_face = ((p_world.y - b.center_world.y).abs() - (1.0 + cfg.inflate_m)).abs();
+            let dist_to_face = ((p_world.y - b.center.y).abs() - (1.0 + cfg.inflate_m)).abs();
             if dist_to_face > tol_m {
                 assert_eq!(m, b.contains(&p_world.coords, cfg.inflate_m), "t {t} p {p}");
                 checked += 1;

@@ -1,6 +1,7 @@
 //! Bad input to the streaming estimator: clear errors or documented
 //! recoveries, never a panic.
 
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::{
     Detection, Extrinsics, Frame, ImuSample, LidarPoint, LidarScan, ObjectClass,
 };
@@ -189,18 +190,20 @@ fn an_imu_gap_is_an_error_naming_the_frame() {
 /// can produce.
 fn detections_with_garbage() -> Vec<Detection> {
     let car = Detection {
-        center_lidar: Vector3::new(6.0, 3.0, -0.95),
-        size_lwh: Vector3::new(4.5, 1.8, 1.5),
-        yaw_rad: 0.3,
+        box_lidar: OrientedBox {
+            center: Vector3::new(6.0, 3.0, -0.95),
+            size_lwh: Vector3::new(4.5, 1.8, 1.5),
+            yaw_rad: 0.3,
+        },
         class: ObjectClass::Car,
         score: 0.9,
         time_offset_s: 0.02,
     };
     let mut garbage = vec![car; 5];
-    garbage[0].center_lidar.x = f64::NAN;
-    garbage[1].size_lwh.y = -1.8;
+    garbage[0].box_lidar.center.x = f64::NAN;
+    garbage[1].box_lidar.size_lwh.y = -1.8;
     garbage[2].score = 2.0;
-    garbage[3].yaw_rad = f64::INFINITY;
+    garbage[3].box_lidar.yaw_rad = f64::INFINITY;
     garbage[4].time_offset_s = 0.5;
     let mut all = vec![car];
     all.extend(garbage);

@@ -3,6 +3,7 @@
 //! crossing at 15 m/s (per-point time vs scan-start time), the stats on hand
 //! cases, and a timing print for a full-size sweep.
 
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::object_removal::*;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
@@ -23,7 +24,7 @@ fn brute_force_contains(b: &OrientedBox, p: &Vector3<f64>, inflate_m: f64) -> bo
     }
     let heading = Vector2::new(b.yaw_rad.cos(), b.yaw_rad.sin());
     let left = Vector2::new(-heading.y, heading.x);
-    let c = b.center_world.xy();
+    let c = b.center.xy();
     let corners = [
         c + heading * hl + left * hw,
         c - heading * hl + left * hw,
@@ -37,13 +38,13 @@ fn brute_force_contains(b: &OrientedBox, p: &Vector3<f64>, inflate_m: f64) -> bo
         let r = q - a;
         e.x * r.y - e.y * r.x >= -1e-9
     });
-    inside_xy && (p.z - b.center_world.z).abs() <= hh
+    inside_xy && (p.z - b.center.z).abs() <= hh
 }
 
 /// Distance from p to the nearest face of the inflated box (to skip points
 /// where the two tests may legitimately disagree by round-off).
 fn face_distance(b: &OrientedBox, p: &Vector3<f64>, inflate_m: f64) -> f64 {
-    let d = p - b.center_world;
+    let d = p - b.center;
     let (s, c) = b.yaw_rad.sin_cos();
     let x = c * d.x + s * d.y;
     let y = -s * d.x + c * d.y;
@@ -66,12 +67,12 @@ proptest! {
         offsets in prop::collection::vec((-10.0..10.0f64, -10.0..10.0f64, -3.0..3.0f64), 64),
     ) {
         let b = OrientedBox {
-            center_world: Vector3::new(cx, cy, cz),
+            center: Vector3::new(cx, cy, cz),
             yaw_rad: yaw,
             size_lwh: Vector3::new(l, w, h),
         };
         for (dx, dy, dz) in offsets {
-            let p = b.center_world + Vector3::new(dx, dy, dz) * 0.5;
+            let p = b.center + Vector3::new(dx, dy, dz) * 0.5;
             if face_distance(&b, &p, inflate) < 1e-7 {
                 continue;
             }
@@ -79,7 +80,7 @@ proptest! {
             prop_assert_eq!(fast, brute_force_contains(&b, &p, inflate), "p {:?}", p);
         }
         // the centre is always inside (the box is never shrunk to nothing here)
-        prop_assert!(b.contains(&b.center_world, inflate));
+        prop_assert!(b.contains(&b.center, inflate));
     }
 
     /// The mask of LiDAR-frame points under an arbitrary ego pose equals the
@@ -96,7 +97,7 @@ proptest! {
             UnitQuaternion::from_euler_angles(roll, pitch, yaw_ego),
         );
         let b = OrientedBox {
-            center_world: (pose * Point3::new(6.0, 2.0, -0.9)).coords,
+            center: (pose * Point3::new(6.0, 2.0, -0.9)).coords,
             yaw_rad: yaw_box,
             size_lwh: Vector3::new(4.5, 1.9, 1.6),
         };
@@ -123,7 +124,7 @@ proptest! {
 fn ray_box(b: &OrientedBox, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
     let (sy, cy) = b.yaw_rad.sin_cos();
     let to_box = |v: &Vector3<f64>| Vector3::new(cy * v.x + sy * v.y, -sy * v.x + cy * v.y, v.z);
-    let ob = to_box(&(o - b.center_world));
+    let ob = to_box(&(o - b.center));
     let db = to_box(d);
     let half = 0.5 * b.size_lwh;
     let (mut s_in, mut s_out) = (0.0f64, f64::INFINITY);
@@ -172,7 +173,7 @@ fn ego_pose(t_s: f64) -> Isometry3<f64> {
 fn moving_car() -> ConstantVelocityBox {
     ConstantVelocityBox {
         box_ref: OrientedBox {
-            center_world: Vector3::new(-10.0, -4.0, 0.75),
+            center: Vector3::new(-10.0, -4.0, 0.75),
             yaw_rad: PI / 2.0,
             size_lwh: Vector3::new(4.5, 1.8, 1.5),
         },
@@ -184,7 +185,7 @@ fn moving_car() -> ConstantVelocityBox {
 
 fn parked_car() -> OrientedBox {
     OrientedBox {
-        center_world: Vector3::new(-10.0, -9.3, 0.75),
+        center: Vector3::new(-10.0, -9.3, 0.75),
         yaw_rad: PI / 2.0,
         size_lwh: Vector3::new(4.5, 1.8, 1.5),
     }
@@ -410,7 +411,7 @@ fn timing_120k_points_30_boxes() {
             let r = 8.0 + 1.5 * i as f64;
             ConstantVelocityBox {
                 box_ref: OrientedBox {
-                    center_world: Vector3::new(r * a.cos(), r * a.sin(), 0.75),
+                    center: Vector3::new(r * a.cos(), r * a.sin(), 0.75),
                     yaw_rad: a,
                     size_lwh: Vector3::new(4.5, 1.8, 1.5),
                 },
@@ -449,7 +450,7 @@ fn sensitivity_to_inflation_bins_and_box_error() {
     let labels: Vec<bool> = sweep.hits.iter().map(|&h| h == Hit::MovingCar).collect();
     let exact = moving_car();
     let mut noisy = exact;
-    noisy.box_ref.center_world += Vector3::new(0.15, -0.15, 0.05);
+    noisy.box_ref.center += Vector3::new(0.15, -0.15, 0.05);
     noisy.box_ref.yaw_rad += 0.03;
     let parked_removed = |mask: &[bool]| {
         mask.iter()

@@ -29,6 +29,7 @@
 //! detection time offsets outside the sweep; `parked` other than 0 or 1.
 
 use crate::sensors::DetectionWithTruth;
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::{
     Detection, Extrinsics, Frame, ImuSample, InputError, LidarScan, ObjectClass,
 };
@@ -521,9 +522,11 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
         let detection = Detection {
             time_offset_s: r.f64(1)?,
             class: r.class(2)?,
-            center_lidar: r.vec3(3)?,
-            size_lwh: r.vec3(6)?,
-            yaw_rad: r.f64(9)?,
+            box_lidar: OrientedBox {
+                center: r.vec3(3)?,
+                size_lwh: r.vec3(6)?,
+                yaw_rad: r.f64(9)?,
+            },
             score: r.f64(10)?,
         };
         // a detection is seen during its sweep
@@ -548,7 +551,11 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
             // name the column of the offending field, not just the row
             let column = match &e {
                 InputError::BadDetection { field, .. } => match *field {
-                    "size_lwh" => 6 + (0..3).find(|&k| detection.size_lwh[k] <= 0.0).unwrap_or(0),
+                    "size_lwh" => {
+                        6 + (0..3)
+                            .find(|&k| detection.box_lidar.size_lwh[k] <= 0.0)
+                            .unwrap_or(0)
+                    }
                     "yaw_rad" => 9,
                     "score" => 10,
                     "time_offset_s" => 1,
@@ -629,9 +636,11 @@ mod tests {
             let (mut scan, labels) = sample_scan();
             scan.t_s = frame as f64 * 0.1;
             let detection = Detection {
-                center_lidar: Vector3::new(10.0, 0.0, 0.0),
-                size_lwh: size,
-                yaw_rad: 0.0,
+                box_lidar: OrientedBox {
+                    center: Vector3::new(10.0, 0.0, 0.0),
+                    size_lwh: size,
+                    yaw_rad: 0.0,
+                },
                 class: ObjectClass::Car,
                 score: 0.9,
                 time_offset_s: 0.02,

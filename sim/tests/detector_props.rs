@@ -2,7 +2,7 @@
 //! an ego car driving an S-curve over sloped, undulating ground among cars,
 //! trucks, cyclists and pedestrians driving along with it, plus parked cars.
 
-use limot_estimator::geometry::wrap_angle_rad;
+use limot_estimator::geometry::{OrientedBox, wrap_angle_rad};
 use limot_estimator::input::{Detection, ObjectClass};
 use limot_sim::scene::{Agent, Ego, Ground, Scene, Undulation};
 use limot_sim::scene::{Jet, Knot, Trajectory};
@@ -184,11 +184,13 @@ fn expected_box(scene: &Scene, agent: &Agent, t_scan_s: f64, lidar: &LidarConfig
     let box_seen = agent.trajectory.pose_at(t_scan_s + tau);
     let heading = ego_seen.rotation.inverse() * (box_seen.rotation * Vector3::x());
     Detection {
-        center_lidar: ego_seen
-            .inverse_transform_point(&Point3::from(box_seen.translation.vector))
-            .coords,
-        size_lwh: agent.size_lwh_m,
-        yaw_rad: heading.y.atan2(heading.x),
+        box_lidar: OrientedBox {
+            center: ego_seen
+                .inverse_transform_point(&Point3::from(box_seen.translation.vector))
+                .coords,
+            size_lwh: agent.size_lwh_m,
+            yaw_rad: heading.y.atan2(heading.x),
+        },
         class: agent.class,
         score: 1.0,
         time_offset_s: tau,
@@ -268,12 +270,12 @@ fn zero_noise_returns_the_true_time_aligned_boxes() {
             let want = expected_box(&scene, agent, frame_time(f), &lidar);
             let got = d.detection;
             assert!(
-                (got.center_lidar - want.center_lidar).norm() < 1e-9,
+                (got.box_lidar.center - want.box_lidar.center).norm() < 1e-9,
                 "frame {f} id {}",
                 agent.id
             );
-            assert_eq!(got.size_lwh, want.size_lwh);
-            assert!(wrap_angle_rad(got.yaw_rad - want.yaw_rad).abs() < 1e-9);
+            assert_eq!(got.box_lidar.size_lwh, want.box_lidar.size_lwh);
+            assert!(wrap_angle_rad(got.box_lidar.yaw_rad - want.box_lidar.yaw_rad).abs() < 1e-9);
             assert!((got.time_offset_s - want.time_offset_s).abs() < 1e-12);
             assert_eq!(got.class, want.class);
             // the sweep time matters: at the scan start the box is elsewhere
@@ -281,7 +283,7 @@ fn zero_noise_returns_the_true_time_aligned_boxes() {
             let c0 = ego0.inverse_transform_point(&Point3::from(
                 agent.trajectory.pose_at(frame_time(f)).translation.vector,
             ));
-            worst_misalignment = worst_misalignment.max((c0.coords - got.center_lidar).norm());
+            worst_misalignment = worst_misalignment.max((c0.coords - got.box_lidar.center).norm());
         }
         assert!(dets.iter().any(|d| d.truth_id == Some(100)));
     }
@@ -342,16 +344,17 @@ fn box_errors_match_the_configured_class_noise() {
             let e = errors.entry(agent.class).or_default();
             e.count += 1;
             e.center
-                .extend((got.center_lidar - want.center_lidar).iter());
-            e.size.extend((got.size_lwh - want.size_lwh).iter());
-            let dyaw = wrap_angle_rad(got.yaw_rad - want.yaw_rad);
+                .extend((got.box_lidar.center - want.box_lidar.center).iter());
+            e.size
+                .extend((got.box_lidar.size_lwh - want.box_lidar.size_lwh).iter());
+            let dyaw = wrap_angle_rad(got.box_lidar.yaw_rad - want.box_lidar.yaw_rad);
             if dyaw.abs() > PI / 2.0 {
                 e.flips += 1;
                 e.yaw.push(wrap_angle_rad(dyaw - PI));
             } else {
                 e.yaw.push(dyaw);
             }
-            assert!(got.yaw_rad > -PI && got.yaw_rad <= PI);
+            assert!(got.box_lidar.yaw_rad > -PI && got.box_lidar.yaw_rad <= PI);
         }
     }
     for class in ObjectClass::ALL {
@@ -556,8 +559,11 @@ fn false_positives_are_poisson_low_scored_cars_on_the_ground() {
             assert_eq!(d.truth_id, None);
             let det = d.detection;
             assert_eq!(det.class, ObjectClass::Car);
-            assert!((3.0..6.0).contains(&det.size_lwh.x) && (1.3..2.3).contains(&det.size_lwh.y));
-            let range = det.center_lidar.xy().norm();
+            assert!(
+                (3.0..6.0).contains(&det.box_lidar.size_lwh.x)
+                    && (1.3..2.3).contains(&det.box_lidar.size_lwh.y)
+            );
+            let range = det.box_lidar.center.xy().norm();
             assert!((2.5..=config.max_range_m).contains(&range), "range {range}");
             assert!((0.0..lidar.sweep_duration_s()).contains(&det.time_offset_s));
             // standing on the ground: bottom of the box at ground height
@@ -565,8 +571,8 @@ fn false_positives_are_poisson_low_scored_cars_on_the_ground() {
                 .ego
                 .trajectory
                 .pose_at(frame_time(f) + det.time_offset_s);
-            let c = ego * Point3::from(det.center_lidar);
-            let bottom = c.z - 0.5 * det.size_lwh.z;
+            let c = ego * Point3::from(det.box_lidar.center);
+            let bottom = c.z - 0.5 * det.box_lidar.size_lwh.z;
             assert!((bottom - scene.ground.height(c.x, c.y)).abs() < 1e-9);
             scores.push(det.score);
         }

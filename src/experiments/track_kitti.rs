@@ -25,7 +25,7 @@
 //! output, the peer of docs/tracking-kitti.md, has been through.
 
 use crate::io::kitti::calib::Calib;
-use crate::io::kitti::detections::{LidarBox, ScoreMap, detections_by_frame, read_ab3dmot_csv};
+use crate::io::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
 use crate::io::kitti::labels::{TrackingLabel, read_labels};
 use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::io::kitti::results::{ImageSize, TrackBox, track_to_label};
@@ -35,7 +35,7 @@ use crate::metrics::EvalError;
 use crate::metrics::{Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate};
 use crate::metrics::{ClearMotResult, combine_sequences};
 use crate::metrics::{KittiEvalClass, kitti_2d_clear_mot, kitti_3d_clear_mot};
-use limot_estimator::geometry::wrap_angle_rad;
+use limot_estimator::geometry::{OrientedBox, wrap_angle_rad};
 use limot_estimator::input::Detection;
 use limot_estimator::tracking::{
     Extrapolation, HeadingRule, Lifecycle, TrackOutput, Tracker, TrackerConfig, TrackerError,
@@ -353,21 +353,13 @@ pub fn lidar_poses(oxts_poses: &[Isometry3<f64>], calib: &Calib) -> Vec<Isometry
         .collect()
 }
 
-/// Heading of a box after rotating its heading vector by `pose` (the box
-/// stays upright: only the horizontal direction of the heading counts).
-fn rotate_yaw(pose: &Isometry3<f64>, yaw_rad: f64) -> f64 {
-    let heading = pose.rotation * Vector3::new(yaw_rad.cos(), yaw_rad.sin(), 0.0);
-    heading.y.atan2(heading.x)
-}
-
 /// A LiDAR-frame detection in the world frame.
 pub fn detection_to_world(det: &Detection, t_world_lidar: &Isometry3<f64>) -> WorldDetection {
+    let box_world = det.box_lidar.transformed(t_world_lidar);
     WorldDetection {
-        center_world: t_world_lidar
-            .transform_point(&det.center_lidar.into())
-            .coords,
-        size_lwh: det.size_lwh,
-        yaw_rad: rotate_yaw(t_world_lidar, det.yaw_rad),
+        center_world: box_world.center,
+        size_lwh: box_world.size_lwh,
+        yaw_rad: box_world.yaw_rad,
         class: det.class,
         score: det.score,
         // Placed with the frame's pose (OXTS at the frame time, when the
@@ -377,21 +369,17 @@ pub fn detection_to_world(det: &Detection, t_world_lidar: &Isometry3<f64>) -> Wo
     }
 }
 
-/// A world-frame box back in the LiDAR frame.
+/// A world-frame box back in the LiDAR frame (yaw wrapped to (-π, π]).
 pub fn world_box_to_lidar(
     center_world: &Vector3<f64>,
     size_lwh: &Vector3<f64>,
     yaw_world_rad: f64,
     t_world_lidar: &Isometry3<f64>,
-) -> LidarBox {
-    let t_lidar_world = t_world_lidar.inverse();
-    LidarBox {
-        center_lidar: t_lidar_world
-            .transform_point(&(*center_world).into())
-            .coords,
-        size_lwh: *size_lwh,
-        yaw_rad: wrap_angle_rad(rotate_yaw(&t_lidar_world, yaw_world_rad)),
-    }
+) -> OrientedBox {
+    let box_world = OrientedBox::new(*center_world, *size_lwh, yaw_world_rad);
+    let mut box_lidar = box_world.transformed(&t_world_lidar.inverse());
+    box_lidar.yaw_rad = wrap_angle_rad(box_lidar.yaw_rad);
+    box_lidar
 }
 
 /// Runs the tracker over one sequence with default options apart from the

@@ -163,9 +163,9 @@ pub fn write_run_files(out_dir: &Path, estimates: &[FrameEstimate]) -> Result<()
                 t.lifecycle,
                 t.motion,
                 t.predicted,
-                lidar.center_lidar.x,
-                lidar.center_lidar.y,
-                lidar.center_lidar.z,
+                lidar.center.x,
+                lidar.center.y,
+                lidar.center.z,
                 lidar.yaw_rad
             );
         }

@@ -171,9 +171,9 @@ impl Source {
                 for d in frames.iter_mut().flatten() {
                     // The boxes were found in the stored points: they get the
                     // scans' elevation correction too.
-                    d.center_lidar =
-                        raise_elevation(&d.center_lidar, drive.elevation_correction_rad);
-                    d.time_offset_s = sweep_time_offset_s(&d.center_lidar);
+                    d.box_lidar.center =
+                        raise_elevation(&d.box_lidar.center, drive.elevation_correction_rad);
+                    d.time_offset_s = sweep_time_offset_s(&d.box_lidar.center);
                 }
                 frames
             }

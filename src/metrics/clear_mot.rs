@@ -1,5 +1,5 @@
 //! CLEAR-MOT tracking metrics (Bernardin & Stiefelhagen 2008) on 3D boxes
-//! ([`Box3`], BEV or 3D IoU) or image boxes ([`Box2`](super::iou::Box2)), as
+//! ([`OrientedBox`], BEV or 3D IoU) or image boxes ([`Box2`](super::iou::Box2)), as
 //! the KITTI tracking devkit / AB3DMOT 3D evaluation and TrackEval compute
 //! them. One matching core serves both geometries through [`MotBox`].
 //!
@@ -37,7 +37,8 @@
 
 use super::EvalError;
 use super::assignment::min_cost_assignment;
-use super::iou::{AREA_EPS, Box3, IouKind, MotBox};
+use super::iou::{AREA_EPS, IouKind, MotBox};
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::BoxTruth;
 use serde::{Deserialize, Serialize};
@@ -47,9 +48,9 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 pub const PAPER_IOU_THRESHOLDS: [f64; 2] = [0.25, 0.5];
 
 /// A box with an identity: a ground-truth object or a tracker output.
-/// `B` is [`Box3`] (3D evaluation) or [`Box2`](super::iou::Box2) (image).
+/// `B` is [`OrientedBox`] (3D evaluation) or [`Box2`](super::iou::Box2) (image).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrackedBox<B = Box3> {
+pub struct TrackedBox<B = OrientedBox> {
     /// Track or ground-truth id, unique within a frame.
     pub id: u64,
     /// Object class.
@@ -58,13 +59,13 @@ pub struct TrackedBox<B = Box3> {
     pub bbox: B,
 }
 
-impl TrackedBox<Box3> {
+impl TrackedBox<OrientedBox> {
     /// A simulator ground-truth box (world frame; roll and pitch dropped).
     pub fn from_box_truth(truth: &BoxTruth) -> TrackedBox {
         TrackedBox {
             id: u64::from(truth.id),
             class: truth.class,
-            bbox: Box3::from_pose(&truth.t_world_box, truth.size_lwh_m),
+            bbox: OrientedBox::from_pose(&truth.t_world_box, truth.size_lwh_m),
         }
     }
 }
@@ -72,7 +73,7 @@ impl TrackedBox<Box3> {
 /// Everything compared in one frame (boxes in one common frame, e.g. world,
 /// LiDAR or the image).
 #[derive(Debug, Clone, PartialEq)]
-pub struct MotFrame<B = Box3> {
+pub struct MotFrame<B = OrientedBox> {
     /// Ground-truth boxes of the frame.
     pub gt: Vec<TrackedBox<B>>,
     /// Tracker boxes of the frame.
@@ -125,7 +126,7 @@ pub enum MatchingRule {
 pub struct ClearMotConfig {
     /// A pair matches when IoU ≥ this (paper: 0.25 and 0.5).
     pub iou_threshold: f64,
-    /// BEV or 3D IoU for [`Box3`]; image boxes ignore it.
+    /// BEV or 3D IoU for [`OrientedBox`]; image boxes ignore it.
     pub iou_kind: IouKind,
     /// When a match counts as an ID switch.
     pub id_switch_rule: IdSwitchRule,
@@ -443,14 +444,15 @@ struct GtHistory {
 /// so MOTA = 1 − (1 + 1) / 2 = 0 and MOTP = 1.
 ///
 /// ```
-/// use limot::metrics::{Box3, ClearMotConfig, MotFrame, TrackedBox, clear_mot};
+/// use limot::metrics::{ClearMotConfig, MotFrame, TrackedBox, clear_mot};
+/// use limot_estimator::geometry::OrientedBox;
 /// use limot_estimator::input::ObjectClass;
 /// use nalgebra::Vector3;
 ///
 /// let car = |x: f64, id: u64| TrackedBox {
 ///     id,
 ///     class: ObjectClass::Car,
-///     bbox: Box3::new(Vector3::new(x, 0.0, 0.0), Vector3::new(4.0, 2.0, 1.5), 0.0),
+///     bbox: OrientedBox::new(Vector3::new(x, 0.0, 0.0), Vector3::new(4.0, 2.0, 1.5), 0.0),
 /// };
 /// let frames = [
 ///     MotFrame { gt: vec![car(10.0, 1)], tracks: vec![car(10.0, 7)], dont_care: vec![] },
@@ -647,7 +649,7 @@ mod tests {
         TrackedBox {
             id,
             class: ObjectClass::Car,
-            bbox: Box3::new(Vector3::new(x, 0.0, 1.0), Vector3::new(4.0, 2.0, 2.0), 0.0),
+            bbox: OrientedBox::new(Vector3::new(x, 0.0, 1.0), Vector3::new(4.0, 2.0, 2.0), 0.0),
         }
     }
 
@@ -756,7 +758,7 @@ mod tests {
         let mut f = frame(vec![car(1, 0.0)], vec![car(10, 0.0), car(11, 30.0)]);
         let r = clear_mot(std::slice::from_ref(&f), &ClearMotConfig::default()).unwrap();
         assert_eq!((r.false_positives, r.ignored_tracks), (1, 0));
-        f.dont_care.push(Box3::new(
+        f.dont_care.push(OrientedBox::new(
             Vector3::new(31.0, 0.0, 0.0),
             Vector3::new(6.0, 6.0, 3.0),
             0.0,
@@ -886,8 +888,8 @@ mod tests {
         let mut nan = car(1, 0.0);
         nan.bbox.yaw_rad = f64::NAN;
         assert!(clear_mot(&[frame(vec![], vec![nan])], &ClearMotConfig::default()).is_err());
-        assert!(clear_mot::<Box3>(&[], &ClearMotConfig::with_threshold(0.0)).is_err());
-        let empty = clear_mot::<Box3>(&[], &ClearMotConfig::default()).unwrap();
+        assert!(clear_mot::<OrientedBox>(&[], &ClearMotConfig::with_threshold(0.0)).is_err());
+        let empty = clear_mot::<OrientedBox>(&[], &ClearMotConfig::default()).unwrap();
         assert_eq!((empty.mota, empty.motp), (None, None));
     }
 }

@@ -10,18 +10,7 @@
 //! tracking benchmark and TrackEval's `Kitti2DBox` evaluate them. The
 //! CLEAR-MOT matching core is generic over [`MotBox`], implemented by both.
 
-use nalgebra::{Isometry3, Vector2, Vector3};
-
-/// An oriented box: centre, size (length along the heading, width, height) and yaw about z.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Box3 {
-    /// Geometric centre (the vertical extent is `center.z ± h/2`).
-    pub center: Vector3<f64>,
-    /// Length (along the heading), width and height, m.
-    pub size_lwh: Vector3<f64>,
-    /// Heading about +z, rad.
-    pub yaw_rad: f64,
-}
+use limot_estimator::geometry::OrientedBox;
 
 /// Which overlap the tracking metrics use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -33,86 +22,40 @@ pub enum IouKind {
     ThreeD,
 }
 
-impl Box3 {
-    /// A box from its centre, size (l, w, h) and yaw.
-    pub fn new(center: Vector3<f64>, size_lwh: Vector3<f64>, yaw_rad: f64) -> Box3 {
-        Box3 {
-            center,
-            size_lwh,
-            yaw_rad,
-        }
+/// Checks a 3D box for the metrics: finite centre, size and yaw, and a
+/// non-negative size; `Err((field, why))` names the first problem.
+///
+/// # Errors
+///
+/// The offending field and why, for a non-finite value or a negative size.
+pub fn validate_box(b: &OrientedBox) -> Result<(), (&'static str, String)> {
+    let c = b.center;
+    if !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite()) {
+        return Err(("center", "not finite".into()));
     }
+    let s = b.size_lwh;
+    if !(s.x.is_finite() && s.y.is_finite() && s.z.is_finite()) {
+        return Err(("size_lwh", "not finite".into()));
+    }
+    if s.x < 0.0 || s.y < 0.0 || s.z < 0.0 {
+        return Err(("size_lwh", format!("negative size {s:?}")));
+    }
+    if !b.yaw_rad.is_finite() {
+        return Err(("yaw_rad", "not finite".into()));
+    }
+    Ok(())
+}
 
-    /// From a box pose; roll and pitch are dropped (yaw of the box x axis
-    /// projected onto the x-y plane).
-    pub fn from_pose(t_world_box: &Isometry3<f64>, size_lwh: Vector3<f64>) -> Box3 {
-        let heading = t_world_box.rotation * Vector3::x();
-        Box3 {
-            center: t_world_box.translation.vector,
-            size_lwh,
-            yaw_rad: heading.y.atan2(heading.x),
-        }
-    }
-
-    /// Checks finiteness and non-negative size; `why` names the first problem.
-    ///
-    /// # Errors
-    ///
-    /// The offending field and why, for a non-finite value or a negative size.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        let c = self.center;
-        if !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite()) {
-            return Err(("center", "not finite".into()));
-        }
-        let s = self.size_lwh;
-        if !(s.x.is_finite() && s.y.is_finite() && s.z.is_finite()) {
-            return Err(("size_lwh", "not finite".into()));
-        }
-        if s.x < 0.0 || s.y < 0.0 || s.z < 0.0 {
-            return Err(("size_lwh", format!("negative size {s:?}")));
-        }
-        if !self.yaw_rad.is_finite() {
-            return Err(("yaw_rad", "not finite".into()));
-        }
-        Ok(())
-    }
-
-    /// Footprint corners, counter-clockwise seen from above.
-    pub fn bev_corners(&self) -> [Vector2<f64>; 4] {
-        let (s, c) = self.yaw_rad.sin_cos();
-        let hl = 0.5 * self.size_lwh.x;
-        let hw = 0.5 * self.size_lwh.y;
-        let centre = Vector2::new(self.center.x, self.center.y);
-        let along = Vector2::new(c, s);
-        let across = Vector2::new(-s, c);
-        [
-            centre + along * hl + across * hw,
-            centre - along * hl + across * hw,
-            centre - along * hl - across * hw,
-            centre + along * hl - across * hw,
-        ]
-    }
-
-    /// Footprint area, m².
-    pub fn bev_area(&self) -> f64 {
-        self.size_lwh.x * self.size_lwh.y
-    }
-
-    /// Volume, m³.
-    pub fn volume(&self) -> f64 {
-        self.size_lwh.x * self.size_lwh.y * self.size_lwh.z
-    }
-
-    fn z_range(&self) -> (f64, f64) {
-        let h = 0.5 * self.size_lwh.z;
-        (self.center.z - h, self.center.z + h)
-    }
+/// Bottom and top of a box, `center.z ∓ h/2`.
+fn z_range(b: &OrientedBox) -> (f64, f64) {
+    let h = 0.5 * b.size_lwh.z;
+    (b.center.z - h, b.center.z + h)
 }
 
 pub use limot_estimator::polygon::{convex_intersection, polygon_area};
 
 /// Area of the footprint intersection.
-pub fn bev_intersection_area(a: &Box3, b: &Box3) -> f64 {
+pub fn bev_intersection_area(a: &OrientedBox, b: &OrientedBox) -> f64 {
     if a.bev_area() <= 0.0 || b.bev_area() <= 0.0 {
         return 0.0;
     }
@@ -135,12 +78,16 @@ fn ratio(intersection: f64, union: f64) -> f64 {
 }
 
 /// Bird's-eye-view IoU in [0, 1] (0 when both footprints are empty).
-pub fn iou_bev(a: &Box3, b: &Box3) -> f64 {
+pub fn iou_bev(a: &OrientedBox, b: &OrientedBox) -> f64 {
     let inter = bev_intersection_area(a, b);
     ratio(inter, a.bev_area() + b.bev_area() - inter)
 }
 
 /// 3D IoU in [0, 1] (0 when both volumes are empty).
+///
+/// Kept apart from the tracker's `limot_estimator::tracking::iou_3d`: this one
+/// returns exactly 0 for empty footprints and for circumscribed circles apart
+/// before clipping, where the tracker's clips and may give a rounding-sized sliver.
 ///
 /// # Examples
 ///
@@ -148,18 +95,19 @@ pub fn iou_bev(a: &Box3, b: &Box3) -> f64 {
 /// 3D IoU = 2 / (8 + 8 − 2) = 1/7, and their footprints 2 / (4 + 4 − 2) = 1/3.
 ///
 /// ```
-/// use limot::metrics::{Box3, iou_3d, iou_bev};
+/// use limot::metrics::{iou_3d, iou_bev};
+/// use limot_estimator::geometry::OrientedBox;
 /// use nalgebra::Vector3;
 ///
 /// let cube = Vector3::new(2.0, 2.0, 2.0);
-/// let a = Box3::new(Vector3::new(0.0, 0.0, 0.0), cube, 0.0);
-/// let b = Box3::new(Vector3::new(1.0, 0.0, 1.0), cube, 0.0);
+/// let a = OrientedBox::new(Vector3::new(0.0, 0.0, 0.0), cube, 0.0);
+/// let b = OrientedBox::new(Vector3::new(1.0, 0.0, 1.0), cube, 0.0);
 /// assert!((iou_3d(&a, &b) - 1.0 / 7.0).abs() < 1e-12);
 /// assert!((iou_bev(&a, &b) - 1.0 / 3.0).abs() < 1e-12);
 /// ```
-pub fn iou_3d(a: &Box3, b: &Box3) -> f64 {
-    let (a_lo, a_hi) = a.z_range();
-    let (b_lo, b_hi) = b.z_range();
+pub fn iou_3d(a: &OrientedBox, b: &OrientedBox) -> f64 {
+    let (a_lo, a_hi) = z_range(a);
+    let (b_lo, b_hi) = z_range(b);
     let dz = (a_hi.min(b_hi) - a_lo.max(b_lo)).max(0.0);
     if dz <= 0.0 {
         return 0.0;
@@ -281,22 +229,22 @@ pub fn image_fraction_inside(a: &Box2, region: &Box2) -> f64 {
 pub trait MotBox: Copy + PartialEq + std::fmt::Debug {
     /// Checks the box; `Err((field, why))` names the first problem.
     fn validate(&self) -> Result<(), (&'static str, String)>;
-    /// IoU in [0, 1]. `kind` chooses BEV or 3D for [`Box3`]; an image box
+    /// IoU in [0, 1]. `kind` chooses BEV or 3D for [`OrientedBox`]; an image box
     /// has a single IoU and ignores it.
     fn overlap(&self, other: &Self, kind: IouKind) -> f64;
-    /// Fraction of this box inside `region` (BEV footprint for [`Box3`],
+    /// Fraction of this box inside `region` (BEV footprint for [`OrientedBox`],
     /// image area for [`Box2`]).
     fn fraction_inside(&self, region: &Self) -> f64;
 }
 
-impl MotBox for Box3 {
+impl MotBox for OrientedBox {
     fn validate(&self) -> Result<(), (&'static str, String)> {
-        Box3::validate(self)
+        validate_box(self)
     }
-    fn overlap(&self, other: &Box3, kind: IouKind) -> f64 {
+    fn overlap(&self, other: &OrientedBox, kind: IouKind) -> f64 {
         iou(self, other, kind)
     }
-    fn fraction_inside(&self, region: &Box3) -> f64 {
+    fn fraction_inside(&self, region: &OrientedBox) -> f64 {
         bev_fraction_inside(self, region)
     }
 }
@@ -314,7 +262,7 @@ impl MotBox for Box2 {
 }
 
 /// IoU of two 3D boxes of the given kind (3D or bird's-eye view).
-pub fn iou(a: &Box3, b: &Box3, kind: IouKind) -> f64 {
+pub fn iou(a: &OrientedBox, b: &OrientedBox, kind: IouKind) -> f64 {
     match kind {
         IouKind::Bev => iou_bev(a, b),
         IouKind::ThreeD => iou_3d(a, b),
@@ -323,7 +271,7 @@ pub fn iou(a: &Box3, b: &Box3, kind: IouKind) -> f64 {
 
 /// Fraction of `a`'s footprint that lies inside `region` (KITTI's DontCare
 /// test uses this with threshold 0.5).
-pub fn bev_fraction_inside(a: &Box3, region: &Box3) -> f64 {
+pub fn bev_fraction_inside(a: &OrientedBox, region: &OrientedBox) -> f64 {
     let area = a.bev_area();
     if area <= 0.0 {
         return 0.0;
@@ -334,10 +282,11 @@ pub fn bev_fraction_inside(a: &Box3, region: &Box3) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
     use std::f64::consts::FRAC_PI_4;
 
-    fn b(x: f64, y: f64, z: f64, l: f64, w: f64, h: f64, yaw: f64) -> Box3 {
-        Box3::new(Vector3::new(x, y, z), Vector3::new(l, w, h), yaw)
+    fn b(x: f64, y: f64, z: f64, l: f64, w: f64, h: f64, yaw: f64) -> OrientedBox {
+        OrientedBox::new(Vector3::new(x, y, z), Vector3::new(l, w, h), yaw)
     }
 
     #[test]
@@ -412,13 +361,9 @@ mod tests {
         let z = b(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         assert_eq!(iou_3d(&z, &z), 0.0);
         assert_eq!(iou_bev(&z, &z), 0.0);
-        assert!(z.validate().is_ok());
-        assert!(b(0.0, 0.0, 0.0, -1.0, 1.0, 1.0, 0.0).validate().is_err());
-        assert!(
-            b(f64::NAN, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
-                .validate()
-                .is_err()
-        );
+        assert!(validate_box(&z).is_ok());
+        assert!(validate_box(&b(0.0, 0.0, 0.0, -1.0, 1.0, 1.0, 0.0)).is_err());
+        assert!(validate_box(&b(f64::NAN, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)).is_err());
     }
 
     #[test]
@@ -446,13 +391,5 @@ mod tests {
                 .validate()
                 .is_err()
         );
-    }
-
-    #[test]
-    fn from_pose_reads_yaw() {
-        let pose = Isometry3::new(Vector3::new(1.0, 2.0, 3.0), Vector3::z() * 0.8);
-        let bx = Box3::from_pose(&pose, Vector3::new(4.0, 2.0, 1.5));
-        assert!((bx.yaw_rad - 0.8).abs() < 1e-12);
-        assert_eq!(bx.center, Vector3::new(1.0, 2.0, 3.0));
     }
 }

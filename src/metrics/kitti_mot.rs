@@ -31,10 +31,11 @@ use super::assignment::min_cost_assignment;
 use super::clear_mot::{
     ClearMotConfig, ClearMotResult, IdSwitchRule, MatchingRule, MotFrame, TrackedBox, clear_mot,
 };
-use super::iou::{AREA_EPS, Box2, Box3, IouKind, image_fraction_inside, iou_image};
+use super::iou::{AREA_EPS, Box2, IouKind, image_fraction_inside, iou_image};
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::camera_box_to_lidar;
 use crate::io::kitti::labels::TrackingLabel;
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use std::collections::BTreeMap;
 
@@ -367,7 +368,7 @@ pub fn kitti_3d_clear_mot(
         &KittiPreprocessConfig::for_class(class),
     )?;
     // (frame, id) → 3D box, for the ground truth and for the results.
-    let boxes_of = |labels: &[TrackingLabel]| -> BTreeMap<(u32, u64), Box3> {
+    let boxes_of = |labels: &[TrackingLabel]| -> BTreeMap<(u32, u64), OrientedBox> {
         labels
             .iter()
             .filter(|l| l.track_id >= 0 && !l.is_dont_care())
@@ -375,7 +376,7 @@ pub fn kitti_3d_clear_mot(
                 let b = camera_box_to_lidar(&l.cam_box, calib);
                 (
                     (l.frame, l.track_id as u64),
-                    Box3::new(b.center_lidar, b.size_lwh, b.yaw_rad),
+                    OrientedBox::new(b.center, b.size_lwh, b.yaw_rad),
                 )
             })
             .collect()
@@ -383,9 +384,9 @@ pub fn kitti_3d_clear_mot(
     let gt_boxes = boxes_of(gt);
     let result_boxes = boxes_of(results);
     let lift = |frame: u32,
-                boxes: &BTreeMap<(u32, u64), Box3>,
+                boxes: &BTreeMap<(u32, u64), OrientedBox>,
                 items: &[TrackedBox<Box2>]|
-     -> Vec<TrackedBox<Box3>> {
+     -> Vec<TrackedBox<OrientedBox>> {
         items
             .iter()
             .filter_map(|t| {
@@ -397,7 +398,7 @@ pub fn kitti_3d_clear_mot(
             })
             .collect()
     };
-    let frames: Vec<MotFrame<Box3>> = prepared
+    let frames: Vec<MotFrame<OrientedBox>> = prepared
         .frames
         .iter()
         .enumerate()
@@ -543,7 +544,7 @@ mod tests {
         assert_eq!((r.matches, r.false_positives, r.false_negatives), (1, 1, 1));
         let to_box3 = |l: &TrackingLabel| {
             let b = camera_box_to_lidar(&l.cam_box, &calib);
-            Box3::new(b.center_lidar, b.size_lwh, b.yaw_rad)
+            OrientedBox::new(b.center, b.size_lwh, b.yaw_rad)
         };
         let expected = iou_3d(&to_box3(&gt[0]), &to_box3(&results[0]));
         assert!((expected - 0.6).abs() < 0.01, "{expected}");

@@ -36,7 +36,7 @@ pub use clear_mot::{
 };
 pub use filtering::{FilterScore, filter_precision_recall};
 pub use interpolate::pose_at;
-pub use iou::{Box2, Box3, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image};
+pub use iou::{Box2, IouKind, MotBox, iou, iou_3d, iou_bev, iou_image, validate_box};
 pub use kitti_mot::{
     KittiEvalClass, KittiMotFrames, KittiPreprocessConfig, KittiPreprocessStats,
     kitti_2d_clear_mot, kitti_2d_frames, kitti_3d_clear_mot,

@@ -112,7 +112,7 @@ pub fn object_scores(
 mod hand_tests {
     use super::*;
     use crate::metrics::clear_mot::TrackedBox;
-    use crate::metrics::iou::Box3;
+    use limot_estimator::geometry::OrientedBox;
     use limot_estimator::input::ObjectClass;
     use nalgebra::Vector3;
 
@@ -120,7 +120,7 @@ mod hand_tests {
         TrackedBox {
             id,
             class: ObjectClass::Car,
-            bbox: Box3::new(Vector3::new(x, 0.0, 1.0), Vector3::new(4.0, 2.0, 2.0), yaw),
+            bbox: OrientedBox::new(Vector3::new(x, 0.0, 1.0), Vector3::new(4.0, 2.0, 2.0), yaw),
         }
     }
 

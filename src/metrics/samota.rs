@@ -37,9 +37,10 @@
 
 use super::EvalError;
 use super::assignment::min_cost_assignment;
-use super::iou::{Box2, Box3, image_fraction_inside, iou_3d};
+use super::iou::{Box2, image_fraction_inside, iou_3d, validate_box};
 use super::kitti_mot::KittiEvalClass;
 use crate::io::kitti::labels::{CameraBox, TrackingLabel};
+use limot_estimator::geometry::OrientedBox;
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, HashMap};
 
@@ -129,12 +130,12 @@ pub struct Ab3dmotResult {
     pub amotp: f64,
 }
 
-/// An AB3DMOT camera-frame box as a z-up [`Box3`]: x right, y forward (camera
+/// An AB3DMOT camera-frame box as a z-up [`OrientedBox`]: x right, y forward (camera
 /// z), z up (camera −y); yaw = −rotation_y.
-pub fn camera_box3(cam: &CameraBox) -> Box3 {
+pub fn camera_box3(cam: &CameraBox) -> OrientedBox {
     let [h, w, l] = [cam.dims_hwl.x, cam.dims_hwl.y, cam.dims_hwl.z];
     let c = cam.bottom_center_rect;
-    Box3::new(
+    OrientedBox::new(
         Vector3::new(c.x, c.z, -c.y + 0.5 * h),
         Vector3::new(l, w, h),
         -cam.rotation_y_rad,
@@ -143,7 +144,7 @@ pub fn camera_box3(cam: &CameraBox) -> Box3 {
 
 struct GtBox {
     track_id: i64,
-    box3: Box3,
+    box3: OrientedBox,
     /// Neighbour class, too occluded or truncated.
     hard: bool,
 }
@@ -153,7 +154,7 @@ struct ResultBox {
     track_id: i64,
     neighbour: bool,
     box2: Box2,
-    box3: Box3,
+    box3: OrientedBox,
     score: f64,
     /// Matched in any evaluation so far (evaluate.py's `valid` flag).
     valid: bool,
@@ -333,9 +334,13 @@ fn neighbour(class: KittiEvalClass, l: &TrackingLabel) -> bool {
     }
 }
 
-fn checked_box3(what: &'static str, index: usize, cam: &CameraBox) -> Result<Box3, EvalError> {
+fn checked_box3(
+    what: &'static str,
+    index: usize,
+    cam: &CameraBox,
+) -> Result<OrientedBox, EvalError> {
     let b = camera_box3(cam);
-    b.validate().map_err(|(field, why)| EvalError::Invalid {
+    validate_box(&b).map_err(|(field, why)| EvalError::Invalid {
         what,
         index,
         field,

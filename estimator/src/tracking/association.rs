@@ -18,8 +18,8 @@
 //! O(E log V). Detections left without flow start new tracks.
 
 use super::box_overlap::giou_3d;
+use crate::geometry::OrientedBox;
 use crate::input::ObjectClass;
-use crate::object_removal::OrientedBox;
 use nalgebra::DMatrix;
 use std::cmp::{Ordering, Reverse};
 use std::collections::BinaryHeap;
@@ -61,7 +61,7 @@ impl AssociationMetric {
         alpha_m: f64,
         d_thres_m: f64,
     ) -> f64 {
-        let distance_m = (predicted.center_world - detected.center_world).norm();
+        let distance_m = (predicted.center - detected.center).norm();
         match *self {
             AssociationMetric::CentreDistance => matching_score(distance_m, alpha_m, d_thres_m),
             AssociationMetric::Giou3d {
@@ -421,7 +421,7 @@ mod tests {
 
     fn car(x: f64, y: f64, yaw: f64) -> OrientedBox {
         OrientedBox {
-            center_world: Vector3::new(x, y, 0.8),
+            center: Vector3::new(x, y, 0.8),
             yaw_rad: yaw,
             size_lwh: Vector3::new(4.0, 2.0, 1.5),
         }

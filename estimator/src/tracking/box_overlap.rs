@@ -1,4 +1,4 @@
-//! Overlap of two upright world boxes ([`OrientedBox`]: yaw about z only):
+//! Overlap of two upright boxes ([`OrientedBox`]: yaw about z only):
 //! 3D IoU and 3D generalised IoU (GIoU, Rezatofighi et al. 2019), the
 //! association affinity of AB3DMOT.
 //!
@@ -11,34 +11,20 @@
 //! decreasing with distance once the boxes no longer touch, so it can rank
 //! disjoint pairs.
 
-use crate::object_removal::OrientedBox;
+use crate::geometry::OrientedBox;
 use crate::polygon::{convex_intersection, hull_area, polygon_area};
 use nalgebra::Vector2;
 
-/// Footprint corners, counter-clockwise seen from above.
-fn footprint(b: &OrientedBox) -> [Vector2<f64>; 4] {
-    let (s, c) = b.yaw_rad.sin_cos();
-    let along = Vector2::new(c, s) * (0.5 * b.size_lwh.x);
-    let across = Vector2::new(-s, c) * (0.5 * b.size_lwh.y);
-    let centre = b.center_world.xy();
-    [
-        centre + along + across,
-        centre - along + across,
-        centre - along - across,
-        centre + along - across,
-    ]
-}
-
 /// Intersection volume, union volume and enclosing volume of two boxes.
 fn volumes(a: &OrientedBox, b: &OrientedBox) -> (f64, f64, f64) {
-    let (fa, fb) = (footprint(a), footprint(b));
+    let (fa, fb) = (a.bev_corners(), b.bev_corners());
     let (a_lo, a_hi) = (
-        a.center_world.z - 0.5 * a.size_lwh.z,
-        a.center_world.z + 0.5 * a.size_lwh.z,
+        a.center.z - 0.5 * a.size_lwh.z,
+        a.center.z + 0.5 * a.size_lwh.z,
     );
     let (b_lo, b_hi) = (
-        b.center_world.z - 0.5 * b.size_lwh.z,
-        b.center_world.z + 0.5 * b.size_lwh.z,
+        b.center.z - 0.5 * b.size_lwh.z,
+        b.center.z + 0.5 * b.size_lwh.z,
     );
     let dz = (a_hi.min(b_hi) - a_lo.max(b_lo)).max(0.0);
     let inter_area = if dz > 0.0 {
@@ -54,6 +40,10 @@ fn volumes(a: &OrientedBox, b: &OrientedBox) -> (f64, f64, f64) {
 }
 
 /// 3D IoU of two upright boxes, in [0, 1] (0 for empty boxes).
+///
+/// Kept apart from the evaluation's `limot::metrics::iou_3d`, which returns
+/// exactly 0 for empty footprints and for circumscribed circles apart before
+/// clipping; here such pairs are clipped and may give a rounding-sized sliver.
 pub fn iou_3d(a: &OrientedBox, b: &OrientedBox) -> f64 {
     let (inter, union, _) = volumes(a, b);
     if union > 0.0 {
@@ -80,7 +70,7 @@ mod tests {
 
     fn boxed(x: f64, y: f64, z: f64, yaw: f64) -> OrientedBox {
         OrientedBox {
-            center_world: Vector3::new(x, y, z),
+            center: Vector3::new(x, y, z),
             yaw_rad: yaw,
             size_lwh: Vector3::new(4.0, 2.0, 1.5),
         }
@@ -131,7 +121,7 @@ mod tests {
         // the regular octagon through all eight corners (circumradius √2),
         // of area 2√2·R² = 4√2.
         let square = |yaw: f64| OrientedBox {
-            center_world: Vector3::zeros(),
+            center: Vector3::zeros(),
             yaw_rad: yaw,
             size_lwh: Vector3::new(2.0, 2.0, 1.0),
         };

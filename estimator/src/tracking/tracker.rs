@@ -7,9 +7,9 @@ use super::association::{associate_by_class, matching_matrix};
 use super::track::{Lifecycle, Motion, TimedBox, Track, rotated_yaw};
 use super::trajectory_fit::FitError;
 use super::{TrackerConfig, TrackerConfigError};
+use crate::geometry::OrientedBox;
 use crate::geometry::wrap_angle_rad;
 use crate::input::ObjectClass;
-use crate::object_removal::OrientedBox;
 use nalgebra::{Isometry3, Vector3};
 
 /// A detection already transformed into the world frame by the caller
@@ -37,7 +37,7 @@ impl WorldDetection {
     /// The detected box.
     fn oriented_box(&self) -> OrientedBox {
         OrientedBox {
-            center_world: self.center_world,
+            center: self.center_world,
             yaw_rad: self.yaw_rad,
             size_lwh: self.size_lwh,
         }
@@ -257,7 +257,7 @@ impl Tracker {
             let det = detections[candidates[c]];
             let predicted = tracks[i].predict(t_s + det.time_offset_s);
             let predicted_box = OrientedBox {
-                center_world: predicted.center_world,
+                center: predicted.center_world,
                 yaw_rad: predicted.yaw_rad,
                 size_lwh: tracks[i].size_lwh(),
             };

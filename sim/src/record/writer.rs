@@ -57,13 +57,22 @@ impl DatasetWriter {
         fs::write(&path, encode_scan(&frame.scan, &frame.labels)).map_err(io_err(&path))?;
         for d in &frame.detections {
             let det = &d.detection;
-            let c = det.center_lidar;
-            let s = det.size_lwh;
+            let c = det.box_lidar.center;
+            let s = det.box_lidar.size_lwh;
             let truth = d.truth_id.map_or(-1, i64::from);
             let _ = writeln!(
                 self.detections_csv,
                 "{index},{},{},{},{},{},{},{},{},{},{},{truth}",
-                det.time_offset_s, det.class, c.x, c.y, c.z, s.x, s.y, s.z, det.yaw_rad, det.score
+                det.time_offset_s,
+                det.class,
+                c.x,
+                c.y,
+                c.z,
+                s.x,
+                s.y,
+                s.z,
+                det.box_lidar.yaw_rad,
+                det.score
             );
         }
         for b in boxes {

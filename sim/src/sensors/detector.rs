@@ -5,7 +5,7 @@
 
 use crate::scene::{Agent, Ego, Scene};
 use crate::sensors::LidarConfig;
-use limot_estimator::geometry::wrap_angle_rad;
+use limot_estimator::geometry::{OrientedBox, wrap_angle_rad};
 use limot_estimator::input::{Detection, InputError, ObjectClass};
 use nalgebra::{Point3, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -321,10 +321,12 @@ impl Detector {
             ego.trajectory.pose_at(t_seen_s).inverse() * agent.trajectory.pose_at(t_seen_s);
         let r = t_lidar_box.rotation.to_rotation_matrix();
         Detection {
-            center_lidar: t_lidar_box.translation.vector,
-            size_lwh: agent.size_lwh_m,
-            // heading of the box's x axis projected on the LiDAR's xy plane
-            yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
+            box_lidar: OrientedBox {
+                center: t_lidar_box.translation.vector,
+                size_lwh: agent.size_lwh_m,
+                // heading of the box's x axis projected on the LiDAR's xy plane
+                yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
+            },
             class: agent.class,
             score: 1.0,
             time_offset_s,
@@ -359,7 +361,7 @@ impl Detector {
             // a non-finite trajectory or LiDAR timing must not reach the RNG
             truth.validate(t_scan_s, out.len())?;
             let points = points_per_instance.get(&agent.id).copied().unwrap_or(0);
-            let range_m = truth.center_lidar.xy().norm();
+            let range_m = truth.box_lidar.center.xy().norm();
             let recall = self.config.recall(range_m, points);
             if !rng.random_bool(recall.clamp(0.0, 1.0)) {
                 continue;
@@ -390,19 +392,21 @@ impl Detector {
     /// heading flip, and a score that grows with visibility.
     fn noisy(&self, truth: &Detection, visibility: f64, rng: &mut ChaCha8Rng) -> Detection {
         let noise = self.config.noise(truth.class);
-        let center_lidar = truth.center_lidar + gaussian_vector(rng) * noise.position_sigma_m;
-        let size_lwh =
-            (truth.size_lwh + gaussian_vector(rng) * noise.size_sigma_m).map(|s| s.max(MIN_SIZE_M));
-        let mut yaw_rad = truth.yaw_rad + gaussian(rng) * noise.yaw_sigma_rad;
+        let center_lidar = truth.box_lidar.center + gaussian_vector(rng) * noise.position_sigma_m;
+        let size_lwh = (truth.box_lidar.size_lwh + gaussian_vector(rng) * noise.size_sigma_m)
+            .map(|s| s.max(MIN_SIZE_M));
+        let mut yaw_rad = truth.box_lidar.yaw_rad + gaussian(rng) * noise.yaw_sigma_rad;
         if rng.random_bool(noise.heading_flip_probability) {
             yaw_rad += PI;
         }
         let score =
             TRUE_SCORE_BASE + TRUE_SCORE_GAIN * visibility + TRUE_SCORE_SIGMA * gaussian(rng);
         Detection {
-            center_lidar,
-            size_lwh,
-            yaw_rad: wrap_angle_rad(yaw_rad),
+            box_lidar: OrientedBox {
+                center: center_lidar,
+                size_lwh,
+                yaw_rad: wrap_angle_rad(yaw_rad),
+            },
             class: truth.class,
             score: score.clamp(0.0, 1.0),
             time_offset_s: truth.time_offset_s,
@@ -457,9 +461,11 @@ impl Detector {
             return None;
         }
         Some(Detection {
-            center_lidar,
-            size_lwh,
-            yaw_rad,
+            box_lidar: OrientedBox {
+                center: center_lidar,
+                size_lwh,
+                yaw_rad,
+            },
             class: ObjectClass::Car,
             score,
             time_offset_s,

@@ -30,13 +30,14 @@ use crate::io::kitti::labels::{TrackingLabel, read_labels};
 use crate::io::kitti::oxts::{oxts_to_poses, read_oxts};
 use crate::io::kitti::raw::{declared_elevation_correction_rad, tracking_frame_times};
 use crate::io::kitti::sequence_file;
+use crate::metrics::IouKind;
 use crate::metrics::kitti_3d_clear_mot;
 use crate::metrics::object_scores;
 use crate::metrics::{AlignMode, RpeDelta, pose_at};
-use crate::metrics::{Box3, IouKind};
 use crate::metrics::{ClearMotConfig, MotFrame, MotSummary, TrackedBox};
 use crate::metrics::{KittiEvalClass, kitti_2d_clear_mot};
 use crate::run::{LabelFrame, RunOutput, kitti_track_labels, write_kitti_tracks};
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
@@ -377,7 +378,7 @@ fn car_frames(
         TrackedBox {
             id: l.track_id as u64,
             class: ObjectClass::Car,
-            bbox: Box3::new(b.center_lidar, b.size_lwh, b.yaw_rad),
+            bbox: OrientedBox::new(b.center, b.size_lwh, b.yaw_rad),
         }
     };
     let is_car = |l: &&TrackingLabel| {

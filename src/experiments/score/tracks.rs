@@ -27,19 +27,20 @@
 use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times};
 use crate::io::kitti::calib::Calib;
-use crate::io::kitti::detections::{LidarBox, camera_box_to_lidar, lidar_box_to_camera};
+use crate::io::kitti::detections::{camera_box_to_lidar, lidar_box_to_camera};
 use crate::io::kitti::export::synthetic_calib;
 use crate::io::kitti::labels::TrackingLabel;
 use crate::io::kitti::results::{ImageSize, image_box};
 use crate::io::kitti::{LineCtx, content_lines, read_text, sequence_file};
+use crate::metrics::IouKind;
 use crate::metrics::pose_at;
-use crate::metrics::{Box3, IouKind};
 use crate::metrics::{
     ClearMotConfig, ClearMotResult, MotFrame, PAPER_IOU_THRESHOLDS, TrackedBox, clear_mot,
     clear_mot_per_class,
 };
 use crate::metrics::{ObjectScore, object_scores};
 use crate::report::{Cell, Table};
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use limot_sim::record::{Dataset, EgoTruth};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -101,7 +102,7 @@ impl Default for TrackEvalOptions {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ResultBoxes {
     /// Per frame: `(track id, class, box)`.
-    pub per_frame: Vec<Vec<(u64, ObjectClass, LidarBox)>>,
+    pub per_frame: Vec<Vec<(u64, ObjectClass, OrientedBox)>>,
     /// Result lines of types we do not track (Tram, Misc), skipped.
     pub skipped_types: usize,
     /// DontCare lines, skipped (results carry none normally).
@@ -196,12 +197,12 @@ pub fn ego_pose_at(truth: &[EgoTruth], t_s: f64, path: &Path) -> Result<Isometry
 }
 
 /// A LiDAR-frame box (yaw about LiDAR z) as a world box.
-fn lidar_box_to_world(t_world_lidar: &Isometry3<f64>, b: &LidarBox) -> Box3 {
+fn lidar_box_to_world(t_world_lidar: &Isometry3<f64>, b: &OrientedBox) -> OrientedBox {
     let t_lidar_box = Isometry3::from_parts(
-        Translation3::from(b.center_lidar),
+        Translation3::from(b.center),
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), b.yaw_rad),
     );
-    Box3::from_pose(&(t_world_lidar * t_lidar_box), b.size_lwh)
+    OrientedBox::from_pose(&(t_world_lidar * t_lidar_box), b.size_lwh)
 }
 
 /// Whether the KITTI-style copy labels this box (the rule of `kitti_export`):
@@ -217,8 +218,8 @@ fn camera_visible(
         return false;
     }
     let r = t_lidar_box.rotation.to_rotation_matrix();
-    let lidar_box = LidarBox {
-        center_lidar: center,
+    let lidar_box = OrientedBox {
+        center,
         size_lwh,
         yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
     };
@@ -693,8 +694,8 @@ mod tests {
     fn lidar_box_maps_to_world_with_the_ego_pose() {
         let t_world_lidar =
             Isometry3::new(Vector3::new(10.0, 5.0, 1.0), Vector3::new(0.0, 0.0, 0.5));
-        let b = LidarBox {
-            center_lidar: Vector3::new(3.0, 0.0, 0.0),
+        let b = OrientedBox {
+            center: Vector3::new(3.0, 0.0, 0.0),
             size_lwh: Vector3::new(4.0, 2.0, 1.5),
             yaw_rad: 0.2,
         };

@@ -79,16 +79,18 @@ fn result_writer_applies_the_policy_frame_by_frame() {
 fn world_round_trip_is_exact_for_level_boxes() {
     let t_world_lidar = pose();
     let det = Detection {
-        center_lidar: Vector3::new(12.0, -2.5, -0.8),
-        size_lwh: Vector3::new(4.2, 1.7, 1.5),
-        yaw_rad: 0.7,
+        box_lidar: OrientedBox {
+            center: Vector3::new(12.0, -2.5, -0.8),
+            size_lwh: Vector3::new(4.2, 1.7, 1.5),
+            yaw_rad: 0.7,
+        },
         class: ObjectClass::Car,
         score: 0.8,
         time_offset_s: 0.05,
     };
     let world = detection_to_world(&det, &t_world_lidar);
     // The centre really is the transformed point; the yaw about 1.1 rad more.
-    let expected = t_world_lidar.rotation * det.center_lidar + t_world_lidar.translation.vector;
+    let expected = t_world_lidar.rotation * det.box_lidar.center + t_world_lidar.translation.vector;
     assert!((world.center_world - expected).norm() < 1e-12);
     assert!((wrap_angle_rad(world.yaw_rad - 0.7 - 1.1)).abs() < 0.01);
     let back = world_box_to_lidar(
@@ -97,10 +99,10 @@ fn world_round_trip_is_exact_for_level_boxes() {
         world.yaw_rad,
         &t_world_lidar,
     );
-    assert!((back.center_lidar - det.center_lidar).norm() < 1e-12);
+    assert!((back.center - det.box_lidar.center).norm() < 1e-12);
     // Projecting the heading onto the level plane twice loses a little
     // with 0.02 rad of tilt; far below anything the metrics see.
-    assert!(wrap_angle_rad(back.yaw_rad - det.yaw_rad).abs() < 1e-3);
+    assert!(wrap_angle_rad(back.yaw_rad - det.box_lidar.yaw_rad).abs() < 1e-3);
 }
 
 #[test]

@@ -23,50 +23,28 @@ use super::calib::Calib;
 use super::labels::{CameraBox, TrackingLabel};
 use super::velodyne::sweep_time_offset_s;
 use super::{LineCtx, Result, content_lines, read_text};
-use limot_estimator::geometry::wrap_angle_rad;
+use limot_estimator::geometry::{OrientedBox, wrap_angle_rad};
 use limot_estimator::input::{Detection, ObjectClass};
 use nalgebra::Vector3;
 use std::f64::consts::FRAC_PI_2;
 use std::path::Path;
 
-/// A box in the LiDAR frame (the geometric part of a [`Detection`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LidarBox {
-    /// Geometric centre, LiDAR frame (m).
-    pub center_lidar: Vector3<f64>,
-    /// Length, width, height (m).
-    pub size_lwh: Vector3<f64>,
-    /// Heading about LiDAR z, 0 = +x (rad, in (-π, π]).
-    pub yaw_rad: f64,
-}
-
-impl LidarBox {
-    /// The box of an estimator detection (its centre, size and heading).
-    pub fn from_detection(det: &Detection) -> LidarBox {
-        LidarBox {
-            center_lidar: det.center_lidar,
-            size_lwh: det.size_lwh,
-            yaw_rad: det.yaw_rad,
-        }
-    }
-}
-
-/// KITTI camera box → LiDAR-frame box (see the module docs).
-pub fn camera_box_to_lidar(cam: &CameraBox, calib: &Calib) -> LidarBox {
+/// KITTI camera box → LiDAR-frame box (see the module docs; yaw in (-π, π]).
+pub fn camera_box_to_lidar(cam: &CameraBox, calib: &Calib) -> OrientedBox {
     let h = cam.dims_hwl.x;
     // Camera y points down: the geometric centre is h/2 above the bottom.
     let center_rect = cam.bottom_center_rect - Vector3::new(0.0, h / 2.0, 0.0);
-    LidarBox {
-        center_lidar: calib.rect_to_velo(&center_rect),
+    OrientedBox {
+        center: calib.rect_to_velo(&center_rect),
         size_lwh: Vector3::new(cam.dims_hwl.z, cam.dims_hwl.y, h),
         yaw_rad: wrap_angle_rad(-cam.rotation_y_rad - FRAC_PI_2),
     }
 }
 
 /// LiDAR-frame box → KITTI camera box (inverse of [`camera_box_to_lidar`]).
-pub fn lidar_box_to_camera(lidar: &LidarBox, calib: &Calib) -> CameraBox {
+pub fn lidar_box_to_camera(lidar: &OrientedBox, calib: &Calib) -> CameraBox {
     let h = lidar.size_lwh.z;
-    let center_rect = calib.velo_to_rect(&lidar.center_lidar);
+    let center_rect = calib.velo_to_rect(&lidar.center);
     CameraBox {
         dims_hwl: Vector3::new(h, lidar.size_lwh.y, lidar.size_lwh.x),
         bottom_center_rect: center_rect + Vector3::new(0.0, h / 2.0, 0.0),
@@ -130,14 +108,12 @@ pub struct CameraDetection {
 impl CameraDetection {
     /// The detection in the LiDAR frame.
     pub fn to_detection(&self, calib: &Calib, score_map: ScoreMap) -> Detection {
-        let lidar = camera_box_to_lidar(&self.cam_box, calib);
+        let box_lidar = camera_box_to_lidar(&self.cam_box, calib);
         Detection {
-            center_lidar: lidar.center_lidar,
-            size_lwh: lidar.size_lwh,
-            yaw_rad: lidar.yaw_rad,
+            box_lidar,
             class: self.class,
             score: score_map.apply(self.score_raw),
-            time_offset_s: sweep_time_offset_s(&lidar.center_lidar),
+            time_offset_s: sweep_time_offset_s(&box_lidar.center),
         }
     }
 
@@ -149,7 +125,7 @@ impl CameraDetection {
         calib: &Calib,
         score_map: ScoreMap,
     ) -> CameraDetection {
-        let cam_box = lidar_box_to_camera(&LidarBox::from_detection(det), calib);
+        let cam_box = lidar_box_to_camera(&det.box_lidar, calib);
         CameraDetection {
             frame,
             class: det.class,
@@ -332,13 +308,25 @@ mod tests {
         // First box: 6.4 m ahead, 2.9 m right (camera x), bottom at y=1.6 m
         // below the camera → LiDAR: x ≈ 6.4 + 0.27, y ≈ -2.9, z ≈ centre height.
         let d = frames[0][0];
-        assert!((d.center_lidar.x - 6.7).abs() < 0.2, "{}", d.center_lidar);
-        assert!((d.center_lidar.y - -2.93).abs() < 0.2, "{}", d.center_lidar);
+        assert!(
+            (d.box_lidar.center.x - 6.7).abs() < 0.2,
+            "{}",
+            d.box_lidar.center
+        );
+        assert!(
+            (d.box_lidar.center.y - -2.93).abs() < 0.2,
+            "{}",
+            d.box_lidar.center
+        );
         // Camera height 1.65 m above ground, LiDAR 1.73 m: centre ≈ -0.9 m.
-        assert!((d.center_lidar.z - -0.9).abs() < 0.3, "{}", d.center_lidar);
-        assert_eq!(d.size_lwh, Vector3::new(4.4501, 1.6824, 1.5206));
+        assert!(
+            (d.box_lidar.center.z - -0.9).abs() < 0.3,
+            "{}",
+            d.box_lidar.center
+        );
+        assert_eq!(d.box_lidar.size_lwh, Vector3::new(4.4501, 1.6824, 1.5206));
         // rot_y ≈ -π/2 means heading along camera +z, i.e. LiDAR +x.
-        assert!(d.yaw_rad.abs() < 0.02, "{}", d.yaw_rad);
+        assert!(d.box_lidar.yaw_rad.abs() < 0.02, "{}", d.box_lidar.yaw_rad);
         assert!(d.score > 0.99 && d.score <= 1.0);
         assert!(d.validate(0.0, 0).is_ok());
         // Boxes ahead were seen half-way through the sweep (which starts at the rear).
@@ -402,8 +390,8 @@ mod tests {
             let front_rect = cam.bottom_center_rect - Vector3::new(0.0, 0.75, 0.0)
                 + 2.0 * Vector3::new(ry.cos(), 0.0, -ry.sin());
             let front_lidar = calib.rect_to_velo(&front_rect);
-            let expected = lidar.center_lidar
-                + 2.0 * Vector3::new(lidar.yaw_rad.cos(), lidar.yaw_rad.sin(), 0.0);
+            let expected =
+                lidar.center + 2.0 * Vector3::new(lidar.yaw_rad.cos(), lidar.yaw_rad.sin(), 0.0);
             assert!((front_lidar - expected).norm() < 0.05, "ry {ry}");
         }
     }
@@ -422,6 +410,6 @@ mod tests {
         assert_eq!(dets[0].score_raw, 1.0);
         let frames = detections_by_frame(&dets, &calib(), ScoreMap::Clamp01, 0);
         assert_eq!(frames.len(), 1);
-        assert!(frames[0][0].center_lidar.x > 13.0);
+        assert!(frames[0][0].box_lidar.center.x > 13.0);
     }
 }

@@ -16,6 +16,7 @@
 //! devkit's Mercator projection around a point in Karlsruhe, chosen so the
 //! devkit's `oxts_to_poses` gives back our IMU poses relative to the first.
 
+use crate::io::kitti::KittiError;
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
 use crate::io::kitti::labels::write_labels;
@@ -26,7 +27,7 @@ use crate::io::kitti::poses::write_kitti_poses;
 use crate::io::kitti::raw::ELEVATION_CORRECTION_FILE;
 use crate::io::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
 use crate::io::kitti::velodyne::encode_bin;
-use crate::io::kitti::{KittiError, detections::LidarBox};
+use limot_estimator::geometry::OrientedBox;
 use limot_sim::record::{Dataset, RecordError, points_per_instance};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;
@@ -228,8 +229,8 @@ pub fn export_dataset(
                     frame: index as u32,
                     track_id: b.id,
                     class: b.class,
-                    lidar_box: LidarBox {
-                        center_lidar: center,
+                    lidar_box: OrientedBox {
+                        center,
                         size_lwh: b.size_lwh_m,
                         yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
                     },

@@ -260,9 +260,17 @@ Cyclist -1 -1 0.2 600 170 640 230 1.7 0.6 1.8 -1.2 1.65 17.5 1.45 0.41
         let b = via_tracking[0].to_detection(&calib, ScoreMap::Clamp01);
         assert_eq!(a, b);
         // And the conversion is a sensible one: 6.4 m ahead, 2.9 m right.
-        assert!((a.center_lidar.x - 6.7).abs() < 0.3, "{}", a.center_lidar);
-        assert!((a.center_lidar.y - -2.93).abs() < 0.3, "{}", a.center_lidar);
-        assert_eq!(a.size_lwh, Vector3::new(4.45, 1.68, 1.52));
+        assert!(
+            (a.box_lidar.center.x - 6.7).abs() < 0.3,
+            "{}",
+            a.box_lidar.center
+        );
+        assert!(
+            (a.box_lidar.center.y - -2.93).abs() < 0.3,
+            "{}",
+            a.box_lidar.center
+        );
+        assert_eq!(a.box_lidar.size_lwh, Vector3::new(4.45, 1.68, 1.52));
         assert_eq!(a.score, 0.93);
     }
 

@@ -8,9 +8,10 @@
 //! box and are not written.
 
 use super::calib::Calib;
-use super::detections::{LidarBox, lidar_box_to_camera, observation_angle_rad};
+use super::detections::{lidar_box_to_camera, observation_angle_rad};
 use super::labels::{CameraBox, TrackingLabel};
 use super::{Result, sequence_file, write_text};
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Matrix3, Vector3};
 use std::path::{Path, PathBuf};
@@ -43,7 +44,7 @@ pub struct TrackBox {
     /// Object class.
     pub class: ObjectClass,
     /// The box in the frame's LiDAR frame.
-    pub lidar_box: LidarBox,
+    pub lidar_box: OrientedBox,
     /// Score written in the result line.
     pub score: f64,
 }
@@ -175,8 +176,8 @@ mod tests {
             frame: 3,
             track_id: 7,
             class: ObjectClass::Pedestrian,
-            lidar_box: LidarBox {
-                center_lidar: Vector3::new(-10.0, 0.0, -0.8),
+            lidar_box: OrientedBox {
+                center: Vector3::new(-10.0, 0.0, -0.8),
                 size_lwh: Vector3::new(0.8, 0.6, 1.7),
                 yaw_rad: 0.0,
             },
@@ -192,8 +193,8 @@ mod tests {
             frame,
             track_id,
             class: ObjectClass::Car,
-            lidar_box: LidarBox {
-                center_lidar: Vector3::new(x, 1.0, -0.9),
+            lidar_box: OrientedBox {
+                center: Vector3::new(x, 1.0, -0.9),
                 size_lwh: Vector3::new(4.0, 1.7, 1.5),
                 yaw_rad: 0.3,
             },

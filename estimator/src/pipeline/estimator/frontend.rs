@@ -5,13 +5,14 @@
 use super::EgoState;
 use super::Estimator;
 use super::EstimatorError;
+use crate::geometry::OrientedBox;
 use crate::imu::ImuTrajectory;
 use crate::input::LidarScan;
 use crate::lidar::LocalMapError;
 use crate::lidar::ScanFeatures;
 use crate::lidar::{DeskewError, SweepMotion};
 use crate::lidar::{ScanMatchResult, match_scan};
-use crate::object_removal::{BoxAtTime, OrientedBox, all_boxes_mask, dynamic_feature_mask};
+use crate::object_removal::{BoxAtTime, all_boxes_mask, dynamic_feature_mask};
 use crate::pipeline::config::Variant;
 use crate::pipeline::estimate::{ModuleTimings, ScanMatchSummary};
 use crate::tracking::{Lifecycle, Motion, Track};
@@ -25,7 +26,7 @@ impl BoxAtTime for TrackBox {
     fn box_at(&self, t_s: f64) -> OrientedBox {
         let p = self.0.predict(t_s);
         OrientedBox {
-            center_world: p.center_world,
+            center: p.center_world,
             yaw_rad: p.yaw_rad,
             size_lwh: self.0.size_lwh(),
         }
@@ -165,7 +166,8 @@ impl Estimator {
                 self.frame_detections
                     .iter()
                     .map(|d| {
-                        OrientedBox::from_detection(d, &motion.pose_at(scan.t_s + d.time_offset_s))
+                        d.box_lidar
+                            .transformed(&motion.pose_at(scan.t_s + d.time_offset_s))
                     })
                     .collect(),
             ),

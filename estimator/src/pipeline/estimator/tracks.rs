@@ -7,7 +7,7 @@ use crate::lidar::SweepMotion;
 use crate::pipeline::estimate::ModuleTimings;
 use crate::pipeline::objects::yaw_of;
 use crate::tracking::{TrackOutput, WorldDetection};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Isometry3;
 use std::time::{Duration, Instant};
 
 impl Estimator {
@@ -26,11 +26,11 @@ impl Estimator {
             .iter()
             .map(|d| {
                 let pose = t_world_lidar * start_inv * motion.pose_at(t_s + d.time_offset_s);
-                let heading = pose.rotation * Vector3::new(d.yaw_rad.cos(), d.yaw_rad.sin(), 0.0);
+                let box_world = d.box_lidar.transformed(&pose);
                 WorldDetection {
-                    center_world: (pose * nalgebra::Point3::from(d.center_lidar)).coords,
-                    size_lwh: d.size_lwh,
-                    yaw_rad: heading.y.atan2(heading.x),
+                    center_world: box_world.center,
+                    size_lwh: box_world.size_lwh,
+                    yaw_rad: box_world.yaw_rad,
                     class: d.class,
                     score: d.score,
                     time_offset_s: d.time_offset_s,

@@ -408,8 +408,11 @@ impl ObjectGraph {
                 t_lidar_object: start_inv
                     * motion.pose_at(t_det_s)
                     * Isometry3::from_parts(
-                        Translation3::from(detection.center_lidar),
-                        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), detection.yaw_rad),
+                        Translation3::from(detection.box_lidar.center),
+                        UnitQuaternion::from_axis_angle(
+                            &Vector3::z_axis(),
+                            detection.box_lidar.yaw_rad,
+                        ),
                     ),
                 time_offset_s: detection.time_offset_s,
                 class: track.class,

@@ -1,4 +1,5 @@
 use super::*;
+use crate::geometry::OrientedBox;
 use crate::graph::PriorFactor;
 use std::collections::VecDeque;
 
@@ -78,11 +79,13 @@ impl Scene {
             detection_score: None,
         };
         let detection = Detection {
-            center_lidar: t_world_lidar
-                .inverse_transform_point(&sighting.center_world.into())
-                .coords,
-            size_lwh: track.size_lwh,
-            yaw_rad: sighting.detected_yaw_rad,
+            box_lidar: OrientedBox {
+                center: t_world_lidar
+                    .inverse_transform_point(&sighting.center_world.into())
+                    .coords,
+                size_lwh: track.size_lwh,
+                yaw_rad: sighting.detected_yaw_rad,
+            },
             class: ObjectClass::Car,
             score: 0.9,
             time_offset_s: 0.0,
