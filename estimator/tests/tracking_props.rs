@@ -4,6 +4,7 @@
 //!
 //! Figures are printed with `--nocapture`.
 
+use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
 use limot_estimator::tracking::{
     FitPrior, FitSample, Lifecycle, Motion, TrackOutput, Tracker, TrackerConfig, TrajectoryFit,
@@ -290,9 +291,11 @@ fn constant_velocity_prediction_error_is_bounded() {
 
 fn car(center_world: Vector3<f64>, yaw_rad: f64) -> WorldDetection {
     WorldDetection {
-        center_world,
-        size_lwh: Vector3::new(4.5, 1.8, 1.5),
-        yaw_rad,
+        box_world: OrientedBox {
+            center: center_world,
+            size_lwh: Vector3::new(4.5, 1.8, 1.5),
+            yaw_rad,
+        },
         class: ObjectClass::Car,
         score: 0.9,
         time_offset_s: 0.0,

@@ -357,9 +357,7 @@ pub fn lidar_poses(oxts_poses: &[Isometry3<f64>], calib: &Calib) -> Vec<Isometry
 pub fn detection_to_world(det: &Detection, t_world_lidar: &Isometry3<f64>) -> WorldDetection {
     let box_world = det.box_lidar.transformed(t_world_lidar);
     WorldDetection {
-        center_world: box_world.center,
-        size_lwh: box_world.size_lwh,
-        yaw_rad: box_world.yaw_rad,
+        box_world,
         class: det.class,
         score: det.score,
         // Placed with the frame's pose (OXTS at the frame time, when the
@@ -465,7 +463,7 @@ pub fn track_sequence_with(
                 continue;
             };
             let (center_world, yaw_world) = match (options.box_source, matched_det) {
-                (BoxSource::Detection, Some(d)) => (d.center_world, d.yaw_rad),
+                (BoxSource::Detection, Some(d)) => (d.box_world.center, d.box_world.yaw_rad),
                 _ => (o.center_world, o.yaw_rad),
             };
             let track_id = u32::try_from(o.id).map_err(|_| TrackKittiError::Input {
@@ -514,7 +512,7 @@ fn matched_detection<'a>(
     let last = track.last_box().center_world;
     detections
         .iter()
-        .find(|d| d.class == output.class && d.center_world == last)
+        .find(|d| d.class == output.class && d.box_world.center == last)
 }
 
 /// Scores of one sequence.

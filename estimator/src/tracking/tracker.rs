@@ -16,12 +16,8 @@ use nalgebra::{Isometry3, Vector3};
 /// (with the ego pose at the detection time).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WorldDetection {
-    /// Box centre, world frame (m).
-    pub center_world: Vector3<f64>,
-    /// Length, width, height (metres).
-    pub size_lwh: Vector3<f64>,
-    /// Heading about the world z axis (radians).
-    pub yaw_rad: f64,
+    /// The detected box, world frame.
+    pub box_world: OrientedBox,
     /// Detected class; tracks only match detections of their class.
     pub class: ObjectClass,
     /// Detector confidence, compared with `min_score` / `birth_min_score`.
@@ -34,20 +30,15 @@ pub struct WorldDetection {
 }
 
 impl WorldDetection {
-    /// The detected box.
-    fn oriented_box(&self) -> OrientedBox {
-        OrientedBox {
-            center: self.center_world,
-            yaw_rad: self.yaw_rad,
-            size_lwh: self.size_lwh,
-        }
-    }
-
     /// True when every field is usable (finite, positive size).
     fn is_valid(&self) -> bool {
-        self.center_world.iter().all(|v| v.is_finite())
-            && self.size_lwh.iter().all(|v| v.is_finite() && *v > 0.0)
-            && self.yaw_rad.is_finite()
+        self.box_world.center.iter().all(|v| v.is_finite())
+            && self
+                .box_world
+                .size_lwh
+                .iter()
+                .all(|v| v.is_finite() && *v > 0.0)
+            && self.box_world.yaw_rad.is_finite()
             && self.time_offset_s.is_finite()
             && self.score.is_finite()
     }
@@ -114,6 +105,7 @@ pub enum TrackerError {
 /// Multi-object tracker over world-frame detections.
 ///
 /// ```
+/// use limot_estimator::geometry::OrientedBox;
 /// use limot_estimator::input::ObjectClass;
 /// use limot_estimator::tracking::{Lifecycle, Motion, Tracker, TrackerConfig, WorldDetection};
 /// use nalgebra::Vector3;
@@ -124,9 +116,11 @@ pub enum TrackerError {
 /// for k in 0..8 {
 ///     let t_s = 0.1 * k as f64;
 ///     let car = WorldDetection {
-///         center_world: Vector3::new(10.0 * t_s, 0.0, 0.8),
-///         size_lwh: Vector3::new(4.5, 1.8, 1.6),
-///         yaw_rad: 0.0,
+///         box_world: OrientedBox {
+///             center: Vector3::new(10.0 * t_s, 0.0, 0.8),
+///             size_lwh: Vector3::new(4.5, 1.8, 1.6),
+///             yaw_rad: 0.0,
+///         },
 ///         class: ObjectClass::Car,
 ///         score: 0.9,
 ///         time_offset_s: 0.0,
@@ -263,7 +257,7 @@ impl Tracker {
             };
             self.config.association.score(
                 &predicted_box,
-                &det.oriented_box(),
+                &det.box_world,
                 self.config.alpha_m,
                 self.config.d_thres_m,
             )
@@ -282,14 +276,14 @@ impl Tracker {
         config: &TrackerConfig,
     ) -> Result<(), FitError> {
         let t_det_s = t_s + det.time_offset_s;
-        let yaw_rad = track.unwrap_yaw(t_det_s, det.yaw_rad);
-        track.vote_heading(det.yaw_rad, yaw_rad);
+        let yaw_rad = track.unwrap_yaw(t_det_s, det.box_world.yaw_rad);
+        track.vote_heading(det.box_world.yaw_rad, yaw_rad);
         track.record_hit(
             TimedBox {
                 t_s: t_det_s,
-                center_world: det.center_world,
+                center_world: det.box_world.center,
                 yaw_rad,
-                size_lwh: det.size_lwh,
+                size_lwh: det.box_world.size_lwh,
             },
             config,
         )
@@ -403,9 +397,9 @@ impl Tracker {
             }
             let first = TimedBox {
                 t_s: t_s + det.time_offset_s,
-                center_world: det.center_world,
-                yaw_rad: det.yaw_rad,
-                size_lwh: det.size_lwh,
+                center_world: det.box_world.center,
+                yaw_rad: det.box_world.yaw_rad,
+                size_lwh: det.box_world.size_lwh,
             };
             let track = Track::new(self.next_id, det.class, first, &self.config)?;
             observed_by.insert(self.next_id, index);
@@ -447,9 +441,11 @@ mod tests {
 
     fn car_at(x: f64, y: f64) -> WorldDetection {
         WorldDetection {
-            center_world: Vector3::new(x, y, 0.8),
-            size_lwh: Vector3::new(4.5, 1.8, 1.5),
-            yaw_rad: 0.0,
+            box_world: OrientedBox {
+                center: Vector3::new(x, y, 0.8),
+                size_lwh: Vector3::new(4.5, 1.8, 1.5),
+                yaw_rad: 0.0,
+            },
             class: ObjectClass::Car,
             score: 0.9,
             time_offset_s: 0.0,
@@ -460,7 +456,7 @@ mod tests {
     fn outputs_name_the_detection_each_track_used() {
         let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
         let mut garbage = car_at(0.0, 0.0);
-        garbage.center_world.x = f64::NAN;
+        garbage.box_world.center.x = f64::NAN;
         // Index 0 is garbage (skipped), 1 and 2 start tracks.
         let out = tracker
             .update(0.0, &[garbage, car_at(10.0, 0.0), car_at(30.0, 5.0)])
@@ -485,7 +481,7 @@ mod tests {
         // A car driving along x at 8 m/s with a yaw of 0.3 rad, seen for 6 frames.
         let drive = |k: usize| {
             let mut d = car_at(5.0 + 0.8 * k as f64, 2.0);
-            d.yaw_rad = 0.3;
+            d.box_world.yaw_rad = 0.3;
             d
         };
         let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
@@ -513,8 +509,10 @@ mod tests {
         );
         // The next detection, seen in the new world, continues the same track.
         let mut next = drive(6);
-        next.center_world = t_new_old.transform_point(&next.center_world.into()).coords;
-        next.yaw_rad = wrap_angle_rad(rotated_yaw(&t_new_old, next.yaw_rad));
+        next.box_world.center = t_new_old
+            .transform_point(&next.box_world.center.into())
+            .coords;
+        next.box_world.yaw_rad = wrap_angle_rad(rotated_yaw(&t_new_old, next.box_world.yaw_rad));
         let after = tracker.update(0.6, &[next]).unwrap();
         assert_eq!(after.len(), 1);
         assert_eq!(after[0].id, before[0].id);
@@ -555,9 +553,9 @@ mod tests {
         };
         let mut tracker = Tracker::new(config).unwrap();
         let mut nan = car_at(0.0, 0.0);
-        nan.center_world.x = f64::NAN;
+        nan.box_world.center.x = f64::NAN;
         let mut flat = car_at(5.0, 0.0);
-        flat.size_lwh.z = 0.0;
+        flat.box_world.size_lwh.z = 0.0;
         let mut weak = car_at(10.0, 0.0);
         weak.score = 0.1;
         let out = tracker
@@ -615,7 +613,7 @@ mod tests {
         let mut out = Vec::new();
         for (k, length) in lengths.iter().enumerate() {
             let mut det = car_at(0.5 * k as f64, 0.0);
-            det.size_lwh.x = *length;
+            det.box_world.size_lwh.x = *length;
             out = tracker.update(0.1 * k as f64, &[det]).unwrap();
         }
         assert!((out[0].size_lwh.x - 4.4).abs() < 1e-12);
@@ -631,7 +629,7 @@ mod tests {
         for k in 0..8 {
             let mut det = car_at(k as f64, 0.0);
             // Every other frame the detector reports the car backwards.
-            det.yaw_rad = if k % 2 == 0 { 0.05 } else { 0.05 - PI };
+            det.box_world.yaw_rad = if k % 2 == 0 { 0.05 } else { 0.05 - PI };
             let out = tracker.update(0.1 * k as f64, &[det]).unwrap();
             assert_eq!(out.len(), 1);
             assert!((out[0].yaw_rad - 0.05).abs() < 1e-9, "{}", out[0].yaw_rad);
@@ -643,7 +641,7 @@ mod tests {
         let mut tracker = Tracker::new(TrackerConfig::default()).unwrap();
         for k in 0..10 {
             let mut det = car_at(0.0, k as f64);
-            det.yaw_rad = wrap_angle_rad(PI - 0.3 + 0.06 * k as f64);
+            det.box_world.yaw_rad = wrap_angle_rad(PI - 0.3 + 0.06 * k as f64);
             tracker.update(0.1 * k as f64, &[det]).unwrap();
         }
         // Turning at 0.6 rad/s through ±π: the fit sees a smooth ramp.
@@ -759,7 +757,7 @@ mod tests {
             for (k, &yaw) in yaws.iter().enumerate() {
                 let t = 0.1 * k as f64;
                 let mut det = car_at(speed_mps * t, 0.0);
-                det.yaw_rad = yaw;
+                det.box_world.yaw_rad = yaw;
                 out = tracker.update(t, &[det]).unwrap();
             }
             wrap_angle_rad(out[0].yaw_rad)

@@ -91,12 +91,12 @@ fn world_round_trip_is_exact_for_level_boxes() {
     let world = detection_to_world(&det, &t_world_lidar);
     // The centre really is the transformed point; the yaw about 1.1 rad more.
     let expected = t_world_lidar.rotation * det.box_lidar.center + t_world_lidar.translation.vector;
-    assert!((world.center_world - expected).norm() < 1e-12);
-    assert!((wrap_angle_rad(world.yaw_rad - 0.7 - 1.1)).abs() < 0.01);
+    assert!((world.box_world.center - expected).norm() < 1e-12);
+    assert!((wrap_angle_rad(world.box_world.yaw_rad - 0.7 - 1.1)).abs() < 0.01);
     let back = world_box_to_lidar(
-        &world.center_world,
-        &world.size_lwh,
-        world.yaw_rad,
+        &world.box_world.center,
+        &world.box_world.size_lwh,
+        world.box_world.yaw_rad,
         &t_world_lidar,
     );
     assert!((back.center - det.box_lidar.center).norm() < 1e-12);

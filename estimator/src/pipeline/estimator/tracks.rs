@@ -28,9 +28,7 @@ impl Estimator {
                 let pose = t_world_lidar * start_inv * motion.pose_at(t_s + d.time_offset_s);
                 let box_world = d.box_lidar.transformed(&pose);
                 WorldDetection {
-                    center_world: box_world.center,
-                    size_lwh: box_world.size_lwh,
-                    yaw_rad: box_world.yaw_rad,
+                    box_world,
                     class: d.class,
                     score: d.score,
                     time_offset_s: d.time_offset_s,
