@@ -200,7 +200,7 @@ impl Box2 {
 }
 
 /// Image IoU in [0, 1], computed as TrackEval's `_calculate_box_ious`
-/// (x0y0x1y1): 0 when either area or the union is not above [`AREA_EPS`].
+/// (x0y0x1y1): 0 when either area or the union is not above `AREA_EPS` (machine epsilon).
 pub fn iou_image(a: &Box2, b: &Box2) -> f64 {
     let (area_a, area_b) = (a.area_px2(), b.area_px2());
     if area_a <= AREA_EPS || area_b <= AREA_EPS {

@@ -366,7 +366,7 @@ pub fn plot_speed(path: &Path, title: &str, series: &[Series2D]) -> Result<(), R
 }
 
 /// An error over time: points are (t_s, error) with `y_desc` naming the error
-/// and its unit, e.g. "translation error [m]".
+/// and its unit, e.g. "translation error \[m\]".
 ///
 /// # Errors
 ///

@@ -67,7 +67,7 @@ fn variants_with_metrics(results: &SuiteResults) -> Vec<Variant> {
         .collect()
 }
 
-/// Paper Table "tab_ego_track": Seq | per variant ATE_T [m], ATE_R [rad];
+/// Paper Table "tab_ego_track": Seq | per variant ATE_T \[m\], ATE_R \[rad\];
 /// best per row in bold; a mean row.
 ///
 /// # Errors

@@ -24,7 +24,7 @@ pub enum Cell {
     Num(f64),
     /// Rendered as is (counts such as IDSW, FP, FN).
     Int(i64),
-    /// No value, rendered as [`MISSING`].
+    /// No value, rendered as "–".
     Missing,
 }
 
@@ -440,7 +440,7 @@ fn variants_of(maps: impl Iterator<Item = Vec<Variant>>) -> Vec<Variant> {
     all
 }
 
-/// Seq | per variant: ATE_T [m], ATE_R [rad]; a final "mean" row; the best
+/// Seq | per variant: ATE_T \[m\], ATE_R \[rad\]; a final "mean" row; the best
 /// variant per row and metric in bold.
 ///
 /// # Errors
@@ -599,7 +599,7 @@ pub struct ObjectRow {
     pub per_variant: BTreeMap<Variant, ObjectMetrics>,
 }
 
-/// Seq / Obj | per variant: TP [%], ATE_T [m], ATE_R [rad]; a final "mean"
+/// Seq / Obj | per variant: TP [%], ATE_T \[m\], ATE_R \[rad\]; a final "mean"
 /// row; the best variant per row and metric in bold.
 ///
 /// # Errors
@@ -673,7 +673,7 @@ impl TimingRow {
 /// of `lio`): its FPS is no figure worth printing.
 const NO_WORK_MS: f64 = 1e-3;
 
-/// Module | mean [ms] | p95 [ms] | FPS, one decimal each; FPS is missing
+/// Module | mean \[ms\] | p95 \[ms\] | FPS, one decimal each; FPS is missing
 /// for stages that did no work.
 ///
 /// # Errors

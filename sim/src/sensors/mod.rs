@@ -15,6 +15,4 @@ pub use imu::{ImuConfig, ImuError, ImuSimulator, ImuStream};
 pub use lidar::LidarConfig;
 pub use lidar_scan::{LidarError, LidarSimulator, SimulatedScan};
 
-/// The Velodyne HDL-64E: beam elevations and the beam -> ring order, and a
-/// reader for its calibration file.
 pub mod hdl64;

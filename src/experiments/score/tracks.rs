@@ -522,7 +522,7 @@ impl TracksEvaluation {
         Ok(table)
     }
 
-    /// Obj | Class | GT frames | TP [%] | Track | ATE_T [m] | ATE_R [rad].
+    /// Obj | Class | GT frames | TP [%] | Track | ATE_T \[m\] | ATE_R \[rad\].
     ///
     /// # Errors
     ///

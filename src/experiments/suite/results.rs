@@ -177,7 +177,7 @@ pub struct SequenceResult {
     pub frames: usize,
     /// Dataset directory, relative to the suite directory.
     pub dataset_dir: PathBuf,
-    /// Ground-truth ids of the moving objects (see [`MOVING_SPEED_MPS`]).
+    /// Ground-truth ids of the moving objects (see [`MOVING_SPEED_MPS`](crate::experiments::MOVING_SPEED_MPS)).
     pub moving_objects: Vec<u64>,
     /// Set when the sequence could not be simulated or read.
     pub error: Option<String>,
