@@ -180,6 +180,24 @@ pub fn ate(
     ate_with(est, truth, max_dt_s, AlignMode::Se3)
 }
 
+/// The positions of the associated pose pairs `(index in est, index in truth)`:
+/// estimated and true, in pair order.
+pub(crate) fn paired_positions(
+    est: &[(f64, Isometry3<f64>)],
+    truth: &[(f64, Isometry3<f64>)],
+    pairs: &[(usize, usize)],
+) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+    let p_est = pairs
+        .iter()
+        .map(|&(ie, _)| est[ie].1.translation.vector)
+        .collect();
+    let p_true = pairs
+        .iter()
+        .map(|&(_, it)| truth[it].1.translation.vector)
+        .collect();
+    (p_est, p_true)
+}
+
 /// ATE with a chosen alignment.
 ///
 /// # Errors
@@ -200,14 +218,7 @@ pub fn ate_with(
             need,
         });
     }
-    let p_est: Vec<Vector3<f64>> = pairs
-        .iter()
-        .map(|&(ie, _)| est[ie].1.translation.vector)
-        .collect();
-    let p_true: Vec<Vector3<f64>> = pairs
-        .iter()
-        .map(|&(_, it)| truth[it].1.translation.vector)
-        .collect();
+    let (p_est, p_true) = paired_positions(est, truth, &pairs);
     let alignment = match mode {
         AlignMode::None => Alignment::identity(),
         AlignMode::Se3 => umeyama(&p_est, &p_true, false)?,

@@ -12,6 +12,7 @@
 //! evo keeps the arbitrary roll in these cases.
 
 use super::align::Alignment;
+use super::ate::paired_positions;
 use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Scatter-eigenvalue ratio λ₂/λ₁ of the estimate positions below which the
@@ -70,14 +71,7 @@ pub fn complete_alignment(
     alignment: &Alignment,
 ) -> Option<(Alignment, AlignmentFix)> {
     let n = pairs.len() as f64;
-    let p_est: Vec<Vector3<f64>> = pairs
-        .iter()
-        .map(|&(ie, _)| est[ie].1.translation.vector)
-        .collect();
-    let p_true: Vec<Vector3<f64>> = pairs
-        .iter()
-        .map(|&(_, it)| truth[it].1.translation.vector)
-        .collect();
+    let (p_est, p_true) = paired_positions(est, truth, pairs);
     let mean_est = p_est.iter().sum::<Vector3<f64>>() / n;
     let mean_true = p_true.iter().sum::<Vector3<f64>>() / n;
     let scatter: Matrix3<f64> = p_est
