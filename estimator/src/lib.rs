@@ -8,7 +8,8 @@
 //! Concept modules: [`input`] (what a source delivers), [`pipeline`] (the
 //! streaming estimator), [`graph`] (factor graph, solver, sliding window),
 //! [`object_removal`] (dropping object features from a sweep), and the
-//! building blocks [`imu`], [`lidar`], [`tracking`], [`lie`], [`eigen3`],
+//! building blocks [`imu`], [`lidar`], [`tracking`], [`geometry`] (the angle
+//! wrap and the oriented box every crate shares), [`lie`], [`eigen3`],
 //! [`polygon`].
 
 #![warn(missing_docs)]
