@@ -40,11 +40,13 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 mod csv;
+mod file;
 mod scan;
 mod writer;
 
 use csv::Csv;
-pub use scan::{decode_scan, encode_scan, scan_path};
+pub use file::{DIRECT_MIN_BYTES, FileWriter, WriteMode};
+pub use scan::{decode_scan, encode_scan, encode_scan_into, scan_path};
 pub use writer::DatasetWriter;
 
 /// Version of the dataset format written to `meta.toml` and every scan header.

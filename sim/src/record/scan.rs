@@ -17,8 +17,15 @@ pub fn scan_path(dir: &Path, index: usize) -> PathBuf {
 /// ring count, reserved, point count, then per point x, y, z, intensity,
 /// time_offset (f32), label (u32), ring (u16), padding (u16).
 pub fn encode_scan(scan: &LidarScan, labels: &[u32]) -> Vec<u8> {
+    let mut out = Vec::new();
+    encode_scan_into(scan, labels, &mut out);
+    out
+}
+
+/// [`encode_scan`], appended to `out`.
+pub fn encode_scan_into(scan: &LidarScan, labels: &[u32], out: &mut Vec<u8>) {
     assert_eq!(scan.points.len(), labels.len(), "one label per point");
-    let mut out = Vec::with_capacity(SCAN_HEADER_BYTES + POINT_BYTES * scan.points.len());
+    out.reserve(SCAN_HEADER_BYTES + POINT_BYTES * scan.points.len());
     out.extend_from_slice(SCAN_MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(&scan.t_s.to_le_bytes());
@@ -27,14 +34,17 @@ pub fn encode_scan(scan: &LidarScan, labels: &[u32]) -> Vec<u8> {
     out.extend_from_slice(&0u16.to_le_bytes());
     out.extend_from_slice(&(scan.points.len() as u32).to_le_bytes());
     for (p, label) in scan.points.iter().zip(labels) {
-        for v in [p.x, p.y, p.z, p.intensity, p.time_offset_s] {
-            out.extend_from_slice(&v.to_le_bytes());
+        let mut record = [0u8; POINT_BYTES];
+        for (i, v) in [p.x, p.y, p.z, p.intensity, p.time_offset_s]
+            .into_iter()
+            .enumerate()
+        {
+            record[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
         }
-        out.extend_from_slice(&label.to_le_bytes());
-        out.extend_from_slice(&p.ring.to_le_bytes());
-        out.extend_from_slice(&0u16.to_le_bytes());
+        record[20..24].copy_from_slice(&label.to_le_bytes());
+        record[24..26].copy_from_slice(&p.ring.to_le_bytes());
+        out.extend_from_slice(&record);
     }
-    out
 }
 
 /// Decodes [`encode_scan`]'s bytes; `path` only names the file in errors.

@@ -1,8 +1,8 @@
 //! [`DatasetWriter`]: writes a dataset directory frame by frame.
 
 use super::{
-    BiasTruth, BoxTruth, EgoTruth, Meta, RecordError, RecordedFrame, encode_scan, format_err,
-    io_err, pose_to_array, scan_path,
+    BiasTruth, BoxTruth, EgoTruth, FileWriter, Meta, RecordError, RecordedFrame, WriteMode,
+    encode_scan_into, format_err, io_err, pose_to_array, scan_path,
 };
 use limot_estimator::input::ImuSample;
 use std::fmt::Write as _;
@@ -10,28 +10,45 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 /// Writes a dataset directory incrementally: `begin`, then frames in order,
-/// then `finish` with the streams known only at the end.
+/// then `finish` with the streams known only at the end. Every file is
+/// written whole by a [`FileWriter`] (one write per file, nothing partial
+/// left behind on an error).
 pub struct DatasetWriter {
     dir: PathBuf,
+    files: FileWriter,
     detections_csv: String,
     boxes_csv: String,
     frames_written: usize,
 }
 
 impl DatasetWriter {
-    /// Creates the directory (and parents) and writes `scenario.toml`.
+    /// Creates the directory (and parents) and writes `scenario.toml`, files
+    /// in the default [`WriteMode`].
     ///
     /// # Errors
     /// [`RecordError::Io`] if the directory or file cannot be written.
     pub fn begin(dir: &Path, scenario_toml: &str) -> Result<DatasetWriter, RecordError> {
+        Self::begin_with_mode(dir, scenario_toml, WriteMode::default())
+    }
+
+    /// [`DatasetWriter::begin`] with files written in `mode`.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the directory or file cannot be written.
+    pub fn begin_with_mode(
+        dir: &Path,
+        scenario_toml: &str,
+        mode: WriteMode,
+    ) -> Result<DatasetWriter, RecordError> {
         for sub in ["", "scans", "gt"] {
             let d = dir.join(sub);
             fs::create_dir_all(&d).map_err(io_err(&d))?;
         }
-        let path = dir.join("scenario.toml");
-        fs::write(&path, scenario_toml).map_err(io_err(&path))?;
+        let mut files = FileWriter::new(mode);
+        files.write(&dir.join("scenario.toml"), scenario_toml.as_bytes())?;
         Ok(DatasetWriter {
             dir: dir.to_path_buf(),
+            files,
             detections_csv: "frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id\n".into(),
             boxes_csv: "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked\n".into(),
             frames_written: 0,
@@ -54,7 +71,9 @@ impl DatasetWriter {
     ) -> Result<(), RecordError> {
         let index = self.frames_written;
         let path = scan_path(&self.dir, index);
-        fs::write(&path, encode_scan(&frame.scan, &frame.labels)).map_err(io_err(&path))?;
+        self.files.write_with(&path, |out| {
+            encode_scan_into(&frame.scan, &frame.labels, out);
+        })?;
         for d in &frame.detections {
             let det = &d.detection;
             let c = det.box_lidar.center;
@@ -94,7 +113,7 @@ impl DatasetWriter {
     /// # Errors
     /// [`RecordError`] if a file cannot be written or `meta` not serialised.
     pub fn finish(
-        self,
+        mut self,
         mut meta: Meta,
         imu: &[ImuSample],
         biases: &[BiasTruth],
@@ -140,8 +159,7 @@ impl DatasetWriter {
             ("meta.toml", meta_toml),
         ];
         for (name, text) in files {
-            let path = self.dir.join(name);
-            fs::write(&path, text).map_err(io_err(&path))?;
+            self.files.write(&self.dir.join(name), text.as_bytes())?;
         }
         Ok(self.dir)
     }
