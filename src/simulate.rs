@@ -1,7 +1,8 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
 use crate::cli::frame_progress_bar;
-use crate::io::kitti::export::{self, ExportError};
+use crate::io::kitti::export::{ExportError, KittiCopyWriter, stored_box};
+use limot_sim::record::WriteMode;
 use limot_sim::scenario::{ScenarioError, ScenarioSpec};
 use limot_sim::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
@@ -134,7 +135,8 @@ pub struct SimulateSummary {
 }
 
 /// Simulates `spec` into `out` (limot format) and, unless `kitti` is false,
-/// `out/kitti` (KITTI tracking layout). Shows a progress bar when `progress`.
+/// `out/kitti` (KITTI tracking layout), both written frame by frame while the
+/// next frame is simulated. Shows a progress bar when `progress`.
 /// `out` must be missing or empty (see [`prepare_output_dir`]).
 ///
 /// # Errors
@@ -150,31 +152,53 @@ pub fn simulate(
     let started = Instant::now();
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
+    let mode = WriteMode::default();
     let bar = frame_progress_bar(total, progress, "simulate");
     let (mut points, mut detections) = (0, 0);
-    let dataset_dir = sim.write_dataset(out, |frame, _| {
-        points += frame.recorded.scan.points.len();
-        detections += frame.recorded.detections.len();
-        bar.inc(1);
-    })?;
-    bar.finish_and_clear();
-    let kitti_dir = if kitti {
-        Some(export::export_dataset(
-            &dataset_dir,
-            sim.spec(),
-            sim.scene(),
-            &dataset_dir.join("kitti"),
+    let mut copy = if kitti {
+        let t_lidar_imu = sim.meta().t_lidar_imu();
+        Some(KittiCopyWriter::begin(
+            &out.join("kitti"),
+            &t_lidar_imu,
+            mode,
         )?)
     } else {
         None
     };
+    let scene = sim.scene();
+    let written = sim.write_dataset_with(
+        out,
+        mode,
+        |frame| match &mut copy {
+            Some(copy) => {
+                let boxes: Vec<_> = frame.boxes.iter().map(stored_box).collect();
+                copy.write_frame(&frame.recorded, &boxes, scene)
+            }
+            None => Ok(()),
+        },
+        |frame, _| {
+            points += frame.recorded.scan.points.len();
+            detections += frame.recorded.detections.len();
+            bar.inc(1);
+        },
+    );
+    bar.finish_and_clear();
+    let dataset_dir = written.map_err(|e| match e {
+        // the KITTI copy's own error, typed again
+        SimulationError::Output(e) => match e.downcast::<ExportError>() {
+            Ok(e) => SimulateError::Export(*e),
+            Err(e) => SimulateError::Simulation(SimulationError::Output(e)),
+        },
+        e => SimulateError::Simulation(e),
+    })?;
+    let kitti_dir = copy.map(|c| c.finish(sim.spec(), scene)).transpose()?;
     Ok(SimulateSummary {
         dataset_dir,
         kitti_dir,
         frames: total,
         points,
         detections,
-        agents: sim.scene().agents.len(),
+        agents: scene.agents.len(),
         wall_time_s: started.elapsed().as_secs_f64(),
     })
 }

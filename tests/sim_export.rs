@@ -103,6 +103,104 @@ fn kitti_copy_matches_the_simulated_dataset() {
     let _ = fs::remove_dir_all(&dir);
 }
 
+/// Every file below `dir`, relative path -> bytes.
+fn read_tree(dir: &std::path::Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
+                out.insert(rel, fs::read(&path).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// `limot simulate` writes the KITTI copy from the frames it simulates; the
+/// copy exported afterwards from the dataset on disk is the same, file for
+/// file and byte for byte.
+#[test]
+fn the_copy_written_while_simulating_is_the_copy_exported_from_disk() {
+    use limot::io::kitti::export::export_dataset;
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = 1.5;
+    spec.seed = 5;
+    let dir = std::env::temp_dir().join(format!("limot-export-stream-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    let summary = simulate(&spec, &dir, true, false).unwrap();
+    let streamed = read_tree(&summary.kitti_dir.unwrap());
+    let scene = spec.build().unwrap();
+    let again = dir.join("exported");
+    export_dataset(&dir, &spec, &scene, &again).unwrap();
+    let exported = read_tree(&again);
+    assert!(streamed.len() > 20, "{} files", streamed.len());
+    assert_eq!(
+        streamed.keys().collect::<Vec<_>>(),
+        exported.keys().collect::<Vec<_>>()
+    );
+    for (path, bytes) in &streamed {
+        assert!(bytes == &exported[path], "{} differs", path.display());
+    }
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// A KITTI file that cannot be written stops the simulation with an error
+/// naming it (no panic), and leaves no partial file.
+#[test]
+fn a_kitti_copy_that_cannot_be_written_is_an_error_naming_the_file() {
+    use limot::io::kitti::export::{ExportError, KittiCopyWriter, stored_box};
+    use limot_sim::record::WriteMode;
+    use limot_sim::{Simulation, SimulationError};
+    let mut spec = resolve_scenario("highway").unwrap();
+    spec.duration_s = 1.2;
+    let dir = std::env::temp_dir().join(format!("limot-export-fail-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    let sim = Simulation::new(&spec).unwrap();
+    let mut copy = KittiCopyWriter::begin(
+        &dir.join("kitti"),
+        &sim.meta().t_lidar_imu(),
+        WriteMode::Direct,
+    )
+    .unwrap();
+    // a directory where the third scan of the copy belongs
+    let blocked = dir.join("kitti/velodyne/0000/000002.bin");
+    fs::create_dir_all(&blocked).unwrap();
+    let mut frames = 0;
+    let err = sim
+        .write_dataset_with(
+            &dir,
+            WriteMode::Direct,
+            |frame| {
+                let boxes: Vec<_> = frame.boxes.iter().map(stored_box).collect();
+                copy.write_frame(&frame.recorded, &boxes, sim.scene())
+            },
+            |_, _| frames += 1,
+        )
+        .unwrap_err();
+    let SimulationError::Output(err) = err else {
+        panic!("{err:?}")
+    };
+    let err = err.downcast::<ExportError>().unwrap();
+    assert!(
+        err.to_string().contains(&blocked.display().to_string()),
+        "{err}"
+    );
+    assert!(blocked.is_dir());
+    assert!(dir.join("kitti/velodyne/0000/000001.bin").is_file());
+    assert!(!dir.join("kitti/velodyne/0000/000003.bin").exists());
+    assert!(
+        !dir.join("meta.toml").exists(),
+        "the dataset was not finished"
+    );
+    assert!(frames <= 7, "{frames} frames simulated");
+    let _ = fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn simulate_refuses_to_mix_with_existing_files() {
     use limot::simulate::{SimulateError, prepare_output_dir};

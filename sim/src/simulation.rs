@@ -7,7 +7,7 @@
 
 use crate::record::{
     BiasTruth, BoxTruth, DatasetWriter, EgoTruth, FORMAT_VERSION, Meta, RecordError, RecordedFrame,
-    points_per_instance, pose_to_array,
+    WriteMode, points_per_instance, pose_to_array,
 };
 use crate::scenario::{Family, ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
@@ -35,6 +35,9 @@ pub enum SimulationError {
     #[error(transparent)]
     /// Writing the dataset failed.
     Record(#[from] RecordError),
+    #[error(transparent)]
+    /// The caller's own output of [`Simulation::write_dataset_with`] failed.
+    Output(Box<dyn std::error::Error + Send + Sync>),
     #[error("frame {index} does not exist (the scenario has {count} frames)")]
     /// A frame index at or beyond [`Simulation::frame_count`].
     NoSuchFrame {
@@ -268,17 +271,48 @@ impl Simulation {
     pub fn write_dataset(
         &self,
         dir: &Path,
-        mut on_frame: impl FnMut(&SimulatedFrame, usize),
+        on_frame: impl FnMut(&SimulatedFrame, usize),
     ) -> Result<PathBuf, SimulationError> {
-        let mut writer = DatasetWriter::begin(dir, &self.spec.to_toml())?;
+        self.write_dataset_with(
+            dir,
+            WriteMode::default(),
+            |_| Ok::<(), SimulationError>(()),
+            on_frame,
+        )
+    }
+
+    /// [`Simulation::write_dataset`] with the files written in `mode`, and
+    /// `also(frame)` called for every frame after the frame's own files are
+    /// written, on the writer's thread, in frame order: more output made
+    /// from the frames (a copy in another format). Frames are simulated on
+    /// the calling thread (the sweep's rays on rayon's pool) while the
+    /// writer writes the frame before, so the files, their contents and
+    /// their order are those of a serial run.
+    ///
+    /// # Errors
+    /// The first [`SimulationError`] of any frame, [`SimulationError::Record`]
+    /// when a file cannot be written and [`SimulationError::Output`] with the
+    /// first error of `also`; the run stops at the first error.
+    pub fn write_dataset_with<E>(
+        &self,
+        dir: &Path,
+        mode: WriteMode,
+        mut also: impl FnMut(&SimulatedFrame) -> Result<(), E> + Send,
+        mut on_frame: impl FnMut(&SimulatedFrame, usize),
+    ) -> Result<PathBuf, SimulationError>
+    where
+        E: Into<Box<dyn std::error::Error + Send + Sync>>,
+    {
+        let mut writer = DatasetWriter::begin_with_mode(dir, &self.spec.to_toml(), mode)?;
         let total = self.frame_count();
-        // a writer thread encodes and writes frame k while the sensors
-        // simulate frame k + 1 (files and their order as in a serial run)
+        // the writer thread writes frame k while the sensors simulate
+        // frame k + 1; two more frames may wait in the channel
         let (to_writer, frames) = std::sync::mpsc::sync_channel::<SimulatedFrame>(2);
         let written = std::thread::scope(|scope| {
             let writing = scope.spawn(move || -> Result<DatasetWriter, SimulationError> {
                 for frame in frames {
                     writer.write_frame(&frame.recorded, &frame.boxes)?;
+                    also(&frame).map_err(|e| SimulationError::Output(e.into()))?;
                 }
                 Ok(writer)
             });

@@ -181,3 +181,81 @@ fn the_estimator_view_of_a_dataset_holds_no_ground_truth() {
     }
     let _ = fs::remove_dir_all(dir);
 }
+
+#[test]
+fn a_scan_that_cannot_be_written_is_an_error_naming_it_and_stops_the_run() {
+    use limot_sim::{RecordError, SimulationError};
+    let spec = short_spec("urban", 4, 1.2);
+    let dir = scratch_dir("write-error");
+    // a directory where the fourth scan belongs
+    let blocked = dir.join("scans/000003.bin");
+    fs::create_dir_all(&blocked).unwrap();
+    let mut simulated = 0;
+    let err = Simulation::new(&spec)
+        .unwrap()
+        .write_dataset(&dir, |_, _| simulated += 1)
+        .unwrap_err();
+    let SimulationError::Record(RecordError::Io { path, .. }) = &err else {
+        panic!("{err:?}")
+    };
+    assert_eq!(path, &blocked);
+    assert!(err.to_string().contains(&blocked.display().to_string()));
+    assert!(dir.join("scans/000002.bin").is_file());
+    assert!(!dir.join("scans/000004.bin").exists());
+    assert!(
+        !dir.join("meta.toml").exists(),
+        "the dataset was not finished"
+    );
+    // the writer stops the simulation within the frames in flight
+    assert!(simulated <= 7, "{simulated} frames simulated");
+    let _ = fs::remove_dir_all(dir);
+}
+
+#[test]
+fn the_callers_own_output_runs_on_every_frame_in_order_and_its_error_stops_the_run() {
+    use limot_sim::SimulationError;
+    use limot_sim::record::WriteMode;
+    let spec = short_spec("highway", 2, 1.0);
+    let sim = Simulation::new(&spec).unwrap();
+    let dir = scratch_dir("also");
+    let mut seen = Vec::new();
+    sim.write_dataset_with(
+        &dir,
+        WriteMode::Buffered,
+        |frame| {
+            seen.push(frame.index);
+            Ok::<(), std::io::Error>(())
+        },
+        |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(seen, (0..10).collect::<Vec<_>>());
+    // the same dataset as the default mode writes
+    let direct = scratch_dir("also-direct");
+    sim.write_dataset(&direct, |_, _| {}).unwrap();
+    assert!(read_tree(&dir) == read_tree(&direct));
+
+    let failing = scratch_dir("also-error");
+    let err = sim
+        .write_dataset_with(
+            &failing,
+            WriteMode::Direct,
+            |frame| {
+                if frame.index == 2 {
+                    Err(std::io::Error::other("copy failed at frame 2"))
+                } else {
+                    Ok(())
+                }
+            },
+            |_, _| {},
+        )
+        .unwrap_err();
+    assert!(matches!(err, SimulationError::Output(_)), "{err:?}");
+    assert_eq!(err.to_string(), "copy failed at frame 2");
+    assert!(failing.join("scans/000002.bin").is_file());
+    assert!(!failing.join("scans/000003.bin").exists());
+    assert!(!failing.join("meta.toml").exists());
+    for d in [dir, direct, failing] {
+        let _ = fs::remove_dir_all(d);
+    }
+}

@@ -19,21 +19,23 @@
 use crate::io::kitti::KittiError;
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::{CameraDetection, ScoreMap, write_ab3dmot_csv};
-use crate::io::kitti::labels::write_labels;
+use crate::io::kitti::labels::{TrackingLabel, write_labels};
 use crate::io::kitti::oxts::{
     EARTH_RADIUS_M, OxtsRecord, lat_lon_to_mercator, lat_to_scale, write_oxts,
 };
 use crate::io::kitti::poses::write_kitti_poses;
 use crate::io::kitti::raw::ELEVATION_CORRECTION_FILE;
 use crate::io::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
-use crate::io::kitti::velodyne::encode_bin;
+use crate::io::kitti::velodyne::encode_bin_into;
 use limot_estimator::geometry::OrientedBox;
-use limot_sim::record::{Dataset, RecordError, points_per_instance};
+use limot_sim::record::{
+    BoxTruth, Dataset, FileWriter, RecordError, RecordedFrame, WriteMode, points_per_instance,
+    pose_from_array, pose_to_array,
+};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::scene::Scene;
 use limot_sim::sensors::ImuSimulator;
 use nalgebra::{Isometry3, Matrix3, Matrix3x4, Rotation3, Translation3, UnitQuaternion, Vector3};
-use rayon::prelude::*;
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -62,13 +64,6 @@ pub enum ExportError {
         #[source]
         source: std::io::Error,
     },
-}
-
-fn write(path: &Path, bytes: impl AsRef<[u8]>) -> Result<(), ExportError> {
-    fs::write(path, bytes).map_err(|source| ExportError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 fn create_dir(path: &Path) -> Result<(), ExportError> {
@@ -184,6 +179,152 @@ fn oxts_records(scene: &Scene, spec: &ScenarioSpec, times_s: &[f64]) -> Vec<Oxts
         .collect()
 }
 
+/// Writes the KITTI-style copy of a dataset frame by frame: `begin`, then
+/// every frame in order ([`KittiCopyWriter::write_frame`]), then `finish`.
+/// Frames come from a dataset on disk ([`export_dataset`]) or straight from
+/// the simulation (`limot simulate`); for the same frames the files are the
+/// same byte for byte.
+pub struct KittiCopyWriter {
+    out: PathBuf,
+    velodyne_dir: PathBuf,
+    calib: Calib,
+    files: FileWriter,
+    frames_written: usize,
+    times_s: Vec<f64>,
+    poses: Vec<Isometry3<f64>>,
+    labels: Vec<TrackingLabel>,
+    detections: Vec<CameraDetection>,
+}
+
+impl KittiCopyWriter {
+    /// Creates the copy's directories under `out`; `t_lidar_imu` is the
+    /// dataset's extrinsic (as `meta.toml` stores it), files are written in `mode`.
+    ///
+    /// # Errors
+    /// A directory that cannot be created.
+    pub fn begin(
+        out: &Path,
+        t_lidar_imu: &Isometry3<f64>,
+        mode: WriteMode,
+    ) -> Result<KittiCopyWriter, ExportError> {
+        let velodyne_dir = out.join("velodyne").join("0000");
+        for sub in ["oxts", "calib", "label_02", "detections", "poses"] {
+            create_dir(&out.join(sub))?;
+        }
+        create_dir(&velodyne_dir)?;
+        Ok(KittiCopyWriter {
+            out: out.to_path_buf(),
+            velodyne_dir,
+            calib: synthetic_calib(t_lidar_imu),
+            files: FileWriter::new(mode),
+            frames_written: 0,
+            times_s: Vec::new(),
+            poses: Vec::new(),
+            labels: Vec::new(),
+            detections: Vec::new(),
+        })
+    }
+
+    /// Writes the next frame's scan and keeps its labels and detections for
+    /// [`KittiCopyWriter::finish`]. `boxes` are the frame's ground-truth
+    /// boxes as the dataset stores them (see [`stored_box`]) and `scene` the
+    /// scene it was simulated from.
+    ///
+    /// # Errors
+    /// The scan file cannot be written.
+    pub fn write_frame(
+        &mut self,
+        frame: &RecordedFrame,
+        boxes: &[BoxTruth],
+        scene: &Scene,
+    ) -> Result<(), ExportError> {
+        let index = self.frames_written;
+        let calib = &self.calib;
+        let t_s = frame.scan.t_s;
+        let t_world_lidar = scene.ego.trajectory.pose_at(t_s);
+        let bin = self.velodyne_dir.join(format!("{index:06}.bin"));
+        self.files
+            .write_with(&bin, |out| encode_bin_into(&frame.scan.points, out))?;
+        let points_on = points_per_instance(&frame.labels);
+        for b in boxes {
+            let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
+            let center = t_lidar_box.translation.vector;
+            if center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
+                continue;
+            }
+            let r = t_lidar_box.rotation.to_rotation_matrix();
+            let track = TrackBox {
+                frame: index as u32,
+                track_id: b.id,
+                class: b.class,
+                lidar_box: OrientedBox {
+                    center,
+                    size_lwh: b.size_lwh_m,
+                    yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
+                },
+                score: 1.0,
+            };
+            if let Some(mut label) = track_to_label(&track, calib, ImageSize::KITTI_DEFAULT) {
+                label.score = None;
+                self.labels.push(label);
+            }
+        }
+        for d in &frame.detections {
+            let mut det = CameraDetection::from_detection(
+                index as u32,
+                &d.detection,
+                calib,
+                ScoreMap::Clamp01,
+            );
+            if let Some(b) = image_box(&det.cam_box, calib, ImageSize::KITTI_DEFAULT) {
+                det.bbox_2d = b;
+            }
+            self.detections.push(det);
+        }
+        self.times_s.push(t_s);
+        self.poses.push(t_world_lidar);
+        self.frames_written += 1;
+        Ok(())
+    }
+
+    /// Writes the per-sequence files (calibration, OXTS, labels, detections,
+    /// poses, times) and returns the copy's directory; `spec` and `scene`
+    /// are the scenario the frames were simulated from and its built scene.
+    ///
+    /// # Errors
+    /// A file that cannot be written.
+    pub fn finish(mut self, spec: &ScenarioSpec, scene: &Scene) -> Result<PathBuf, ExportError> {
+        let out = &self.out;
+        let times: String = self.times_s.iter().map(|t| format!("{t}\n")).collect();
+        let files = [
+            ("calib/0000.txt", self.calib.write()),
+            (
+                "oxts/0000.txt",
+                write_oxts(&oxts_records(scene, spec, &self.times_s)),
+            ),
+            ("label_02/0000.txt", write_labels(&self.labels)),
+            ("detections/0000.txt", write_ab3dmot_csv(&self.detections)),
+            ("poses/0000.txt", write_kitti_poses(&self.poses)),
+            ("times.txt", times),
+            (ELEVATION_CORRECTION_FILE, "0\n".to_string()),
+        ];
+        for (name, text) in files {
+            self.files.write(&out.join(name), text.as_bytes())?;
+        }
+        Ok(self.out)
+    }
+}
+
+/// A ground-truth box as the dataset stores it and [`Dataset::box_truth`]
+/// reads it back (the pose's quaternion renormalised), so a copy written
+/// from the simulation's own boxes is the copy written from the dataset.
+pub fn stored_box(b: &BoxTruth) -> BoxTruth {
+    BoxTruth {
+        t_world_box: pose_from_array(&pose_to_array(&b.t_world_box)),
+        ..*b
+    }
+}
+
 /// Writes the KITTI-style copy of the dataset in `dataset_dir` into `out`;
 /// `spec` is the scenario the dataset was simulated from and `scene` its
 /// built scene (the caller has it: building it again, traffic included,
@@ -198,86 +339,12 @@ pub fn export_dataset(
     out: &Path,
 ) -> Result<PathBuf, ExportError> {
     let dataset = Dataset::open(dataset_dir)?;
-    let calib = synthetic_calib(&dataset.meta.t_lidar_imu());
-    let velodyne_dir = out.join("velodyne").join("0000");
-    for sub in ["oxts", "calib", "label_02", "detections", "poses"] {
-        create_dir(&out.join(sub))?;
-    }
-    create_dir(&velodyne_dir)?;
-
     let boxes_by_frame = dataset.box_truth()?;
-    // frames are independent: read, convert and write them in parallel,
-    // then gather in frame order (the files are the same as a serial run's)
-    let per_frame = (0..dataset.frame_count())
-        .into_par_iter()
-        .map(|index| {
-            let frame = dataset.frame(index)?;
-            let t_s = frame.scan.t_s;
-            let t_world_lidar = scene.ego.trajectory.pose_at(t_s);
-            let bin = velodyne_dir.join(format!("{index:06}.bin"));
-            write(&bin, encode_bin(&frame.scan.points))?;
-            let mut labels = Vec::new();
-            let points_on = points_per_instance(&frame.labels);
-            for b in boxes_by_frame.get(index).into_iter().flatten() {
-                let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
-                let center = t_lidar_box.translation.vector;
-                if center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
-                    continue;
-                }
-                let r = t_lidar_box.rotation.to_rotation_matrix();
-                let track = TrackBox {
-                    frame: index as u32,
-                    track_id: b.id,
-                    class: b.class,
-                    lidar_box: OrientedBox {
-                        center,
-                        size_lwh: b.size_lwh_m,
-                        yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
-                    },
-                    score: 1.0,
-                };
-                if let Some(mut label) = track_to_label(&track, &calib, ImageSize::KITTI_DEFAULT) {
-                    label.score = None;
-                    labels.push(label);
-                }
-            }
-            let mut detections = Vec::new();
-            for d in &frame.detections {
-                let mut det = CameraDetection::from_detection(
-                    index as u32,
-                    &d.detection,
-                    &calib,
-                    ScoreMap::Clamp01,
-                );
-                if let Some(b) = image_box(&det.cam_box, &calib, ImageSize::KITTI_DEFAULT) {
-                    det.bbox_2d = b;
-                }
-                detections.push(det);
-            }
-            Ok((t_s, t_world_lidar, labels, detections))
-        })
-        .collect::<Result<Vec<_>, ExportError>>()?;
-    let (mut times_s, mut poses, mut labels, mut detections) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for (t_s, pose, frame_labels, frame_detections) in per_frame {
-        times_s.push(t_s);
-        poses.push(pose);
-        labels.extend(frame_labels);
-        detections.extend(frame_detections);
+    let mut copy = KittiCopyWriter::begin(out, &dataset.meta.t_lidar_imu(), WriteMode::default())?;
+    for index in 0..dataset.frame_count() {
+        let frame = dataset.frame(index)?;
+        let boxes = boxes_by_frame.get(index).map_or(&[][..], Vec::as_slice);
+        copy.write_frame(&frame, boxes, scene)?;
     }
-    write(&out.join("calib/0000.txt"), calib.write())?;
-    write(
-        &out.join("oxts/0000.txt"),
-        write_oxts(&oxts_records(scene, spec, &times_s)),
-    )?;
-    write(&out.join("label_02/0000.txt"), write_labels(&labels))?;
-    write(
-        &out.join("detections/0000.txt"),
-        write_ab3dmot_csv(&detections),
-    )?;
-    write(&out.join("poses/0000.txt"), write_kitti_poses(&poses))?;
-    let times: String = times_s.iter().map(|t| format!("{t}\n")).collect();
-    write(&out.join("times.txt"), times)?;
-    write(&out.join(ELEVATION_CORRECTION_FILE), "0\n")?;
-    Ok(out.to_path_buf())
+    copy.finish(spec, scene)
 }

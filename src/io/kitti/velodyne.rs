@@ -264,13 +264,21 @@ pub fn read_bin(path: &Path, t_s: f64) -> Result<VelodyneScan> {
 /// Encodes points as a `.bin` scan (x, y, z, intensity; ring and time are
 /// not stored, as in KITTI).
 pub fn encode_bin(points: &[LidarPoint]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(points.len() * BYTES_PER_POINT);
-    for p in points {
-        for v in [p.x, p.y, p.z, p.intensity] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-    }
+    let mut out = Vec::new();
+    encode_bin_into(points, &mut out);
     out
+}
+
+/// [`encode_bin`], appended to `out`.
+pub fn encode_bin_into(points: &[LidarPoint], out: &mut Vec<u8>) {
+    out.reserve(points.len() * BYTES_PER_POINT);
+    for p in points {
+        let mut record = [0u8; BYTES_PER_POINT];
+        for (i, v) in [p.x, p.y, p.z, p.intensity].into_iter().enumerate() {
+            record[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&record);
+    }
 }
 
 /// Writes points as a `.bin` file.
