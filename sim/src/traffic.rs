@@ -408,7 +408,8 @@ impl Sim<'_> {
             tr.offset_at(t_s + lookahead / v.speed_mps.max(1.0))
         });
         let s_goal = s_r + lookahead;
-        let goal = lane.point_at_extended(s_goal) + normal_vec(lane.heading_at(s_goal)) * offset;
+        let (heading_goal, point_goal, _, _) = lane.local_at(s_goal, 0);
+        let goal = point_goal + normal_vec(heading_goal) * offset;
         let g = goal - rear;
         let (sn, cs) = v.yaw.sin_cos();
         let (gx, gy) = (cs * g.x + sn * g.y, -sn * g.x + cs * g.y);

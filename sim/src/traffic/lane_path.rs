@@ -23,6 +23,8 @@ pub struct LanePath {
     s_m: Vec<f64>,
     /// Unwrapped heading at every vertex.
     heading_rad: Vec<f64>,
+    /// Unit tangent `(cos, sin)` of the heading at every vertex.
+    tangent: Vec<Vector2<f64>>,
     /// Spatial hash: cell -> indices of the segments whose bounding box touches it.
     grid: HashMap<(i64, i64), Vec<u32>>,
 }
@@ -230,10 +232,12 @@ impl LanePath {
                 }
             }
         }
+        let tangent = heading_rad.iter().map(|&h| unit(h)).collect();
         LanePath {
             points,
             s_m,
             heading_rad,
+            tangent,
             grid,
         }
     }
@@ -250,21 +254,43 @@ impl LanePath {
         i.saturating_sub(1).min(n - 2)
     }
 
+    /// [`segment_of`](Self::segment_of), looking first at segment `hint` and
+    /// its neighbours (a Newton step rarely leaves them).
+    fn segment_near(&self, s_m: f64, hint: usize) -> usize {
+        let last = self.s_m.len() - 2;
+        let holds = |i: usize| self.s_m[i] <= s_m && (i == last || s_m < self.s_m[i + 1]);
+        let i = hint.min(last);
+        for candidate in [i, i + 1, i.wrapping_sub(1)] {
+            if candidate <= last && holds(candidate) {
+                return candidate;
+            }
+        }
+        self.segment_of(s_m)
+    }
+
     /// Point at arc length `s_m`, clamped to [0, length].
     pub fn point_at(&self, s_m: f64) -> Point2<f64> {
         let s = s_m.clamp(0.0, self.length_m());
-        let i = self.segment_of(s);
+        self.point_in(self.segment_of(s), s)
+    }
+
+    /// Point at arc length `s` (in [0, length]) of segment `i` (the one holding `s`).
+    fn point_in(&self, i: usize, s: f64) -> Point2<f64> {
         let ds = self.s_m[i + 1] - self.s_m[i];
         let u = ((s - self.s_m[i]) / ds).clamp(0.0, 1.0);
-        let t0 = unit(self.heading_rad[i]) * ds;
-        let t1 = unit(self.heading_rad[i + 1]) * ds;
+        let t0 = self.tangent[i] * ds;
+        let t1 = self.tangent[i + 1] * ds;
         hermite(&self.points[i], &t0, &self.points[i + 1], &t1, u).0
     }
 
     /// Unwrapped heading at arc length `s_m`, clamped to [0, length].
     pub fn heading_at(&self, s_m: f64) -> f64 {
         let s = s_m.clamp(0.0, self.length_m());
-        let i = self.segment_of(s);
+        self.heading_in(self.segment_of(s), s)
+    }
+
+    /// Heading at arc length `s` (in [0, length]) of segment `i` (the one holding `s`).
+    fn heading_in(&self, i: usize, s: f64) -> f64 {
         let ds = self.s_m[i + 1] - self.s_m[i];
         let u = ((s - self.s_m[i]) / ds).clamp(0.0, 1.0);
         self.heading_rad[i] + u * (self.heading_rad[i + 1] - self.heading_rad[i])
@@ -274,13 +300,38 @@ impl LanePath {
     pub(crate) fn point_at_extended(&self, s_m: f64) -> Point2<f64> {
         let len = self.length_m();
         if s_m < 0.0 {
-            self.points[0] + unit(self.heading_rad[0]) * s_m
+            self.points[0] + self.tangent[0] * s_m
         } else if s_m > len {
             let last = self.points.len() - 1;
-            self.points[last] + unit(self.heading_rad[last]) * (s_m - len)
+            self.points[last] + self.tangent[last] * (s_m - len)
         } else {
             self.point_at(s_m)
         }
+    }
+
+    /// [`heading_at`](Self::heading_at), [`point_at_extended`](Self::point_at_extended)
+    /// and the curvature at `s_m` (0 beyond the ends), the same values from one
+    /// segment search that starts at segment `hint`; with the segment.
+    pub(crate) fn local_at(&self, s_m: f64, hint: usize) -> (f64, Point2<f64>, f64, usize) {
+        let len = self.length_m();
+        let s = s_m.clamp(0.0, len);
+        let i = self.segment_near(s, hint);
+        let heading = self.heading_in(i, s);
+        let outside = s_m < 0.0 || s_m > len;
+        let point = if s_m < 0.0 {
+            self.points[0] + self.tangent[0] * s_m
+        } else if s_m > len {
+            let last = self.points.len() - 1;
+            self.points[last] + self.tangent[last] * (s_m - len)
+        } else {
+            self.point_in(i, s)
+        };
+        let curvature = if outside {
+            0.0
+        } else {
+            (self.heading_rad[i + 1] - self.heading_rad[i]) / (self.s_m[i + 1] - self.s_m[i])
+        };
+        (heading, point, curvature, i)
     }
 
     /// (s_m, lateral_m, + = left) of the closest point of the lane; s is clamped
@@ -324,15 +375,6 @@ impl LanePath {
         Some(self.refine(p, best.1, best.2))
     }
 
-    /// Curvature (d heading / ds) at arc length `s_m`; 0 beyond the ends.
-    fn curvature_at(&self, s_m: f64) -> f64 {
-        if s_m < 0.0 || s_m > self.length_m() {
-            return 0.0;
-        }
-        let i = self.segment_of(s_m);
-        (self.heading_rad[i + 1] - self.heading_rad[i]) / (self.s_m[i + 1] - self.s_m[i])
-    }
-
     /// Newton refinement of a chord projection onto the Hermite curve; beyond
     /// the ends the lane is extended along its end tangents.
     fn refine(&self, p: &Point2<f64>, seg: usize, u: f64) -> (f64, f64) {
@@ -354,17 +396,21 @@ impl LanePath {
     /// Newton iterations on the tangential residual (p - c(s)) . t(s) = 0.
     fn newton(&self, p: &Point2<f64>, s0: f64) -> Option<(f64, f64)> {
         let mut s = s0;
+        let mut segment = self.segment_of(s0.clamp(0.0, self.length_m()));
         for _ in 0..12 {
-            let t = unit(self.heading_at(s));
-            let r = p - self.point_at_extended(s);
+            let (heading, point, curvature, i) = self.local_at(s, segment);
+            segment = i;
+            let t = unit(heading);
+            let r = p - point;
             let d = t.x * r.y - t.y * r.x;
             // d/ds of the residual is -(1 - curvature * lateral)
-            let denom = (1.0 - self.curvature_at(s) * d).max(0.2);
+            let denom = (1.0 - curvature * d).max(0.2);
             let step = (r.dot(&t) / denom).clamp(-10.0, 10.0);
             s += step;
             if step.abs() < 1e-9 {
-                let t = unit(self.heading_at(s));
-                let r = p - self.point_at_extended(s);
+                let (heading, point, _, _) = self.local_at(s, segment);
+                let t = unit(heading);
+                let r = p - point;
                 return Some((s, t.x * r.y - t.y * r.x));
             }
         }
