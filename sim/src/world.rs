@@ -13,7 +13,10 @@
 //!   agent pose once at that time and rays are cast against the boxes
 //!   directly (exact f64 slab test after a bounding-sphere cull).
 //!   [`World::snapshot_agents`] + [`World::agent_sweep_spheres`] let the
-//!   LiDAR skip agents outside a column's plane altogether.
+//!   LiDAR skip agents outside a column's plane altogether;
+//!   [`World::static_bounding_spheres`], [`World::static_bounding_corners`]
+//!   and [`WorldAt::cast_ray_with_candidates`] let it skip the statics' BVH
+//!   for every ray that can hit no static.
 //! - A ray starting inside a solid sees nothing of that solid.
 //! - Ground: the analytic height field of [`Ground`], intersected exactly by
 //!   safe (never-overshooting) steps from a curvature bound, which converge
@@ -59,6 +62,22 @@ pub struct RayHit {
     pub surface: Surface,
 }
 
+/// How far inside its AABB the ray must pass a static it hits for the
+/// BVH's f32 culling to surely keep that static, m (f32 rounding of the
+/// ray and the box far from the origin is ~1e-4 m at 1 km).
+pub const BVH_EDGE_MARGIN_M: f64 = 1e-3;
+/// Hits on two statics closer together along a ray than this may come out
+/// of the BVH in its own order, m.
+pub const NEAR_TIE_M: f64 = 1e-3;
+
+/// What the listed statics say about a ray.
+enum ListedHit {
+    /// The hit (or none) the BVH finds too.
+    Sure(Option<StaticHit>),
+    /// Too close to an edge or a tie: only the BVH knows.
+    AskTheBvh,
+}
+
 /// Range along the ray and outward world normal.
 type ShapeHit = (f64, Unit<Vector3<f64>>);
 /// Range, normal and index into `World::statics`.
@@ -82,6 +101,12 @@ pub struct World {
     /// Upper bound of the total undulation amplitude, m.
     ground_undulation_bound_m: f64,
     statics: Vec<StaticGeom>,
+    /// Per static: a world sphere containing it (centre, radius).
+    static_spheres: Vec<(Point3<f64>, f64)>,
+    /// Per static: the world corners of an oriented box containing it.
+    static_corners: Vec<[Point3<f64>; 8]>,
+    /// Per static: its collider's AABB in the BVH (f32 values), min and max corner.
+    static_aabbs: Vec<(Point3<f64>, Point3<f64>)>,
     /// Collider index (leaf index of the static BVH) -> index into `statics`.
     static_of_collider: Vec<Option<usize>>,
     agents: Vec<AgentBody>,
@@ -137,6 +162,7 @@ impl World {
         let mut static_broad_phase = BroadPhaseBvh::new();
         let params = IntegrationParameters::default();
         let mut static_of_collider = Vec::new();
+        let mut static_aabbs = Vec::with_capacity(scene.statics.len());
         let statics: Vec<StaticGeom> = scene
             .statics
             .iter()
@@ -177,6 +203,10 @@ impl World {
             }
             static_of_collider[slot] = Some(index);
             let aabb = colliders[handle].compute_aabb();
+            let corner = |v: rapier3d::math::Vector| {
+                Point3::new(f64::from(v.x), f64::from(v.y), f64::from(v.z))
+            };
+            static_aabbs.push((corner(aabb.mins), corner(aabb.maxs)));
             static_broad_phase.set_aabb(&params, handle, aabb);
         }
         let agents = scene
@@ -207,6 +237,37 @@ impl World {
                 }
             })
             .collect();
+        let static_spheres = statics
+            .iter()
+            .map(|s| {
+                let radius = match s.shape {
+                    Shape::Cuboid { half_extents_m } => half_extents_m.norm(),
+                    Shape::Cylinder {
+                        radius_m,
+                        half_height_m,
+                    } => radius_m.hypot(half_height_m),
+                    Shape::Ball { radius_m } => radius_m,
+                };
+                (Point3::from(s.t_world_object.translation.vector), radius)
+            })
+            .collect();
+        let static_corners = statics
+            .iter()
+            .map(|s| {
+                let h = match s.shape {
+                    Shape::Cuboid { half_extents_m } => half_extents_m,
+                    Shape::Cylinder {
+                        radius_m,
+                        half_height_m,
+                    } => Vector3::new(radius_m, radius_m, half_height_m),
+                    Shape::Ball { radius_m } => Vector3::repeat(radius_m),
+                };
+                std::array::from_fn(|k| {
+                    let sign = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
+                    s.t_world_object * Point3::new(sign(1) * h.x, sign(2) * h.y, sign(4) * h.z)
+                })
+            })
+            .collect();
         let ground_undulation_bound_m = scene
             .ground
             .undulations
@@ -217,6 +278,9 @@ impl World {
             ground: scene.ground.clone(),
             ground_undulation_bound_m,
             statics,
+            static_spheres,
+            static_corners,
+            static_aabbs,
             static_of_collider,
             agents,
             bodies,
@@ -295,6 +359,23 @@ impl World {
             agents,
             ground_under_origin: Cell::new(None),
         }
+    }
+
+    /// Number of statics (indices `0..n` of [`World::static_bounding_spheres`]).
+    pub fn static_count(&self) -> usize {
+        self.statics.len()
+    }
+
+    /// For each static (in `Scene::statics` order), a world sphere
+    /// containing it: (centre, radius).
+    pub fn static_bounding_spheres(&self) -> &[(Point3<f64>, f64)] {
+        &self.static_spheres
+    }
+
+    /// For each static (in `Scene::statics` order), the eight world corners
+    /// of an oriented box containing it (the shape's own box for a cuboid).
+    pub fn static_bounding_corners(&self) -> &[[Point3<f64>; 8]] {
+        &self.static_corners
     }
 
     /// Number of agents (indices `0..n` of [`World::snapshot_agents`]).
@@ -390,6 +471,80 @@ impl World {
         });
         best.get()
     }
+
+    /// The nearest hit among the listed statics within `max_range_m` (a
+    /// bounding-sphere cull, then the exact intersection), when it is sure
+    /// to be what [`World::cast_statics`] finds (see
+    /// [`WorldAt::cast_ray_with_candidates`]).
+    fn nearest_listed_static(
+        &self,
+        listed: &[usize],
+        origin: &Point3<f64>,
+        dir: &Vector3<f64>,
+        max_range_m: f64,
+    ) -> ListedHit {
+        let mut best: Option<StaticHit> = None;
+        let mut second = f64::INFINITY;
+        for &index in listed {
+            let (centre, radius) = self.static_spheres[index];
+            // loosened so that rounding never culls a hit on the sphere itself
+            let radius = radius * (1.0 + 1e-9) + 1e-6;
+            let to_centre = centre - origin;
+            let along = to_centre.dot(dir);
+            if along + radius < 0.0 || along - radius > max_range_m {
+                continue;
+            }
+            if (to_centre - dir * along).norm_squared() > radius * radius {
+                continue;
+            }
+            let s = &self.statics[index];
+            let Some((range, normal)) =
+                intersect_shape(&s.shape, &s.t_world_object, origin, dir, max_range_m)
+            else {
+                continue;
+            };
+            match best {
+                Some((r, _, _)) if range >= r => second = second.min(range),
+                _ => {
+                    second = best.map_or(second, |(r, _, _)| r);
+                    best = Some((range, normal, index));
+                }
+            }
+        }
+        let Some((range, _, index)) = best else {
+            return ListedHit::Sure(None);
+        };
+        if second < range + NEAR_TIE_M {
+            return ListedHit::AskTheBvh;
+        }
+        // the ray must pass well inside the static's AABB, so that the BVH's
+        // f32 test surely visits it
+        let (lo, hi) = self.static_aabbs[index];
+        let (mut t_in, mut t_out) = (f64::NEG_INFINITY, f64::INFINITY);
+        for axis in 0..3 {
+            let (a, b) = (lo[axis] + BVH_EDGE_MARGIN_M, hi[axis] - BVH_EDGE_MARGIN_M);
+            if a >= b {
+                return ListedHit::AskTheBvh;
+            }
+            if dir[axis] == 0.0 {
+                if origin[axis] <= a || origin[axis] >= b {
+                    return ListedHit::AskTheBvh;
+                }
+                continue;
+            }
+            let (t0, t1) = (
+                (a - origin[axis]) / dir[axis],
+                (b - origin[axis]) / dir[axis],
+            );
+            t_in = t_in.max(t0.min(t1));
+            t_out = t_out.min(t0.max(t1));
+        }
+        if t_in < t_out && t_out > 0.0 {
+            ListedHit::Sure(best)
+        } else {
+            ListedHit::AskTheBvh
+        }
+    }
 }
 
 impl WorldAt<'_> {
@@ -405,6 +560,41 @@ impl WorldAt<'_> {
         origin_world: &Point3<f64>,
         dir_world: &Unit<Vector3<f64>>,
         max_range_m: f64,
+    ) -> Option<RayHit> {
+        self.cast(origin_world, dir_world, max_range_m, None)
+    }
+
+    /// [`WorldAt::cast_ray`] for a caller that knows which statics the ray
+    /// can hit at all: `candidates` (indices into `Scene::statics`) hold
+    /// every one of them, e.g. from [`World::static_bounding_spheres`] and
+    /// [`World::static_bounding_corners`]. They are intersected directly;
+    /// the ray searches the statics' BVH only when that cannot be sure to
+    /// give the BVH's answer, so the hit is always [`WorldAt::cast_ray`]'s.
+    /// (The BVH culls in f32 and can miss a hit that grazes the edge of a
+    /// box, and it resolves near ties by its own order: a nearest hit
+    /// within [`BVH_EDGE_MARGIN_M`] of its static's AABB boundary, or
+    /// another hit within [`NEAR_TIE_M`] behind it, goes to the BVH.)
+    ///
+    /// # Panics
+    /// If an index is out of range.
+    pub fn cast_ray_with_candidates(
+        &self,
+        origin_world: &Point3<f64>,
+        dir_world: &Unit<Vector3<f64>>,
+        max_range_m: f64,
+        candidates: &[usize],
+    ) -> Option<RayHit> {
+        self.cast(origin_world, dir_world, max_range_m, Some(candidates))
+    }
+
+    /// Both casts: statics from the BVH, skipped when `candidates` are given
+    /// and none of them is hit.
+    fn cast(
+        &self,
+        origin_world: &Point3<f64>,
+        dir_world: &Unit<Vector3<f64>>,
+        max_range_m: f64,
+        candidates: Option<&[usize]>,
     ) -> Option<RayHit> {
         if max_range_m.is_nan() || max_range_m <= 0.0 {
             return None;
@@ -435,7 +625,12 @@ impl WorldAt<'_> {
                 surface: Surface::Ground,
             });
         }
-        if let Some((range_m, normal_world, index)) = world.cast_statics(origin_world, dir, limit)
+        let static_hit =
+            match candidates.map(|c| world.nearest_listed_static(c, origin_world, dir, limit)) {
+                Some(ListedHit::Sure(hit)) => hit,
+                Some(ListedHit::AskTheBvh) | None => world.cast_statics(origin_world, dir, limit),
+            };
+        if let Some((range_m, normal_world, index)) = static_hit
             && range_m < limit
         {
             limit = range_m;

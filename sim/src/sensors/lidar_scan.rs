@@ -91,6 +91,8 @@ pub struct LidarSimulator {
     seed: u64,
     /// Unit directions in the LiDAR frame for azimuth 0, per beam: (cos el, sin el).
     elevation_cos_sin: [(f64, f64); NUM_LASERS],
+    /// tan(elevation) of each beam: its slope in a column's plane.
+    elevation_tan: [f64; NUM_LASERS],
     /// Intensity gain of each beam's laser.
     laser_gain: [f64; NUM_LASERS],
 }
@@ -124,6 +126,7 @@ impl LidarSimulator {
             config,
             seed,
             elevation_cos_sin,
+            elevation_tan: elevation_cos_sin.map(|(cos, sin)| sin / cos),
             laser_gain,
         })
     }
@@ -152,6 +155,7 @@ impl LidarSimulator {
         // where each agent can be during this sweep, for per-column culling
         let agent_spheres =
             world.agent_sweep_spheres(t_start_s, t_start_s + self.config.sweep_duration_s());
+        let static_bins = StaticBins::new(scene, world, &self.config, t_start_s);
         let chunks: Vec<Vec<(LidarPoint, u32)>> = (0..tasks)
             .into_par_iter()
             .map(|task| {
@@ -163,6 +167,7 @@ impl LidarSimulator {
                         scene,
                         world,
                         agent_spheres: &agent_spheres,
+                        static_bins: &static_bins,
                         frame_index,
                         t_start_s,
                     };
@@ -215,6 +220,54 @@ impl LidarSimulator {
                 across.abs() <= *radius && along >= -radius && v.norm() - radius <= cfg.max_range_m
             })
             .map(|(index, _)| index);
+        // the statics the column's half-plane meets, by the same test, each
+        // with the range of beam slopes (tan elevation) that can reach it:
+        // the plane's section of a static lies in the projection of its
+        // bounding box onto the plane, between its corners' slopes
+        let along_world = t_world_lidar.rotation * Vector3::new(cos_az, sin_az, 0.0);
+        let up_world = t_world_lidar.rotation * Vector3::z();
+        let spheres = sweep.world.static_bounding_spheres();
+        let corners = sweep.world.static_bounding_corners();
+        let statics: Vec<(usize, f64, f64)> = sweep
+            .static_bins
+            .at(cfg.azimuth_at(tau_s))
+            .iter()
+            .map(|&index| index as usize)
+            .filter(|&index| {
+                let (centre, radius) = spheres[index];
+                let v = t_world_lidar
+                    .rotation
+                    .inverse_transform_vector(&(centre - origin_world));
+                let norm = v.norm();
+                let radius = radius + 1e-6 + 1e-9 * norm;
+                let along = v.x * cos_az + v.y * sin_az;
+                let across = -v.x * sin_az + v.y * cos_az;
+                across.abs() <= radius && along >= -radius && norm - radius <= cfg.max_range_m
+            })
+            .map(|index| {
+                let (mut lo, mut hi, mut nearest) =
+                    (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY);
+                for corner in &corners[index] {
+                    let w = corner - origin_world;
+                    let (along, up) = (w.dot(&along_world), w.dot(&up_world));
+                    nearest = nearest.min(along);
+                    let slope = up / along;
+                    lo = lo.min(slope);
+                    hi = hi.max(slope);
+                }
+                if nearest > MIN_SLOPE_ALONG_M {
+                    (
+                        index,
+                        lo - SLOPE_MARGIN * (1.0 + lo.abs()),
+                        hi + SLOPE_MARGIN * (1.0 + hi.abs()),
+                    )
+                } else {
+                    // beside or behind the sensor: any beam may reach it
+                    (index, f64::NEG_INFINITY, f64::INFINITY)
+                }
+            })
+            .collect();
+        let mut beam_statics = Vec::with_capacity(statics.len());
         let snapshot = sweep.world.snapshot_agents(t_s, visible);
         let mut rng = column_rng(self.seed, sweep.frame_index, column);
         for (beam, &(cos_el, sin_el)) in self.elevation_cos_sin.iter().enumerate() {
@@ -224,7 +277,20 @@ impl LidarSimulator {
             let noise: f64 = rng.sample(StandardNormal);
             let dropout: f64 = rng.random();
             let speckle: f64 = rng.sample(StandardNormal);
-            let Some(hit) = snapshot.cast_ray(&origin_world, &dir_world, cfg.max_range_m) else {
+            let slope = self.elevation_tan[beam];
+            beam_statics.clear();
+            beam_statics.extend(
+                statics
+                    .iter()
+                    .filter(|(_, lo, hi)| (*lo..=*hi).contains(&slope))
+                    .map(|(index, _, _)| *index),
+            );
+            let Some(hit) = snapshot.cast_ray_with_candidates(
+                &origin_world,
+                &dir_world,
+                cfg.max_range_m,
+                &beam_statics,
+            ) else {
                 continue;
             };
             if dropout < cfg.dropout_probability {
@@ -260,8 +326,94 @@ struct Sweep<'a> {
     world: &'a World,
     /// Per agent: a world sphere holding its box during the whole sweep.
     agent_spheres: &'a [(Point3<f64>, f64)],
+    static_bins: &'a StaticBins,
     frame_index: u64,
     t_start_s: f64,
+}
+
+/// A static's bounding box must lie at least this far ahead of the sensor
+/// in a column's plane for its beam-slope range to be used, m.
+const MIN_SLOPE_ALONG_M: f64 = 1e-3;
+/// Relative widening of a static's beam-slope range (rounding of the
+/// corners, the plane and the beams' directions is far below it).
+const SLOPE_MARGIN: f64 = 1e-9;
+
+/// Bins of LiDAR azimuth of [`StaticBins`].
+const STATIC_AZIMUTH_BINS: usize = 360;
+/// Ego poses are sampled this often over a sweep to bound its motion, s.
+const EGO_SAMPLE_STEP_S: f64 = 0.001;
+/// Added to the sampled bounds of the ego's displacement (m) and rotation
+/// (rad) for the motion between samples: far beyond what a road vehicle
+/// does in a millisecond.
+const EGO_MOTION_MARGIN_M: f64 = 0.05;
+const EGO_ROTATION_MARGIN_RAD: f64 = 0.01;
+
+/// The statics the columns of one sweep may see, by LiDAR azimuth: bin `b`
+/// lists (ascending) every static whose bounding sphere can meet the
+/// half-plane of a column with an azimuth in `b` at any time of the sweep
+/// (the ego's motion over the sweep bounded from poses sampled every
+/// [`EGO_SAMPLE_STEP_S`]). A superset: each column still tests its bin's
+/// statics against its own half-plane.
+struct StaticBins {
+    bins: Vec<Vec<u32>>,
+}
+
+impl StaticBins {
+    fn new(scene: &Scene, world: &World, cfg: &LidarConfig, t_start_s: f64) -> StaticBins {
+        use std::f64::consts::{PI, SQRT_2, TAU};
+        let span = cfg.sweep_duration_s();
+        let samples = ((span / EGO_SAMPLE_STEP_S).ceil() as usize).clamp(1, 100_000);
+        let trajectory = &scene.ego.trajectory;
+        let start = trajectory.pose_at(t_start_s);
+        let (mut displacement, mut rotation) = (0.0_f64, 0.0_f64);
+        for i in 1..=samples {
+            let pose = trajectory.pose_at(t_start_s + span * i as f64 / samples as f64);
+            displacement =
+                displacement.max((pose.translation.vector - start.translation.vector).norm());
+            rotation = rotation.max(start.rotation.angle_to(&pose.rotation));
+        }
+        let displacement = displacement + EGO_MOTION_MARGIN_M;
+        let rotation = rotation + EGO_ROTATION_MARGIN_RAD;
+        let origin = Point3::from(start.translation.vector);
+        let bin_width = TAU / STATIC_AZIMUTH_BINS as f64;
+        let mut bins = vec![Vec::new(); STATIC_AZIMUTH_BINS];
+        for (index, &(centre, radius)) in world.static_bounding_spheres().iter().enumerate() {
+            let to_centre = centre - origin;
+            let distance = to_centre.norm();
+            if distance - radius - displacement > cfg.max_range_m {
+                continue;
+            }
+            // the static, seen from the LiDAR at any time of the sweep, lies
+            // in this sphere around where it is seen at the start
+            let v = start.rotation.inverse_transform_vector(&to_centre);
+            let reach = radius + displacement + rotation * (distance + radius);
+            let horizontal = v.xy().norm();
+            let (first, count) = if horizontal <= SQRT_2 * reach {
+                // near (or above) the sensor: any column's half-plane may meet it
+                (0, STATIC_AZIMUTH_BINS)
+            } else {
+                let half = (reach / horizontal).asin() + bin_width;
+                let lo = v.y.atan2(v.x) - half;
+                let first = ((lo + PI) / bin_width).floor() as i64;
+                let count = (2.0 * half / bin_width).ceil() as usize + 1;
+                (
+                    first.rem_euclid(STATIC_AZIMUTH_BINS as i64) as usize,
+                    count.min(STATIC_AZIMUTH_BINS),
+                )
+            };
+            for k in 0..count {
+                bins[(first + k) % STATIC_AZIMUTH_BINS].push(index as u32);
+            }
+        }
+        StaticBins { bins }
+    }
+
+    /// The statics of the bin holding `azimuth_rad` (in (-pi, pi]).
+    fn at(&self, azimuth_rad: f64) -> &[u32] {
+        use std::f64::consts::{PI, TAU};
+        let bin = ((azimuth_rad + PI) / TAU * STATIC_AZIMUTH_BINS as f64).floor() as usize;
+        &self.bins[bin.min(STATIC_AZIMUTH_BINS - 1)]
+    }
 }
 
 /// Checks every field; NaN fails every comparison and is caught first.

@@ -423,3 +423,88 @@ fn analytic_shapes_agree_with_parry() {
         "{normals_agree}/{compared}"
     );
 }
+
+#[test]
+fn candidate_statics_skip_the_bvh_only_when_none_is_hit_and_their_bounds_hold_them() {
+    let shapes = [
+        Shape::Cuboid {
+            half_extents_m: Vector3::new(2.0, 1.0, 3.0),
+        },
+        Shape::Cylinder {
+            radius_m: 0.4,
+            half_height_m: 2.5,
+        },
+        Shape::Ball { radius_m: 1.5 },
+    ];
+    let statics: Vec<StaticObject> = shapes
+        .iter()
+        .enumerate()
+        .map(|(i, &shape)| StaticObject {
+            kind: StaticKind::Building,
+            shape,
+            t_world_object: Isometry3::from_parts(
+                Translation3::new(12.0, -5.0 + 5.0 * i as f64, 2.0),
+                UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7 * i as f64),
+            ),
+        })
+        .collect();
+    let world = World::new(&scene_with(Ground::flat(0.0), statics.clone()));
+    assert_eq!(world.static_count(), 3);
+    let snap = world.snapshot(0.0);
+    let origin = Point3::new(0.0, 0.0, 1.5);
+    let mut hits = [0; 3];
+    for i in 0..2000 {
+        let az = -0.6 + 1.2 * i as f64 / 2000.0;
+        let el = -0.2 + 0.3 * ((i * 7) % 2000) as f64 / 2000.0;
+        let dir = unit(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+        let bvh = snap.cast_ray(&origin, &dir, 100.0);
+        assert_eq!(
+            bvh,
+            snap.cast_ray_with_candidates(&origin, &dir, 100.0, &[0, 1, 2])
+        );
+        // no candidates: no static is hit
+        let ground_only = snap.cast_ray_with_candidates(&origin, &dir, 100.0, &[]);
+        assert!(ground_only.is_none_or(|h| h.surface == Surface::Ground));
+        let Some(hit) = bvh.filter(|h| h.surface != Surface::Ground) else {
+            assert_eq!(ground_only, bvh);
+            continue;
+        };
+        // the static hit: the one whose shape the hit point lies on
+        let p = origin + dir.as_ref() * hit.range_m;
+        let index = (0..3)
+            .find(|&k| {
+                let local = statics[k].t_world_object.inverse_transform_point(&p);
+                match statics[k].shape {
+                    Shape::Cuboid { half_extents_m: h } => {
+                        (0..3).all(|a| local[a].abs() <= h[a] + 1e-9)
+                    }
+                    Shape::Cylinder {
+                        radius_m,
+                        half_height_m,
+                    } => {
+                        local.coords.xy().norm() <= radius_m + 1e-9
+                            && local.z.abs() <= half_height_m + 1e-9
+                    }
+                    Shape::Ball { radius_m } => local.coords.norm() <= radius_m + 1e-9,
+                }
+            })
+            .expect("the hit lies on a static");
+        hits[index] += 1;
+        // the candidate alone gives the hit; its bounding sphere and box hold it
+        assert_eq!(
+            snap.cast_ray_with_candidates(&origin, &dir, 100.0, &[index]),
+            Some(hit)
+        );
+        let (centre, radius) = world.static_bounding_spheres()[index];
+        assert!((p - centre).norm() <= radius + 1e-9);
+        let pose = statics[index].t_world_object;
+        let corners = world.static_bounding_corners()[index];
+        let local = corners.map(|c| pose.inverse_transform_point(&c));
+        let q = pose.inverse_transform_point(&p);
+        for axis in 0..3 {
+            let extent = local.iter().map(|c| c[axis].abs()).fold(0.0, f64::max);
+            assert!(q[axis].abs() <= extent + 1e-9);
+        }
+    }
+    assert!(hits.iter().all(|&n| n > 20), "{hits:?}");
+}
