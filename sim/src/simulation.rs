@@ -15,7 +15,11 @@ use crate::sensors::{Detector, DetectorError};
 use crate::sensors::{ImuError, ImuSimulator, ImuStream};
 use crate::sensors::{LidarError, LidarSimulator};
 use crate::world::World;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
+
+/// Frames [`Simulation::write_dataset_with`] simulates at once.
+const FRAMES_IN_FLIGHT: usize = 2;
 
 #[derive(Debug, thiserror::Error)]
 /// Why a scenario could not be simulated or written.
@@ -317,18 +321,26 @@ impl Simulation {
                 Ok(writer)
             });
             let mut simulated = Ok(());
-            for index in 0..total {
-                match self.frame(index) {
-                    Ok(frame) => {
-                        on_frame(&frame, total);
-                        if to_writer.send(frame).is_err() {
-                            // the writer stopped on an error: it reports it
-                            break;
+            // frames are simulated FRAMES_IN_FLIGHT at a time, so one frame's
+            // serial steps (culling, labels, detector) overlap another's rays
+            'frames: for first in (0..total).step_by(FRAMES_IN_FLIGHT) {
+                let group: Vec<_> = (first..(first + FRAMES_IN_FLIGHT).min(total))
+                    .into_par_iter()
+                    .map(|index| self.frame(index))
+                    .collect();
+                for frame in group {
+                    match frame {
+                        Ok(frame) => {
+                            on_frame(&frame, total);
+                            if to_writer.send(frame).is_err() {
+                                // the writer stopped on an error: it reports it
+                                break 'frames;
+                            }
                         }
-                    }
-                    Err(e) => {
-                        simulated = Err(e);
-                        break;
+                        Err(e) => {
+                            simulated = Err(e);
+                            break 'frames;
+                        }
                     }
                 }
             }
