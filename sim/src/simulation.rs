@@ -13,8 +13,9 @@ use crate::scenario::{Family, ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
 use crate::sensors::{Detector, DetectorError};
 use crate::sensors::{ImuError, ImuSimulator, ImuStream};
-use crate::sensors::{LidarError, LidarSimulator};
+use crate::sensors::{LidarError, LidarSimulator, SimulatedScan};
 use crate::world::World;
+use limot_estimator::input::LidarScan;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -163,12 +164,33 @@ impl Simulation {
     /// [`SimulationError::NoSuchFrame`] for `index >= frame_count()`;
     /// [`SimulationError::Detector`] if a generated detection is invalid.
     pub fn frame(&self, index: usize) -> Result<SimulatedFrame, SimulationError> {
+        self.frame_reusing(index, None)
+    }
+
+    /// [`Simulation::frame`], reusing the point and label buffers of `spare`
+    /// (a frame that is no longer needed).
+    fn frame_reusing(
+        &self,
+        index: usize,
+        spare: Option<SimulatedFrame>,
+    ) -> Result<SimulatedFrame, SimulationError> {
         let count = self.frame_count();
         if index >= count {
             return Err(SimulationError::NoSuchFrame { index, count });
         }
         let t_s = self.frame_start_s(index);
-        let sweep = self.lidar.scan(&self.scene, &self.world, index as u64, t_s);
+        let mut sweep = match spare {
+            Some(frame) => SimulatedScan {
+                scan: frame.recorded.scan,
+                labels: frame.recorded.labels,
+            },
+            None => SimulatedScan {
+                scan: LidarScan::default(),
+                labels: Vec::new(),
+            },
+        };
+        self.lidar
+            .scan_into(&self.scene, &self.world, index as u64, t_s, &mut sweep);
         let detections = self.detector.detect(
             index as u64,
             t_s,
@@ -312,11 +334,16 @@ impl Simulation {
         // the writer thread writes frame k while the sensors simulate
         // frame k + 1; two more frames may wait in the channel
         let (to_writer, frames) = std::sync::mpsc::sync_channel::<SimulatedFrame>(2);
+        // written frames come back, so their buffers are reused (fresh
+        // memory for every sweep would be a page fault per 4 KiB)
+        let (to_reuse, spares) = std::sync::mpsc::channel::<SimulatedFrame>();
         let written = std::thread::scope(|scope| {
             let writing = scope.spawn(move || -> Result<DatasetWriter, SimulationError> {
                 for frame in frames {
                     writer.write_frame(&frame.recorded, &frame.boxes)?;
                     also(&frame).map_err(|e| SimulationError::Output(e.into()))?;
+                    // the simulation may be over: then the frame is dropped
+                    let _ = to_reuse.send(frame);
                 }
                 Ok(writer)
             });
@@ -325,8 +352,10 @@ impl Simulation {
             // serial steps (culling, labels, detector) overlap another's rays
             'frames: for first in (0..total).step_by(FRAMES_IN_FLIGHT) {
                 let group: Vec<_> = (first..(first + FRAMES_IN_FLIGHT).min(total))
+                    .map(|index| (index, spares.try_recv().ok()))
+                    .collect::<Vec<_>>()
                     .into_par_iter()
-                    .map(|index| self.frame(index))
+                    .map(|(index, spare)| self.frame_reusing(index, spare))
                     .collect();
                 for frame in group {
                     match frame {

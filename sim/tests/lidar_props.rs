@@ -546,3 +546,16 @@ fn culled_sweep_matches_a_brute_force_reference() {
     }
     assert!(agent_points > 1000, "{agent_points}");
 }
+
+/// A sweep scanned into the buffers of another is the sweep scanned afresh.
+#[test]
+fn scanning_into_used_buffers_gives_the_fresh_sweep() {
+    let scene = busy_scene();
+    let world = World::new(&scene);
+    let lidar = LidarSimulator::new(LidarConfig::default(), 3).unwrap();
+    let mut reused = lidar.scan(&scene, &world, 1, 0.1);
+    for (frame, t_s) in [(4, 0.4), (0, 0.0), (7, 0.7)] {
+        lidar.scan_into(&scene, &world, frame, t_s, &mut reused);
+        assert_eq!(reused, lidar.scan(&scene, &world, frame, t_s));
+    }
+}

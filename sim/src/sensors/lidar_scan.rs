@@ -104,6 +104,16 @@ const LASER_GAIN_STREAM: u64 = u64::MAX;
 const LASER_GAIN_SIGMA: f64 = 0.25;
 const SPECKLE_SIGMA: f64 = 0.35;
 
+/// A slot no beam has filled (yet).
+const NO_POINT: LidarPoint = LidarPoint {
+    x: 0.0,
+    y: 0.0,
+    z: 0.0,
+    intensity: 0.0,
+    ring: 0,
+    time_offset_s: 0.0,
+};
+
 /// Columns per rayon task: enough work to amortise scheduling.
 const COLUMNS_PER_TASK: usize = 16;
 
@@ -150,54 +160,92 @@ impl LidarSimulator {
         frame_index: u64,
         t_start_s: f64,
     ) -> SimulatedScan {
-        let columns = self.config.azimuth_steps;
-        let tasks = columns.div_ceil(COLUMNS_PER_TASK);
-        // where each agent can be during this sweep, for per-column culling
-        let agent_spheres =
-            world.agent_sweep_spheres(t_start_s, t_start_s + self.config.sweep_duration_s());
-        let static_bins = StaticBins::new(scene, world, &self.config, t_start_s);
-        let chunks: Vec<Vec<(LidarPoint, u32)>> = (0..tasks)
-            .into_par_iter()
-            .map(|task| {
-                let first = task * COLUMNS_PER_TASK;
-                let last = (first + COLUMNS_PER_TASK).min(columns);
-                let mut out = Vec::with_capacity((last - first) * NUM_LASERS);
-                for column in first..last {
-                    let sweep = Sweep {
-                        scene,
-                        world,
-                        agent_spheres: &agent_spheres,
-                        static_bins: &static_bins,
-                        frame_index,
-                        t_start_s,
-                    };
-                    self.fire_column(&sweep, column, &mut out);
-                }
-                out
-            })
-            .collect();
-        let total = chunks.iter().map(Vec::len).sum();
-        let mut points = Vec::with_capacity(total);
-        let mut labels = Vec::with_capacity(total);
-        for chunk in chunks {
-            for (point, label) in chunk {
-                points.push(point);
-                labels.push(label);
-            }
-        }
-        SimulatedScan {
+        let mut out = SimulatedScan {
             scan: LidarScan {
                 t_s: t_start_s,
                 sweep_duration_s: self.config.sweep_duration_s(),
                 num_rings: NUM_LASERS as u16,
-                points,
+                points: Vec::new(),
             },
-            labels,
-        }
+            labels: Vec::new(),
+        };
+        self.scan_into(scene, world, frame_index, t_start_s, &mut out);
+        out
     }
 
-    /// Casts the 64 beams of one column at its firing time.
-    fn fire_column(&self, sweep: &Sweep<'_>, column: usize, out: &mut Vec<(LidarPoint, u32)>) {
+    /// [`LidarSimulator::scan`] into `out`, whose contents are replaced (its
+    /// buffers are reused: a caller that recycles them allocates nothing per sweep).
+    pub fn scan_into(
+        &self,
+        scene: &Scene,
+        world: &World,
+        frame_index: u64,
+        t_start_s: f64,
+        out: &mut SimulatedScan,
+    ) {
+        let columns = self.config.azimuth_steps;
+        // where each agent can be during this sweep, for per-column culling
+        let agent_spheres =
+            world.agent_sweep_spheres(t_start_s, t_start_s + self.config.sweep_duration_s());
+        let static_bins = StaticBins::new(scene, world, &self.config, t_start_s);
+        let sweep = Sweep {
+            scene,
+            world,
+            agent_spheres: &agent_spheres,
+            static_bins: &static_bins,
+            frame_index,
+            t_start_s,
+        };
+        // every column fills its own 64 slots, then the returns are packed
+        // in column order
+        let (points, labels) = (&mut out.scan.points, &mut out.labels);
+        points.clear();
+        points.resize(columns * NUM_LASERS, NO_POINT);
+        labels.clear();
+        labels.resize(columns * NUM_LASERS, 0);
+        let slots = COLUMNS_PER_TASK * NUM_LASERS;
+        let counts: Vec<[u8; COLUMNS_PER_TASK]> = points
+            .par_chunks_mut(slots)
+            .zip(labels.par_chunks_mut(slots))
+            .enumerate()
+            .map(|(task, (points, labels))| {
+                let mut counts = [0; COLUMNS_PER_TASK];
+                let columns = points
+                    .chunks_mut(NUM_LASERS)
+                    .zip(labels.chunks_mut(NUM_LASERS));
+                for (k, (points, labels)) in columns.enumerate() {
+                    counts[k] =
+                        self.fire_column(&sweep, task * COLUMNS_PER_TASK + k, points, labels);
+                }
+                counts
+            })
+            .collect();
+        let mut kept = 0;
+        for (column, &count) in counts.iter().flatten().take(columns).enumerate() {
+            let start = column * NUM_LASERS;
+            let count = usize::from(count);
+            points.copy_within(start..start + count, kept);
+            labels.copy_within(start..start + count, kept);
+            kept += count;
+        }
+        points.truncate(kept);
+        labels.truncate(kept);
+        out.scan.t_s = t_start_s;
+        out.scan.sweep_duration_s = self.config.sweep_duration_s();
+        out.scan.num_rings = NUM_LASERS as u16;
+    }
+
+    /// Casts the 64 beams of one column at its firing time; its returns go,
+    /// in beam order, to the front of `points` and `labels` (64 slots each),
+    /// and their number is returned.
+    fn fire_column(
+        &self,
+        sweep: &Sweep<'_>,
+        column: usize,
+        points: &mut [LidarPoint],
+        labels: &mut [u32],
+    ) -> u8 {
+        let mut count = 0;
         let cfg = &self.config;
         let tau_s = self.column_time_offset_s(column);
         let t_s = sweep.t_start_s + tau_s;
@@ -301,7 +349,7 @@ impl LidarSimulator {
                 continue;
             }
             let p = dir_lidar * range_m;
-            out.push((
+            (points[count], labels[count]) = (
                 LidarPoint {
                     x: p.x as f32,
                     y: p.y as f32,
@@ -315,8 +363,10 @@ impl LidarSimulator {
                     time_offset_s: tau_s as f32,
                 },
                 hit.instance_id,
-            ));
+            );
+            count += 1;
         }
+        count as u8
     }
 }
 
