@@ -491,7 +491,9 @@ impl World {
             let radius = radius * (1.0 + 1e-9) + 1e-6;
             let to_centre = centre - origin;
             let along = to_centre.dot(dir);
-            if along + radius < 0.0 || along - radius > max_range_m {
+            // hits beyond the best so far and its tie margin change nothing
+            let bound = best.map_or(max_range_m, |(r, _, _)| r + NEAR_TIE_M);
+            if along + radius < 0.0 || along - radius > bound {
                 continue;
             }
             if (to_centre - dir * along).norm_squared() > radius * radius {

@@ -274,6 +274,7 @@ impl LidarSimulator {
         // bounding box onto the plane, between its corners' slopes
         let along_world = t_world_lidar.rotation * Vector3::new(cos_az, sin_az, 0.0);
         let up_world = t_world_lidar.rotation * Vector3::z();
+        let across_world = t_world_lidar.rotation * Vector3::new(-sin_az, cos_az, 0.0);
         let spheres = sweep.world.static_bounding_spheres();
         let corners = sweep.world.static_bounding_corners();
         let statics: Vec<(usize, f64, f64)> = sweep
@@ -283,13 +284,10 @@ impl LidarSimulator {
             .map(|&index| index as usize)
             .filter(|&index| {
                 let (centre, radius) = spheres[index];
-                let v = t_world_lidar
-                    .rotation
-                    .inverse_transform_vector(&(centre - origin_world));
-                let norm = v.norm();
+                let w = centre - origin_world;
+                let norm = w.norm();
                 let radius = radius + 1e-6 + 1e-9 * norm;
-                let along = v.x * cos_az + v.y * sin_az;
-                let across = -v.x * sin_az + v.y * cos_az;
+                let (along, across) = (w.dot(&along_world), w.dot(&across_world));
                 across.abs() <= radius && along >= -radius && norm - radius <= cfg.max_range_m
             })
             .map(|index| {
