@@ -180,10 +180,8 @@ pub struct FeatureExtractor {
     cursor: Vec<usize>,
     /// Points in ring, then time order.
     ordered: Vec<OrderedPoint>,
-    /// Per ordered position: range, scan index, curvature, flags, segment
-    /// bounds (separate arrays, so that each pass reads only what it needs).
+    /// Per ordered position: range, curvature, flags, segment bounds.
     range: Vec<f64>,
-    scan_index: Vec<u32>,
     curvature: Vec<f64>,
     flags: Vec<u8>,
     segment_start: Vec<u32>,
@@ -271,37 +269,6 @@ impl Rejection {
             }
         }
     }
-}
-
-/// True when the horizontal directions of `a` and `b` are farther apart
-/// than the angle whose cosine is `cos_gap` (or one of them is vertical):
-/// `dot < cos_gap · |a| |b|`. Decided on the squares where they differ by
-/// far more than rounding, so the square root is taken only next to the
-/// threshold and the answer is the same as the direct formula's.
-#[inline]
-fn azimuth_gap(a: &OrderedPoint, b: &OrderedPoint, cos_gap: f64) -> bool {
-    /// Relative distance from the threshold beyond which the squared
-    /// comparison decides (its rounding is ~1e-15).
-    const MARGIN: f64 = 1e-12;
-    let (ax, ay, bx, by) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64);
-    let dot = ax * bx + ay * by;
-    let nn = (ax * ax + ay * ay) * (bx * bx + by * by);
-    if nn == 0.0 {
-        return true;
-    }
-    if cos_gap > 0.0 {
-        if dot <= 0.0 {
-            return true;
-        }
-        let (dot_sq, threshold_sq) = (dot * dot, cos_gap * cos_gap * nn);
-        if dot_sq < threshold_sq * (1.0 - MARGIN) {
-            return true;
-        }
-        if dot_sq > threshold_sq * (1.0 + MARGIN) {
-            return false;
-        }
-    }
-    dot < cos_gap * nn.sqrt()
 }
 
 /// Maps an f32 to a u32 with the same order as `f32::total_cmp`.
@@ -413,9 +380,6 @@ impl FeatureExtractor {
         }
         self.range.clear();
         self.range.extend(self.ordered.iter().map(|o| o.range));
-        self.scan_index.clear();
-        self.scan_index
-            .extend(self.ordered.iter().map(|o| o.key as u32));
 
         // 3. segments: split a ring where consecutive points are far apart
         //    in azimuth (angle between their horizontal directions); then
@@ -439,8 +403,15 @@ impl FeatureExtractor {
             let (rs, re) = (self.ring_start[ring], self.ring_start[ring + 1]);
             let mut seg_start = rs;
             for k in rs..=re {
-                let ends_segment = k == re
-                    || (k > rs && azimuth_gap(&self.ordered[k - 1], &self.ordered[k], cos_gap));
+                let ends_segment = k == re || {
+                    k > rs && {
+                        let (a, b) = (&self.ordered[k - 1], &self.ordered[k]);
+                        let (ax, ay, bx, by) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64);
+                        let dot = ax * bx + ay * by;
+                        let nn = (ax * ax + ay * ay) * (bx * bx + by * by);
+                        nn == 0.0 || dot < cos_gap * nn.sqrt()
+                    }
+                };
                 if ends_segment && k > seg_start {
                     self.segment_start[seg_start..k].fill(seg_start as u32);
                     self.segment_end[seg_start..k].fill(k as u32);
@@ -501,7 +472,7 @@ impl FeatureExtractor {
         let surface_threshold = self.config.surface_curvature_threshold;
         for k in 0..total {
             let f = self.flags[k];
-            let index = self.scan_index[k] as usize;
+            let index = self.ordered[k].key as u32 as usize;
             if f & EDGE != 0 {
                 out.edge_indices.push(index);
             } else if f & (HAS_CURVATURE | REJECTED) == HAS_CURVATURE
@@ -535,44 +506,6 @@ mod tests {
     use super::*;
 
     const STEP_DEG: f64 = 0.2;
-
-    #[test]
-    fn the_azimuth_gap_test_agrees_with_the_direct_formula() {
-        let mut rng = limot_test_support::SplitMix64(11);
-        let point = |x: f32, y: f32| OrderedPoint {
-            key: 0,
-            range: 0.0,
-            x,
-            y,
-        };
-        for gap_deg in [0.05f64, 1.0, 5.0, 89.0, 90.0, 120.0, 180.0] {
-            let cos_gap = gap_deg.to_radians().cos();
-            for i in 0..20_000 {
-                let az = rng.range(-3.2, 3.2);
-                // pairs at random separations and right at the threshold
-                let sep = if i % 2 == 0 {
-                    rng.range(-0.1, 0.1) * gap_deg.to_radians() * 20.0
-                } else {
-                    gap_deg.to_radians() * (1.0 + rng.range(-1e-7, 1e-7))
-                };
-                let (ra, rb) = (rng.range(0.5, 80.0), rng.range(0.5, 80.0));
-                let a = point((ra * az.cos()) as f32, (ra * az.sin()) as f32);
-                let b = point(
-                    (rb * (az + sep).cos()) as f32,
-                    (rb * (az + sep).sin()) as f32,
-                );
-                let (ax, ay, bx, by) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64);
-                let nn = (ax * ax + ay * ay) * (bx * bx + by * by);
-                let direct = nn == 0.0 || ax * bx + ay * by < cos_gap * nn.sqrt();
-                assert_eq!(
-                    azimuth_gap(&a, &b, cos_gap),
-                    direct,
-                    "{a:?} {b:?} {gap_deg}"
-                );
-            }
-            assert!(azimuth_gap(&point(0.0, 0.0), &point(1.0, 0.0), cos_gap));
-        }
-    }
 
     /// One ring whose k-th point is at azimuth `az0 + k·STEP_DEG` with the
     /// given range, in the horizontal plane, times increasing with k.

@@ -38,56 +38,11 @@ pub(crate) fn floor_to_i64(v: f64) -> i64 {
 /// `i64` range saturate, which only merges voxels at absurd distances.
 #[inline]
 pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> VoxelKey {
-    VoxelIndexer::new(voxel_m).key(p)
-}
-
-/// [`voxel_key`] for one voxel edge, with its reciprocal computed once:
-/// `floor(v / voxel_m)` by a multiplication wherever that gives the same
-/// integer, the division only within rounding distance of a voxel boundary.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct VoxelIndexer {
-    voxel_m: f64,
-    inv_voxel: f64,
-}
-
-impl VoxelIndexer {
-    /// Coordinates at most this many voxels from the origin take the fast path.
-    const FAST_RANGE: f64 = 1e6;
-    /// `v · (1/voxel_m)` is within ~4e-16 relative of the correctly rounded
-    /// `v / voxel_m`, so within `4e-10` of it below [`Self::FAST_RANGE`]: a
-    /// fractional part farther than this from 0 and 1 floors the same.
-    const BOUNDARY_MARGIN: f64 = 1e-9;
-
-    #[inline]
-    pub(crate) fn new(voxel_m: f64) -> Self {
-        Self {
-            voxel_m,
-            inv_voxel: 1.0 / voxel_m,
-        }
-    }
-
-    /// `floor_to_i64(v / voxel_m)`, bit for bit.
-    #[inline]
-    fn index(&self, v: f64) -> i64 {
-        let q = v * self.inv_voxel;
-        let floor = floor_to_i64(q);
-        // exact for |q| < 2^52; NaN and infinities fail every test below
-        let frac = q - floor as f64;
-        if q.abs() < Self::FAST_RANGE
-            && frac > Self::BOUNDARY_MARGIN
-            && frac < 1.0 - Self::BOUNDARY_MARGIN
-        {
-            floor
-        } else {
-            floor_to_i64(v / self.voxel_m)
-        }
-    }
-
-    /// The voxel key of `p`, equal to [`voxel_key`]`(p, voxel_m)`.
-    #[inline]
-    pub(crate) fn key(&self, p: &Vector3<f64>) -> VoxelKey {
-        (self.index(p.x), self.index(p.y), self.index(p.z))
-    }
+    (
+        floor_to_i64(p.x / voxel_m),
+        floor_to_i64(p.y / voxel_m),
+        floor_to_i64(p.z / voxel_m),
+    )
 }
 
 /// A small multiplicative (Fx-style) hasher for integer voxel keys: the
@@ -181,9 +136,8 @@ impl VoxelDownsampler {
         // Scan-ordered input (points along a ring) mostly repeats the
         // previous voxel: remembering it skips most hash lookups.
         let mut last: Option<(VoxelKey, u32)> = None;
-        let indexer = VoxelIndexer::new(voxel_m);
         for p in points.iter().filter(finite) {
-            let key = indexer.key(p);
+            let key = voxel_key(p, voxel_m);
             let slot = match last {
                 Some((k, slot)) if k == key => slot,
                 _ => {
@@ -234,53 +188,6 @@ mod tests {
         assert_eq!(floor_to_i64(f64::NAN), 0);
         assert_eq!(floor_to_i64(1e300), i64::MAX);
         assert_eq!(floor_to_i64(-1e300), i64::MIN);
-    }
-
-    #[test]
-    fn the_indexer_floors_exactly_like_the_division() {
-        let mut rng = limot_test_support::SplitMix64(7);
-        for voxel_m in [0.4, 0.2, 0.1, 1.0, 0.3, 0.05, 1e-3, 7.3] {
-            let indexer = VoxelIndexer::new(voxel_m);
-            for i in 0..20_000 {
-                // random coordinates, and ones a few ulps around voxel boundaries
-                let v = if i % 2 == 0 {
-                    rng.range(-1e3, 1e3)
-                } else {
-                    let k = rng.range(-1e4, 1e4).round();
-                    let mut b = k * voxel_m;
-                    for _ in 0..(i % 7) {
-                        b = if i % 3 == 0 {
-                            b.next_up()
-                        } else {
-                            b.next_down()
-                        };
-                    }
-                    b
-                };
-                assert_eq!(
-                    indexer.index(v),
-                    floor_to_i64(v / voxel_m),
-                    "{v} / {voxel_m}"
-                );
-            }
-            for v in [
-                0.0,
-                -0.0,
-                f64::NAN,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                1e300,
-                -1e300,
-                4e5,
-                -4e5,
-            ] {
-                assert_eq!(
-                    indexer.index(v),
-                    floor_to_i64(v / voxel_m),
-                    "{v} / {voxel_m}"
-                );
-            }
-        }
     }
 
     #[test]
