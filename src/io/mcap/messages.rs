@@ -188,7 +188,7 @@ pub fn box_entity(
     };
     let arrows = velocity_frame_mps
         .filter(|v| v.norm() >= MIN_ARROW_SPEED_MPS)
-        .and_then(|v| {
+        .map(|v| {
             let direction = UnitQuaternion::rotation_between(&nalgebra::Vector3::x(), &v)
                 // exactly backwards along x: turn about z
                 .unwrap_or_else(|| {
@@ -199,14 +199,14 @@ pub fn box_entity(
                 });
             let length_m = v.norm();
             let head_m = length_m.min(0.5);
-            Some(ArrowPrimitive {
+            ArrowPrimitive {
                 pose: Some(pose(&Isometry3::from_parts(b.center.into(), direction))),
                 shaft_length: length_m - head_m,
                 shaft_diameter: 0.1,
                 head_length: head_m,
                 head_diameter: 0.3,
                 color: Some(rgba(1.0, 1.0, 0.2, 1.0)),
-            })
+            }
         })
         .into_iter()
         .collect();
