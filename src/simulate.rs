@@ -178,3 +178,29 @@ pub fn simulate(
         wall_time_s: started.elapsed().as_secs_f64(),
     })
 }
+
+/// Records the dataset in `dataset_dir` alone (no run) for Foxglove as the
+/// MCAP file `path`: every sweep de-skewed and placed with the true ego
+/// poses, the detections and the ground-truth boxes and path
+/// ([`crate::io::mcap::write_mcap`]).
+///
+/// # Errors
+/// A dataset that cannot be read or a file that cannot be written (named).
+pub fn record_dataset_mcap(
+    dataset_dir: &Path,
+    path: &Path,
+) -> Result<crate::io::mcap::McapStats, crate::io::mcap::McapError> {
+    let source =
+        crate::io::Source::open(dataset_dir).map_err(|e| crate::io::mcap::McapError::Input {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    crate::io::mcap::write_mcap(
+        path,
+        &crate::io::mcap::McapInput {
+            source: &source,
+            frames: source.frame_range(0, None),
+            estimates: &[],
+        },
+    )
+}

@@ -53,6 +53,9 @@ enum Command {
         /// Replace an existing dataset in OUT.
         #[arg(long)]
         force: bool,
+        /// Also record the dataset for Foxglove as this MCAP file (cloud, truth, detections).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Simulate the default urban scenario, score it and write a small report (OUT/report).
     Demo {
@@ -65,6 +68,12 @@ enum Command {
         /// Override the scenario's duration, s.
         #[arg(long)]
         duration: Option<f64>,
+        /// The Foxglove recording of the `limot` run (default: OUT/limot.mcap).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
+        /// Write no MCAP recording.
+        #[arg(long, conflicts_with = "mcap")]
+        no_mcap: bool,
     },
     /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
     Run {
@@ -104,6 +113,9 @@ enum Command {
         /// with AB3DMOT's whole-track score gate on the result files).
         #[arg(long, default_value = "paper")]
         tracker: String,
+        /// Also record the run for Foxglove as this MCAP file (cloud, poses, tracks, ...).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
@@ -383,6 +395,7 @@ impl Cli {
                 no_kitti,
                 print,
                 force,
+                mcap,
             } => simulate::run_simulate(
                 &scenario,
                 &out,
@@ -393,12 +406,18 @@ impl Cli {
                 !no_kitti,
                 print,
                 force,
+                mcap.as_deref(),
             ),
             Command::Demo {
                 out,
                 scenario,
                 duration,
-            } => demo::run_demo(&scenario, &out, duration),
+                mcap,
+                no_mcap,
+            } => {
+                let mcap = (!no_mcap).then(|| mcap.unwrap_or_else(|| out.join("limot.mcap")));
+                demo::run_demo(&scenario, &out, duration, mcap.as_deref())
+            }
             Command::Run {
                 dataset,
                 out,
@@ -410,6 +429,7 @@ impl Cli {
                 detections,
                 score_map,
                 tracker,
+                mcap,
             } => run::run_estimator(
                 &dataset,
                 out,
@@ -423,6 +443,7 @@ impl Cli {
                     score_map,
                 },
                 &tracker,
+                mcap.as_deref(),
             ),
             Command::Eval { what } => eval::run_eval(what),
             Command::TrackKitti(args) => track_kitti::run_track_kitti(args),
@@ -444,4 +465,18 @@ impl Cli {
             }
         }
     }
+}
+
+/// Says where a Foxglove recording went and what it holds.
+fn print_mcap(stats: &crate::io::mcap::McapStats) {
+    let span_s = stats
+        .time_range_ns
+        .map_or(0.0, |(first, last)| (last - first) as f64 * 1e-9);
+    println!(
+        "Foxglove recording: {} ({:.1} MB, {} messages over {:.1} s; layout docs/foxglove-layout.json)",
+        stats.path.display(),
+        stats.bytes as f64 / 1e6,
+        stats.messages,
+        span_s
+    );
 }

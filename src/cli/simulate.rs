@@ -9,6 +9,7 @@ pub(super) fn run_simulate(
     kitti: bool,
     print: bool,
     force: bool,
+    mcap: Option<&std::path::Path>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut spec = resolve_scenario(scenario)?;
     overrides.apply(&mut spec)?;
@@ -32,6 +33,10 @@ pub(super) fn run_simulate(
     println!("dataset: {}", s.dataset_dir.display());
     if let Some(k) = &s.kitti_dir {
         println!("KITTI-style copy: {}", k.display());
+    }
+    if let Some(path) = mcap {
+        let stats = crate::simulate::record_dataset_mcap(&s.dataset_dir, path)?;
+        super::print_mcap(&stats);
     }
     Ok(())
 }
