@@ -20,7 +20,7 @@ mod tracks;
 
 pub use corridor::{Corridor, GroundFit};
 pub use fit::{FitResidual, SmoothingConfig, fit_trajectory};
-pub use tracks::TrackSummary;
+pub use tracks::{MAX_GAP_FRAMES, PARKED_SPREAD_M, TrackSummary};
 
 use crate::scenario::{ScenarioError, ScenarioSpec, common};
 use crate::scene::{Ego, Scene, Trajectory};

@@ -3,8 +3,10 @@
 //!
 //! Ground: the road height under the ego (the LiDAR origin `lidar_height_m`
 //! below, along the body's z) is fitted by weighted least squares with the
-//! existing [`Ground`] terms: a plane plus sinusoids along the path's
-//! principal axis (one per ~30 m of extent, at most 8); the roughness
+//! existing [`Ground`] terms: a plane plus sinusoids along each of the
+//! path's two principal axes (one per 25 m of extent along that axis, at
+//! most 12 per axis; heights along an L-shaped drive are a sum of a profile
+//! along each leg); the roughness
 //! texture is the scenario's. The residual under the ego is reported.
 //!
 //! Statics: the path (the ego's, extended 60 m straight beyond both ends so
@@ -25,7 +27,7 @@ use crate::scene::{
 };
 use crate::traffic::LanePath;
 use limot_estimator::input::ObjectClass;
-use nalgebra::{DMatrix, DVector, Point2, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, Point2, Point3, Vector2, Vector3};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
@@ -44,6 +46,10 @@ pub enum Corridor {
 
 /// A mean ego speed above this makes an unnamed corridor a highway, m/s.
 pub const HIGHWAY_SPEED_MPS: f64 = 14.0;
+/// Dense traffic without pedestrians or cyclists (at least this many
+/// vehicle tracks and none of them) makes an unnamed corridor a highway
+/// whatever the speed: a congested highway (KITTI tracking 0020).
+pub const HIGHWAY_VEHICLE_TRACKS: usize = 60;
 /// At least this many labelled pedestrians and cyclists make an unnamed
 /// corridor a city street.
 pub const CITY_VULNERABLE_TRACKS: usize = 4;
@@ -52,6 +58,10 @@ pub const CITY_VULNERABLE_TRACKS: usize = 4;
 pub const DEFAULT_EDGE_M: f64 = 4.5;
 /// Labelled vehicles within this lateral distance push the road edge out, m.
 pub const EDGE_SEARCH_M: f64 = 14.0;
+/// One ground harmonic per this much of the road's extent along an axis, m.
+const HARMONIC_SPACING_M: f64 = 12.0;
+/// At most this many ground harmonics per axis.
+const MAX_HARMONICS: usize = 24;
 /// How far the corridor continues beyond the drive's ends, m.
 const EXTENSION_M: f64 = 60.0;
 /// Clearance between a static object and any agent box, m.
@@ -59,7 +69,9 @@ const AGENT_CLEARANCE_M: f64 = 0.5;
 
 impl Corridor {
     /// The corridor of a drive with no corridor named: highway when the ego's
-    /// mean speed exceeds [`HIGHWAY_SPEED_MPS`], city when at least
+    /// mean speed exceeds [`HIGHWAY_SPEED_MPS`] or at least
+    /// [`HIGHWAY_VEHICLE_TRACKS`] vehicles and no pedestrian or cyclist are
+    /// labelled, city when at least
     /// [`CITY_VULNERABLE_TRACKS`] pedestrians or cyclists are labelled,
     /// residential otherwise.
     pub fn choose(input: &ReplayInput) -> Corridor {
@@ -74,7 +86,9 @@ impl Corridor {
             .iter()
             .filter(|t| matches!(t.class, ObjectClass::Pedestrian | ObjectClass::Cyclist))
             .count();
-        if path_m / span_s > HIGHWAY_SPEED_MPS {
+        let vehicles = input.tracks.len() - vulnerable;
+        let congested = vulnerable == 0 && vehicles >= HIGHWAY_VEHICLE_TRACKS;
+        if path_m / span_s > HIGHWAY_SPEED_MPS || congested {
             Corridor::Highway
         } else if vulnerable >= CITY_VULNERABLE_TRACKS {
             Corridor::City
@@ -114,7 +128,8 @@ pub(super) fn fit_ground(
     let road: Vec<Vector3<f64>> = (0..samples)
         .map(|i| {
             let pose = ego.pose_at(duration_s * i as f64 / (samples - 1) as f64);
-            pose * Vector3::new(0.0, 0.0, -lidar_height_m)
+            pose.transform_point(&Point3::new(0.0, 0.0, -lidar_height_m))
+                .coords
         })
         .collect();
     let centre = road.iter().sum::<Vector3<f64>>() / road.len() as f64;
@@ -127,29 +142,38 @@ pub(super) fn fit_ground(
         syy += d.y * d.y;
     }
     let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let axis = Vector2::new(angle.cos(), angle.sin());
-    let along: Vec<f64> = road.iter().map(|p| axis.dot(&(p - centre).xy())).collect();
-    let (lo, hi) = along
+    let axes = [
+        Vector2::new(angle.cos(), angle.sin()),
+        Vector2::new(-angle.sin(), angle.cos()),
+    ];
+    // per axis: the coordinate's range and the harmonics along it
+    let terms: Vec<(Vector2<f64>, f64, f64)> = axes
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &s| {
-            (a.min(s), b.max(s))
-        });
-    let extent_m = (hi - lo).max(1.0);
-    let harmonics = ((extent_m / 30.0).floor() as usize).min(8);
-    // unknowns: height at the centre, slope x, slope y, (sin, cos) per harmonic
-    let unknowns = 3 + 2 * harmonics;
-    let wave = |j: usize| TAU * j as f64 / (2.0 * extent_m);
+        .flat_map(|axis| {
+            let along: Vec<f64> = road.iter().map(|p| axis.dot(&(p - centre).xy())).collect();
+            let (lo, hi) = along
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &s| {
+                    (a.min(s), b.max(s))
+                });
+            let extent_m = (hi - lo).max(1.0);
+            let harmonics = ((extent_m / HARMONIC_SPACING_M).floor() as usize).min(MAX_HARMONICS);
+            (1..=harmonics).map(move |j| (*axis, TAU * j as f64 / (2.0 * extent_m), lo))
+        })
+        .collect();
+    // unknowns: height at the centre, slope x, slope y, (sin, cos) per term
+    let unknowns = 3 + 2 * terms.len();
     let mut a = DMatrix::<f64>::zeros(road.len(), unknowns);
     let mut b = DVector::<f64>::zeros(road.len());
-    for (r, (p, s)) in road.iter().zip(&along).enumerate() {
+    for (r, p) in road.iter().enumerate() {
         let d = p - centre;
         a[(r, 0)] = 1.0;
         a[(r, 1)] = d.x;
         a[(r, 2)] = d.y;
-        for j in 1..=harmonics {
-            let phase = wave(j) * (s - lo);
-            a[(r, 1 + 2 * j)] = phase.sin();
-            a[(r, 2 + 2 * j)] = phase.cos();
+        for (j, (axis, k, lo)) in terms.iter().enumerate() {
+            let phase = k * (axis.dot(&d.xy()) - lo);
+            a[(r, 3 + 2 * j)] = phase.sin();
+            a[(r, 4 + 2 * j)] = phase.cos();
         }
         b[r] = p.z;
     }
@@ -166,14 +190,15 @@ pub(super) fn fit_ground(
         .map(|c| c.solve(&rhs))
         .unwrap_or_else(|| DVector::from_element(unknowns, 0.0));
     let slope = Vector2::new(x[1], x[2]);
-    let undulations = (1..=harmonics)
-        .map(|j| {
-            let (s_coef, c_coef) = (x[1 + 2 * j], x[2 + 2 * j]);
-            let k = wave(j);
+    let undulations = terms
+        .iter()
+        .enumerate()
+        .map(|(j, (axis, k, lo))| {
+            let (s_coef, c_coef) = (x[3 + 2 * j], x[4 + 2 * j]);
             // A sin(k (axis . (q - c) - lo) + phi), phi = atan2(c, s)
             Undulation {
                 amplitude_m: s_coef.hypot(c_coef),
-                wave_vector: axis * k,
+                wave_vector: axis * *k,
                 phase_rad: c_coef.atan2(s_coef) - k * (axis.dot(&centre.xy()) + lo),
             }
         })
