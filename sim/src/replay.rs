@@ -124,7 +124,7 @@ impl ReplayInput {
         {
             let finite = pose.translation.vector.iter().all(|v| v.is_finite())
                 && pose.rotation.coords.iter().all(|v| v.is_finite());
-            if !finite || !(sigma.is_finite() && *sigma > 0.0) {
+            if !(finite && sigma.is_finite() && *sigma > 0.0) {
                 return Err(build_error(format!(
                     "frame {k}: pose or position sigma {sigma} m is not finite and positive"
                 )));

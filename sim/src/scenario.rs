@@ -607,6 +607,48 @@ mod tests {
     }
 
     #[test]
+    fn kitti_specs_round_trip_and_their_table_is_validated() {
+        let spec = ScenarioSpec::kitti(KittiParams {
+            training: "/data/training".into(),
+            sequence: 20,
+            first_frame: 5,
+            frames: Some(100),
+            corridor: Some(crate::replay::Corridor::Highway),
+            detections: Some("/data/det/0020.txt".into()),
+        });
+        spec.validate().unwrap();
+        let back = ScenarioSpec::parse(&spec.to_toml(), Path::new("k.toml")).unwrap();
+        assert_eq!(back, spec);
+        // the scene comes from the KITTI files, not from `build`
+        assert!(spec.build().is_err());
+        let head = "name = \"k\"\nfamily = \"kitti\"\nseed = 1\nduration_s = 30.0\n";
+        let msg = error_of(head);
+        assert!(msg.contains("kitti") && msg.contains("[kitti]"), "{msg}");
+        let frames = format!("{head}[kitti]\ntraining = \"t\"\nsequence = 1\nframes = 1\n");
+        let msg = error_of(&frames);
+        assert!(
+            msg.contains("bad.toml:8") && msg.contains("kitti.frames"),
+            "{msg}"
+        );
+        let corridor =
+            format!("{head}[kitti]\ntraining = \"t\"\nsequence = 1\ncorridor = \"forest\"\n");
+        let msg = error_of(&corridor);
+        assert!(
+            msg.contains("bad.toml:8") && msg.contains("kitti.corridor"),
+            "{msg}"
+        );
+        let sequence = format!("{head}[kitti]\ntraining = \"t\"\nsequence = 12345\n");
+        let msg = error_of(&sequence);
+        assert!(
+            msg.contains("bad.toml:7") && msg.contains("kitti.sequence"),
+            "{msg}"
+        );
+        let stray = format!("{HEAD}[kitti]\ntraining = \"t\"\nsequence = 1\n");
+        let msg = error_of(&stray);
+        assert!(msg.contains("bad.toml:5") && msg.contains("kitti"), "{msg}");
+    }
+
+    #[test]
     fn full_range_seeds_round_trip() {
         // toml 1 writes and reads u64 beyond i64::MAX
         let mut spec = ScenarioSpec::builtin("urban").unwrap();

@@ -311,8 +311,8 @@ mod tests {
         // about it (a little more at the ends) and its acceleration stays far
         // below the jitter's 6 m/s^2
         let poses: Vec<Isometry3<f64>> = (0..50)
-            .map(|k| {
-                let jitter = if k % 2 == 0 { 0.03 } else { -0.03 };
+            .map(|k: usize| {
+                let jitter = if k.is_multiple_of(2) { 0.03 } else { -0.03 };
                 Isometry3::translation(k as f64 + jitter, 0.0, 0.0)
             })
             .collect();

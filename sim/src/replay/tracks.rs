@@ -230,7 +230,7 @@ mod tests {
 
     #[test]
     fn still_tracks_are_parked_and_long_gaps_split() {
-        let jitter = |f: usize| if f % 2 == 0 { 0.05 } else { -0.05 };
+        let jitter = |f: usize| if f.is_multiple_of(2) { 0.05 } else { -0.05 };
         let mut labels: Vec<(usize, f64, f64)> =
             (0..10).map(|f| (f, 7.0 + jitter(f), 0.0)).collect();
         labels.extend((40..50).map(|f| (f, 7.0 + jitter(f), 0.0)));

@@ -184,9 +184,10 @@ fn tracks(
     first_frame: usize,
     notes: &mut TwinNotes,
 ) -> Vec<ReplayTrack> {
-    // (KITTI id, class) -> boxes with their sizes, in label order
-    let mut groups: BTreeMap<(i64, usize), (ObjectClass, Vec<(TrackBox, Vector3<f64>)>)> =
-        BTreeMap::new();
+    // (KITTI id, class index) -> the class and its boxes with their sizes,
+    // in label order
+    type Boxes = Vec<(TrackBox, Vector3<f64>)>;
+    let mut groups: BTreeMap<(i64, usize), (ObjectClass, Boxes)> = BTreeMap::new();
     for label in labels {
         let frame = label.frame as usize;
         if frame < first_frame || frame >= first_frame + t_world_lidar.len() {
@@ -253,4 +254,142 @@ fn tracks(
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::kitti::oxts::write_oxts;
+    use limot_sim::scenario::ScenarioSpec;
+
+    /// A driven sequence of `n` frames northwards at ~11 m/s, GPS degraded
+    /// (pos_accuracy 5 m) at frames 10..15.
+    fn oxts(n: usize) -> Vec<OxtsRecord> {
+        (0..n)
+            .map(|k| OxtsRecord {
+                lat_deg: 49.0 + k as f64 * 1e-5,
+                lon_deg: 8.4,
+                alt_m: 110.0 + 0.01 * k as f64,
+                yaw_rad: std::f64::consts::FRAC_PI_2,
+                pos_accuracy_m: if (10..15).contains(&k) { 5.0 } else { 0.3 },
+                ..OxtsRecord::default()
+            })
+            .collect()
+    }
+
+    /// A label line: `frame id type`, a box 10 m ahead in the camera frame.
+    fn label(frame: usize, id: i64, kind: &str) -> String {
+        format!("{frame} {id} {kind} 0 0 0 0 0 10 10 1.5 1.8 4.2 1.0 1.7 10.0 0.0\n")
+    }
+
+    fn write_sequence(dir: &Path, records: &[OxtsRecord], labels: &str) -> KittiParams {
+        for sub in ["oxts", "calib", "label_02"] {
+            std::fs::create_dir_all(dir.join(sub)).unwrap();
+        }
+        std::fs::write(dir.join("oxts/0000.txt"), write_oxts(records)).unwrap();
+        let calib = crate::io::kitti::calib::tests::sample().write();
+        std::fs::write(dir.join("calib/0000.txt"), calib).unwrap();
+        std::fs::write(dir.join("label_02/0000.txt"), labels).unwrap();
+        KittiParams {
+            training: dir.display().to_string(),
+            sequence: 0,
+            first_frame: 0,
+            frames: None,
+            corridor: None,
+            detections: None,
+        }
+    }
+
+    fn temp_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("limot-twin-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    #[test]
+    fn gaps_reused_ids_dont_care_and_gps_dropouts_are_handled() {
+        let dir = temp_dir("gaps");
+        let mut labels = String::new();
+        // track 0 labelled at 0..10 and 14..20 (a 4-frame gap), then its id
+        // reused for a pedestrian; a DontCare region and a tram
+        for f in (0..10).chain(14..20) {
+            labels += &label(f, 0, "Car");
+        }
+        labels += &label(25, 0, "Pedestrian");
+        labels += "3 -1 DontCare -1 -1 -10 0 0 10 10 -1000 -1000 -1000 -10 -1 -1 -1\n";
+        labels += &label(4, 7, "Tram");
+        let params = write_sequence(&dir, &oxts(30), &labels);
+        let (input, notes) = replay_input(&params, usize::MAX).unwrap();
+        assert_eq!(notes.frames, 30);
+        assert_eq!(notes.degraded_gps_frames, 5);
+        assert_eq!(notes.reused_ids, 1);
+        assert_eq!(notes.skipped_labels.get("DontCare"), Some(&1));
+        assert_eq!(notes.skipped_labels.get("Tram"), Some(&1));
+        assert!(input.position_sigma_m[12] > 4.0 * input.position_sigma_m[0]);
+        assert_eq!(input.tracks.len(), 2);
+        assert_eq!(input.tracks[0].id, 1);
+        assert!(input.tracks[1].id > 1);
+        assert!((input.t_world_lidar[29].translation.vector.norm() - 32.0).abs() < 2.0);
+        // the simulator takes it: the gap is bridged, the reused id is its own agent
+        let spec = ScenarioSpec::kitti(params);
+        let sim = limot_sim::Simulation::from_replay(&spec, &input).unwrap();
+        let report = sim.replay_report().unwrap();
+        assert_eq!(report.tracks.bridged_frames, 4);
+        assert_eq!(sim.scene().agents.len(), 2);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn frame_windows_and_a_missing_label_file() {
+        let dir = temp_dir("window");
+        let mut params = write_sequence(&dir, &oxts(30), &label(12, 3, "Car"));
+        params.first_frame = 10;
+        params.frames = Some(5);
+        let (input, notes) = replay_input(&params, usize::MAX).unwrap();
+        assert_eq!((input.t_world_lidar.len(), notes.first_frame), (5, 10));
+        assert_eq!(input.tracks[0].boxes[0].frame, 2);
+        // the scenario's duration caps the frames too
+        let (input, _) = replay_input(&params, 3).unwrap();
+        assert_eq!(input.t_world_lidar.len(), 3);
+        params.first_frame = 29;
+        let err = replay_input(&params, usize::MAX).unwrap_err().to_string();
+        assert!(
+            err.contains("oxts/0000.txt") && err.contains("at least 2"),
+            "{err}"
+        );
+        std::fs::remove_file(dir.join("label_02/0000.txt")).unwrap();
+        params.first_frame = 0;
+        let (input, notes) = replay_input(&params, usize::MAX).unwrap();
+        assert!(notes.no_labels && input.tracks.is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn malformed_files_name_file_line_and_field() {
+        let dir = temp_dir("malformed");
+        let bad_label = label(2, 1, "Car").replacen(" 1.5 ", " tall ", 1);
+        let params = write_sequence(
+            &dir,
+            &oxts(10),
+            &format!("{}{bad_label}", label(1, 1, "Car")),
+        );
+        let err = replay_input(&params, usize::MAX).unwrap_err().to_string();
+        assert!(
+            err.contains("label_02/0000.txt:2") && err.contains("`h`"),
+            "{err}"
+        );
+        let mut text = write_oxts(&oxts(10));
+        text = text.replacen(" 0.3 ", " nan ", 1);
+        std::fs::write(dir.join("oxts/0000.txt"), text).unwrap();
+        let err = replay_input(&params, usize::MAX).unwrap_err().to_string();
+        assert!(
+            err.contains("oxts/0000.txt:1") && err.contains("pos_accuracy"),
+            "{err}"
+        );
+        std::fs::remove_file(dir.join("calib/0000.txt")).unwrap();
+        std::fs::write(dir.join("oxts/0000.txt"), write_oxts(&oxts(10))).unwrap();
+        let err = replay_input(&params, usize::MAX).unwrap_err().to_string();
+        assert!(err.contains("calib/0000.txt"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
