@@ -33,8 +33,29 @@ pub struct Cli {
 enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
-        /// Scenario TOML file, or a built-in scenario name (highway, urban, highway-dense, urban-parked).
+        /// Scenario TOML file, a built-in scenario name (highway, urban, highway-dense,
+        /// urban-parked), or `kitti` with --training and --sequence: the digital twin of
+        /// a KITTI tracking sequence.
         scenario: String,
+        /// With `kitti`: the KITTI tracking `training` dir (calib/, oxts/, label_02/).
+        #[arg(long)]
+        training: Option<PathBuf>,
+        /// With `kitti`: the sequence number.
+        #[arg(long)]
+        sequence: Option<u32>,
+        /// With `kitti`: the first KITTI frame replayed.
+        #[arg(long, default_value_t = 0)]
+        first_frame: usize,
+        /// With `kitti`: frames replayed (default: to the end of the sequence).
+        #[arg(long)]
+        frames: Option<usize>,
+        /// With `kitti`: residential, city or highway (default: chosen from the sequence).
+        #[arg(long)]
+        corridor: Option<String>,
+        /// With `kitti`: AB3DMOT-format detections of the sequence (logit scores, e.g.
+        /// PointRCNN's) put into the dataset instead of the detector model's.
+        #[arg(long)]
+        detections: Option<PathBuf>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -389,6 +410,12 @@ impl Cli {
         match self.command {
             Command::Simulate {
                 scenario,
+                training,
+                sequence,
+                first_frame,
+                frames,
+                corridor,
+                detections,
                 out,
                 seed,
                 duration,
@@ -398,6 +425,14 @@ impl Cli {
                 mcap,
             } => simulate::run_simulate(
                 &scenario,
+                simulate::TwinArgs {
+                    training,
+                    sequence,
+                    first_frame,
+                    frames,
+                    corridor,
+                    detections,
+                },
                 &out,
                 Overrides {
                     seed,
