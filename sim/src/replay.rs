@@ -87,6 +87,33 @@ pub struct ReplayReport {
     pub tracks: TrackSummary,
 }
 
+impl std::fmt::Display for ReplayReport {
+    /// One line: fit residuals, ground under the ego, corridor and agents.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (e, g, t) = (&self.ego_fit, &self.ground, &self.tracks);
+        write!(
+            f,
+            "ego fit residual rms {:.3} m / max {:.3} m, {:.4} / {:.4} rad, peak accel {:.2} m/s^2; \
+             ground under the ego rms {:.3} m / max {:.3} m; corridor {}, {} statics; \
+             agents {} moving, {} parked ({} splits, {} bridged frames, {} duplicate boxes)",
+            e.position_rms_m,
+            e.position_max_m,
+            e.rotation_rms_rad,
+            e.rotation_max_rad,
+            e.accel_max_mps2,
+            g.rms_m,
+            g.max_m,
+            self.corridor.name(),
+            self.statics,
+            t.moving,
+            t.parked,
+            t.splits,
+            t.bridged_frames,
+            t.duplicates,
+        )
+    }
+}
+
 fn build_error(message: impl Into<String>) -> ScenarioError {
     ScenarioError::Build {
         scenario: "replay".into(),

@@ -162,20 +162,7 @@ const BUILTIN_NAMES: &[&str] = &["highway", "urban", "highway-dense", "urban-par
 impl ScenarioSpec {
     /// The default scenarios, equal to `scenarios/<name>.toml`.
     pub fn builtin(name: &str) -> Option<ScenarioSpec> {
-        let base = |family, seed| ScenarioSpec {
-            name: name.to_string(),
-            family,
-            seed,
-            duration_s: 60.0,
-            lidar: LidarConfig::default(),
-            imu: ImuConfig::default(),
-            detector: DetectorConfig::default(),
-            ego: EgoSpec::default(),
-            ground: GroundParams::default(),
-            highway: None,
-            urban: None,
-            kitti: None,
-        };
+        let base = |family, seed| ScenarioSpec::with_defaults(name.to_string(), family, seed, 60.0);
         match name {
             "highway" => Some(ScenarioSpec {
                 highway: Some(HighwayParams::default()),
@@ -242,11 +229,20 @@ impl ScenarioSpec {
     /// The digital twin of a KITTI tracking sequence: default sensors, ego
     /// and ground, seed 1, as long as the sequence (up to the 3600 s limit).
     pub fn kitti(params: KittiParams) -> ScenarioSpec {
+        let name = format!("kitti-{:04}", params.sequence);
         ScenarioSpec {
-            name: format!("kitti-{:04}", params.sequence),
-            family: Family::Kitti,
-            seed: 1,
-            duration_s: 3600.0,
+            kitti: Some(params),
+            ..ScenarioSpec::with_defaults(name, Family::Kitti, 1, 3600.0)
+        }
+    }
+
+    /// A spec with default sensors, ego and ground and no family table.
+    fn with_defaults(name: String, family: Family, seed: u64, duration_s: f64) -> ScenarioSpec {
+        ScenarioSpec {
+            name,
+            family,
+            seed,
+            duration_s,
             lidar: LidarConfig::default(),
             imu: ImuConfig::default(),
             detector: DetectorConfig::default(),
@@ -254,7 +250,7 @@ impl ScenarioSpec {
             ground: GroundParams::default(),
             highway: None,
             urban: None,
-            kitti: Some(params),
+            kitti: None,
         }
     }
 

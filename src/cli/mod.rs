@@ -433,15 +433,17 @@ impl Cli {
                     corridor,
                     detections,
                 },
-                &out,
                 Overrides {
                     seed,
                     duration_s: duration,
                 },
-                !no_kitti,
                 print,
-                force,
-                mcap.as_deref(),
+                simulate::SimulateOutputs {
+                    out: &out,
+                    kitti: !no_kitti,
+                    force,
+                    mcap: mcap.as_deref(),
+                },
             ),
             Command::Demo {
                 out,

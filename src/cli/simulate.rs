@@ -13,16 +13,31 @@ pub(super) struct TwinArgs {
     pub detections: Option<PathBuf>,
 }
 
+/// Where and what `limot simulate` writes.
+pub(super) struct SimulateOutputs<'a> {
+    /// The dataset directory.
+    pub out: &'a std::path::Path,
+    /// Also write the KITTI-style copy.
+    pub kitti: bool,
+    /// Replace an existing dataset directory.
+    pub force: bool,
+    /// Also record the dataset to this MCAP file.
+    pub mcap: Option<&'a std::path::Path>,
+}
+
 pub(super) fn run_simulate(
     scenario: &str,
     twin: TwinArgs,
-    out: &std::path::Path,
     overrides: Overrides,
-    kitti: bool,
     print: bool,
-    force: bool,
-    mcap: Option<&std::path::Path>,
+    outputs: SimulateOutputs<'_>,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    let SimulateOutputs {
+        out,
+        kitti,
+        force,
+        mcap,
+    } = outputs;
     let mut spec = if scenario == "kitti" && !std::path::Path::new(scenario).exists() {
         let (Some(training), Some(sequence)) = (twin.training, twin.sequence) else {
             return Err("`simulate kitti` needs --training DIR and --sequence N".into());
@@ -63,25 +78,7 @@ pub(super) fn run_simulate(
         s.frames as f64 / s.wall_time_s.max(1e-9)
     );
     if let Some(r) = &s.replay {
-        println!(
-            "twin: ego fit residual rms {:.3} m / max {:.3} m, {:.4} / {:.4} rad, peak accel {:.2} m/s^2; \
-             ground under the ego rms {:.3} m / max {:.3} m; corridor {}, {} statics; \
-             agents {} moving, {} parked ({} splits, {} bridged frames, {} duplicate boxes)",
-            r.ego_fit.position_rms_m,
-            r.ego_fit.position_max_m,
-            r.ego_fit.rotation_rms_rad,
-            r.ego_fit.rotation_max_rad,
-            r.ego_fit.accel_max_mps2,
-            r.ground.rms_m,
-            r.ground.max_m,
-            r.corridor.name(),
-            r.statics,
-            r.tracks.moving,
-            r.tracks.parked,
-            r.tracks.splits,
-            r.tracks.bridged_frames,
-            r.tracks.duplicates,
-        );
+        println!("twin: {r}");
     }
     if let Some(n) = &s.twin {
         println!(
