@@ -42,6 +42,9 @@ pub enum DemoError {
     /// The dataset could not be read back.
     #[error(transparent)]
     Record(#[from] limot_sim::record::RecordError),
+    /// The Foxglove recording could not be written.
+    #[error(transparent)]
+    Mcap(#[from] crate::io::mcap::McapError),
     /// The track evaluation lacks its 3D IoU 0.25 score.
     #[error("the track evaluation has no 3D IoU 0.25 score")]
     NoTrackScore,
@@ -106,6 +109,8 @@ pub struct DemoSummary {
     pub detector: [(f64, ClearMotResult); 2],
     /// `lio` then `limot`.
     pub estimators: Vec<EstimatorSummary>,
+    /// The Foxglove recording of the `limot` run, when one was asked for.
+    pub mcap: Option<crate::io::mcap::McapStats>,
 }
 
 /// Ground truth and detections of one frame as CLEAR-MOT input. Ground truth
@@ -161,12 +166,18 @@ fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
     }
 }
 
-/// Runs the demo into `out` (dataset in `out/dataset`, report in `out/report`).
+/// Runs the demo into `out` (dataset in `out/dataset`, report in `out/report`) and, with
+/// `mcap`, records the `limot` run for Foxglove there (the CLI's default: `out/limot.mcap`).
 ///
 /// # Errors
-/// A scenario that cannot be simulated, a run or score that fails, or a report that cannot be
-/// written.
-pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoSummary, DemoError> {
+/// A scenario that cannot be simulated, a run or score that fails, or a report or
+/// recording that cannot be written.
+pub fn run_demo(
+    spec: &ScenarioSpec,
+    out: &Path,
+    progress: bool,
+    mcap: Option<&Path>,
+) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
     let bar = crate::cli::frame_progress_bar(total, progress, "simulate");
@@ -196,13 +207,17 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
     let source = crate::io::Source::open(&dataset_dir).map_err(crate::run::RunError::from)?;
     let mut estimators = Vec::new();
     let mut estimated_xy = Vec::new();
+    let mut mcap_stats = None;
     for variant in [
         limot_estimator::Variant::Lio,
         limot_estimator::Variant::Limot,
     ] {
-        let (summary, xy) = run_variant(&source, &dataset_dir, out, variant, progress)?;
+        let recording = mcap.filter(|_| variant == limot_estimator::Variant::Limot);
+        let (summary, xy, stats) =
+            run_variant(&source, &dataset_dir, out, variant, progress, recording)?;
         estimators.push(summary);
         estimated_xy.push(xy);
+        mcap_stats = mcap_stats.or(stats);
     }
     let mut estimator_table = Table::new(
         "Ego trajectory vs ground truth (SE(3)-aligned)",
@@ -422,18 +437,28 @@ pub fn run_demo(spec: &ScenarioSpec, out: &Path, progress: bool) -> Result<DemoS
         ego_path_length_m,
         detector,
         estimators,
+        mcap: mcap_stats,
     })
 }
 
+/// What [`run_variant`] returns: the summary, the aligned ego XY path and
+/// the recording's statistics.
+type VariantRun = (
+    EstimatorSummary,
+    Vec<(f64, f64)>,
+    Option<crate::io::mcap::McapStats>,
+);
+
 /// Runs one variant on the demo dataset into `out/<variant>`, scores its ego
-/// trajectory and tracks; returns the summary and the aligned ego XY path.
+/// trajectory and tracks and, with `mcap`, records the run there.
 fn run_variant(
     source: &crate::io::Source,
     dataset_dir: &Path,
     out: &Path,
     variant: limot_estimator::Variant,
     progress: bool,
-) -> Result<(EstimatorSummary, Vec<(f64, f64)>), DemoError> {
+    mcap: Option<&Path>,
+) -> Result<VariantRun, DemoError> {
     let run_options = crate::run::RunOptions {
         variant,
         progress,
@@ -442,6 +467,18 @@ fn run_variant(
     let output = crate::run::run(source, dataset_dir, &run_options, None)?;
     let run_dir = out.join(variant.name());
     crate::run::write_output(&run_dir, &output)?;
+    let mcap_stats = mcap
+        .map(|path| {
+            crate::io::mcap::write_mcap(
+                path,
+                &crate::io::mcap::McapInput {
+                    source,
+                    frames: source.frame_range(0, None),
+                    estimates: &output.estimates,
+                },
+            )
+        })
+        .transpose()?;
     let eval_options = crate::experiments::EgoEvalOptions::default();
     let truth = crate::experiments::load_truth(dataset_dir, &eval_options)?;
     let estimate = crate::experiments::Trajectory {
@@ -491,5 +528,5 @@ fn run_variant(
         fps: output.estimates.len() as f64 / output.wall_time.as_secs_f64().max(1e-9),
         trajectory: run_dir.join("poses_tum.txt"),
     };
-    Ok((summary, xy))
+    Ok((summary, xy, mcap_stats))
 }

@@ -11,7 +11,21 @@ use std::process::ExitCode;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
+/// `mi_option_purge_delay` in mimalloc v3's `mi_option_e` (the version the
+/// locked libmimalloc-sys builds; the sys crate names no constant for it).
+const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
+
+/// Never hand freed pages back to the kernel. By default mimalloc purges them
+/// 10 ms after the free, shorter than a frame, so every sweep's scan-sized
+/// buffers were faulted in (and zeroed, 2 MiB transparent huge pages) again;
+/// the peak resident size stays what the live data needs at its largest.
+fn keep_freed_pages() {
+    // SAFETY: sets a plain integer option; mimalloc reads it on every purge.
+    unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
+}
+
 fn main() -> ExitCode {
+    keep_freed_pages();
     match limot::cli::Cli::parse().run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -1,9 +1,12 @@
 //! `limot simulate`: resolve a scenario (file or built-in name), simulate it
 //! into a limot dataset and write a KITTI-style copy beside it.
 use crate::cli::frame_progress_bar;
+use crate::io::kitti::KittiError;
 use crate::io::kitti::export::{ExportError, KittiCopyWriter, stored_box};
+use crate::io::kitti::twin::{self, TwinNotes};
 use limot_sim::record::WriteMode;
-use limot_sim::scenario::{ScenarioError, ScenarioSpec};
+use limot_sim::replay::{Corridor, ReplayReport};
+use limot_sim::scenario::{Family, KittiParams, ScenarioError, ScenarioSpec};
 use limot_sim::{Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -26,6 +29,12 @@ pub enum SimulateError {
     /// The KITTI-style copy could not be written.
     #[error(transparent)]
     Export(#[from] ExportError),
+    /// A KITTI file of a twin could not be read.
+    #[error(transparent)]
+    Kitti(#[from] KittiError),
+    /// A twin's argument is invalid.
+    #[error("{0}")]
+    Argument(String),
     #[error(
         "{}: output directory is not empty{}",
         path.display(),
@@ -91,6 +100,65 @@ pub fn resolve_scenario(arg: &str) -> Result<ScenarioSpec, SimulateError> {
     ScenarioSpec::builtin(arg).ok_or_else(|| SimulateError::UnknownScenario(arg.to_string()))
 }
 
+/// The scenario of a KITTI tracking sequence's digital twin: the default
+/// sensors, ego and ground, seed 1, the whole sequence (up to the 3600 s
+/// limit), the given frames, corridor (`residential`, `city`, `highway`;
+/// unset = chosen from the sequence) and recorded detections.
+///
+/// # Errors
+/// An unknown corridor name, or a table the spec's validation refuses.
+pub fn kitti_scenario(
+    training: &Path,
+    sequence: u32,
+    first_frame: usize,
+    frames: Option<usize>,
+    corridor: Option<&str>,
+    detections: Option<&Path>,
+) -> Result<ScenarioSpec, SimulateError> {
+    let corridor = corridor
+        .map(|name| match name {
+            "residential" => Ok(Corridor::Residential),
+            "city" => Ok(Corridor::City),
+            "highway" => Ok(Corridor::Highway),
+            other => Err(SimulateError::Argument(format!(
+                "corridor `{other}`: expected residential, city or highway"
+            ))),
+        })
+        .transpose()?;
+    let spec = ScenarioSpec::kitti(KittiParams {
+        training: training.display().to_string(),
+        sequence,
+        first_frame,
+        frames,
+        corridor,
+        detections: detections.map(|d| d.display().to_string()),
+    });
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// The simulation of `spec`: a generated scene, or for a `kitti` spec the
+/// twin of its sequence (read with [`twin::replay_input`]) with what the
+/// conversion left out.
+///
+/// # Errors
+/// An invalid spec, unreadable or malformed KITTI files, a scene the
+/// simulator refuses.
+pub fn simulation_of(
+    spec: &ScenarioSpec,
+) -> Result<(Simulation, Option<TwinNotes>), SimulateError> {
+    spec.validate()?;
+    match (&spec.family, &spec.kitti) {
+        (Family::Kitti, Some(params)) => {
+            let period = crate::io::kitti::KITTI_FRAME_PERIOD_S;
+            let max_frames = (spec.duration_s / period + 1e-9).floor() as usize;
+            let (input, notes) = twin::replay_input(params, max_frames)?;
+            Ok((Simulation::from_replay(spec, &input)?, Some(notes)))
+        }
+        _ => Ok((Simulation::new(spec)?, None)),
+    }
+}
+
 /// Overrides applied to a resolved scenario before simulating.
 #[derive(Debug, Clone, Default)]
 pub struct Overrides {
@@ -132,6 +200,10 @@ pub struct SimulateSummary {
     pub agents: usize,
     /// Wall time of the simulation and export (s).
     pub wall_time_s: f64,
+    /// What the replay builder did (twins only).
+    pub replay: Option<ReplayReport>,
+    /// What the KITTI conversion left out (twins only).
+    pub twin: Option<TwinNotes>,
 }
 
 /// Simulates `spec` into `out` (limot format) and, unless `kitti` is false,
@@ -150,7 +222,7 @@ pub fn simulate(
 ) -> Result<SimulateSummary, SimulateError> {
     prepare_output_dir(out, false)?;
     let started = Instant::now();
-    let sim = Simulation::new(spec)?;
+    let (sim, twin) = simulation_of(spec)?;
     let total = sim.frame_count();
     let mode = WriteMode::default();
     let bar = frame_progress_bar(total, progress, "simulate");
@@ -200,5 +272,33 @@ pub fn simulate(
         detections,
         agents: scene.agents.len(),
         wall_time_s: started.elapsed().as_secs_f64(),
+        replay: sim.replay_report().cloned(),
+        twin,
     })
+}
+
+/// Records the dataset in `dataset_dir` alone (no run) for Foxglove as the
+/// MCAP file `path`: every sweep de-skewed and placed with the true ego
+/// poses, the detections and the ground-truth boxes and path
+/// ([`crate::io::mcap::write_mcap`]).
+///
+/// # Errors
+/// A dataset that cannot be read or a file that cannot be written (named).
+pub fn record_dataset_mcap(
+    dataset_dir: &Path,
+    path: &Path,
+) -> Result<crate::io::mcap::McapStats, crate::io::mcap::McapError> {
+    let source =
+        crate::io::Source::open(dataset_dir).map_err(|e| crate::io::mcap::McapError::Input {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    crate::io::mcap::write_mcap(
+        path,
+        &crate::io::mcap::McapInput {
+            source: &source,
+            frames: source.frame_range(0, None),
+            estimates: &[],
+        },
+    )
 }

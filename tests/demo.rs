@@ -10,7 +10,13 @@ fn demo_simulates_scores_and_writes_a_report() {
     spec.duration_s = 3.0;
     let out = std::env::temp_dir().join(format!("limot-demo-{}", std::process::id()));
     let _ = fs::remove_dir_all(&out);
-    let s = run_demo(&spec, &out, false).unwrap();
+    let mcap = out.join("limot.mcap");
+    let s = run_demo(&spec, &out, false, Some(&mcap)).unwrap();
+    // the `limot` run's Foxglove recording, whole (tests/mcap.rs reads one in detail)
+    let stats = s.mcap.as_ref().unwrap();
+    assert_eq!(stats.path, mcap);
+    assert_eq!(std::fs::metadata(&mcap).unwrap().len(), stats.bytes);
+    assert!(stats.messages >= 30 * 7, "{} messages", stats.messages);
     assert_eq!(s.frames, 30);
     assert!(
         s.mean_points_per_scan > 50_000.0,

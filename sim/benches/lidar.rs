@@ -111,6 +111,7 @@ fn bench_scene() -> Scene {
                     8.0 + (i % 5) as f64,
                     duration_s,
                 ),
+                presence: limot_sim::scene::Presence::ALWAYS,
             }
         })
         .collect();

@@ -12,12 +12,15 @@
 //!   ego) and the trajectories they follow;
 //! - [`traffic`]: the vehicle model that moves the agents;
 //! - [`sensors`]: LiDAR, IMU and detector models;
-//! - [`record`]: the dataset format (writer, reader, scan codec).
+//! - [`record`]: the dataset format (writer, reader, scan codec);
+//! - [`replay`]: digital twins of recorded drives (a replay input and the
+//!   builder of its scene).
 
 #![warn(missing_docs)]
 
 mod fast_trig;
 pub mod record;
+pub mod replay;
 mod roughness;
 pub mod scenario;
 pub mod scene;

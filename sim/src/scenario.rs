@@ -8,7 +8,7 @@
 //! `ChaCha8Rng` seeded with `seed`, so the same spec always gives the same
 //! scene.
 
-mod common;
+pub(crate) mod common;
 mod highway;
 mod roadside;
 mod streetscape;
@@ -26,15 +26,15 @@ use std::path::{Path, PathBuf};
 mod params;
 mod validate;
 
-pub use params::{EgoSpec, Family, GroundParams, HighwayParams, UrbanParams};
+pub use params::{EgoSpec, Family, GroundParams, HighwayParams, KittiParams, UrbanParams};
 pub(crate) use validate::{
     HIGHWAY_EGO_FREE_SLOTS, HIGHWAY_TRUCK_LENGTH_M, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M,
     URBAN_CYCLIST_SPACING_M, URBAN_PEDESTRIAN_SPACING_M, highway_min_spacing_m,
     urban_spawn_length_m,
 };
 use validate::{
-    positive_finite, validate_ego, validate_ground, validate_highway, validate_lidar,
-    validate_urban,
+    positive_finite, validate_ego, validate_ground, validate_highway, validate_kitti,
+    validate_lidar, validate_urban,
 };
 
 /// A complete scenario description, the contents of one scenario file.
@@ -70,6 +70,9 @@ pub struct ScenarioSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     /// The `[urban]` table (urban family only; defaults if absent).
     pub urban: Option<UrbanParams>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// The `[kitti]` table (kitti family only, required there).
+    pub kitti: Option<KittiParams>,
 }
 
 /// Why a scenario could not be loaded or built.
@@ -159,19 +162,7 @@ const BUILTIN_NAMES: &[&str] = &["highway", "urban", "highway-dense", "urban-par
 impl ScenarioSpec {
     /// The default scenarios, equal to `scenarios/<name>.toml`.
     pub fn builtin(name: &str) -> Option<ScenarioSpec> {
-        let base = |family, seed| ScenarioSpec {
-            name: name.to_string(),
-            family,
-            seed,
-            duration_s: 60.0,
-            lidar: LidarConfig::default(),
-            imu: ImuConfig::default(),
-            detector: DetectorConfig::default(),
-            ego: EgoSpec::default(),
-            ground: GroundParams::default(),
-            highway: None,
-            urban: None,
-        };
+        let base = |family, seed| ScenarioSpec::with_defaults(name.to_string(), family, seed, 60.0);
         match name {
             "highway" => Some(ScenarioSpec {
                 highway: Some(HighwayParams::default()),
@@ -235,6 +226,34 @@ impl ScenarioSpec {
         }
     }
 
+    /// The digital twin of a KITTI tracking sequence: default sensors, ego
+    /// and ground, seed 1, as long as the sequence (up to the 3600 s limit).
+    pub fn kitti(params: KittiParams) -> ScenarioSpec {
+        let name = format!("kitti-{:04}", params.sequence);
+        ScenarioSpec {
+            kitti: Some(params),
+            ..ScenarioSpec::with_defaults(name, Family::Kitti, 1, 3600.0)
+        }
+    }
+
+    /// A spec with default sensors, ego and ground and no family table.
+    fn with_defaults(name: String, family: Family, seed: u64, duration_s: f64) -> ScenarioSpec {
+        ScenarioSpec {
+            name,
+            family,
+            seed,
+            duration_s,
+            lidar: LidarConfig::default(),
+            imu: ImuConfig::default(),
+            detector: DetectorConfig::default(),
+            ego: EgoSpec::default(),
+            ground: GroundParams::default(),
+            highway: None,
+            urban: None,
+            kitti: None,
+        }
+    }
+
     /// Names accepted by [`ScenarioSpec::builtin`].
     pub fn builtin_names() -> &'static [&'static str] {
         BUILTIN_NAMES
@@ -287,15 +306,20 @@ impl ScenarioSpec {
     /// `ChaCha8Rng` seeded by `seed` (same spec, same scene).
     ///
     /// # Errors
-    /// [`ScenarioError::Invalid`] for an invalid spec;
-    /// [`ScenarioError::Traffic`] or [`ScenarioError::Build`] if the
-    /// generated traffic is rejected.
+    /// [`ScenarioError::Invalid`] for an invalid spec, and for a `kitti`
+    /// spec (its scene comes from its replay input:
+    /// [`crate::replay::build_scene`]); [`ScenarioError::Traffic`] or
+    /// [`ScenarioError::Build`] if the generated traffic is rejected.
     pub fn build(&self) -> Result<Scene, ScenarioError> {
         self.validate()?;
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         match self.family {
             Family::Highway => highway::build(self, &mut rng),
             Family::Urban => urban::build(self, &mut rng),
+            Family::Kitti => Err(invalid(
+                "family",
+                "a kitti scenario is built from its KITTI files (limot simulate reads them)",
+            )),
         }
     }
 
@@ -309,9 +333,11 @@ impl ScenarioSpec {
         self.urban.clone().unwrap_or_default()
     }
 
-    /// Desired ego speed in effect.
+    /// Desired ego speed in effect (a kitti twin's ego follows its OXTS
+    /// record instead; this is then `ego.speed_mps` or 10 m/s).
     pub fn ego_speed_mps(&self) -> f64 {
         self.ego.speed_mps.unwrap_or_else(|| match self.family {
+            Family::Kitti => 10.0,
             Family::Highway => {
                 let h = self.highway_params();
                 0.5 * (h.speed_min_mps + h.speed_max_mps)
@@ -350,7 +376,24 @@ impl ScenarioSpec {
             _ => invalid("detector", e.to_string()),
         })?;
         validate_ground(&self.ground)?;
+        if self.family != Family::Kitti && self.kitti.is_some() {
+            return Err(invalid("kitti", "given for a non-kitti scenario"));
+        }
         match self.family {
+            Family::Kitti => {
+                for (table, given) in [
+                    ("highway", self.highway.is_some()),
+                    ("urban", self.urban.is_some()),
+                ] {
+                    if given {
+                        return Err(invalid(table, "given for a kitti scenario"));
+                    }
+                }
+                let Some(k) = &self.kitti else {
+                    return Err(invalid("kitti", "a kitti scenario needs a [kitti] table"));
+                };
+                validate_kitti(k)?;
+            }
             Family::Highway => {
                 if self.urban.is_some() {
                     return Err(invalid("urban", "given for a highway scenario"));
@@ -557,6 +600,48 @@ mod tests {
         let msg = error_of(&detector);
         assert!(msg.contains("bad.toml:6"), "{msg}");
         assert!(msg.contains("detector.car.position_sigma_m"), "{msg}");
+    }
+
+    #[test]
+    fn kitti_specs_round_trip_and_their_table_is_validated() {
+        let spec = ScenarioSpec::kitti(KittiParams {
+            training: "/data/training".into(),
+            sequence: 20,
+            first_frame: 5,
+            frames: Some(100),
+            corridor: Some(crate::replay::Corridor::Highway),
+            detections: Some("/data/det/0020.txt".into()),
+        });
+        spec.validate().unwrap();
+        let back = ScenarioSpec::parse(&spec.to_toml(), Path::new("k.toml")).unwrap();
+        assert_eq!(back, spec);
+        // the scene comes from the KITTI files, not from `build`
+        assert!(spec.build().is_err());
+        let head = "name = \"k\"\nfamily = \"kitti\"\nseed = 1\nduration_s = 30.0\n";
+        let msg = error_of(head);
+        assert!(msg.contains("kitti") && msg.contains("[kitti]"), "{msg}");
+        let frames = format!("{head}[kitti]\ntraining = \"t\"\nsequence = 1\nframes = 1\n");
+        let msg = error_of(&frames);
+        assert!(
+            msg.contains("bad.toml:8") && msg.contains("kitti.frames"),
+            "{msg}"
+        );
+        let corridor =
+            format!("{head}[kitti]\ntraining = \"t\"\nsequence = 1\ncorridor = \"forest\"\n");
+        let msg = error_of(&corridor);
+        assert!(
+            msg.contains("bad.toml:8") && msg.contains("kitti.corridor"),
+            "{msg}"
+        );
+        let sequence = format!("{head}[kitti]\ntraining = \"t\"\nsequence = 12345\n");
+        let msg = error_of(&sequence);
+        assert!(
+            msg.contains("bad.toml:7") && msg.contains("kitti.sequence"),
+            "{msg}"
+        );
+        let stray = format!("{HEAD}[kitti]\ntraining = \"t\"\nsequence = 1\n");
+        let msg = error_of(&stray);
+        assert!(msg.contains("bad.toml:5") && msg.contains("kitti"), "{msg}");
     }
 
     #[test]

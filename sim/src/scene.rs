@@ -251,9 +251,41 @@ pub struct Agent {
     pub parked: bool,
     /// Pose of the box centre over time (world frame).
     pub trajectory: Trajectory,
+    /// When the agent exists: outside it the sensors see nothing of it and
+    /// the ground truth has no box for it.
+    pub presence: Presence,
+}
+
+/// The time interval `[from_s, until_s)` in which an agent exists (a
+/// replayed object exists only while it was labelled); generated agents
+/// exist always.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Presence {
+    /// First instant of existence, s.
+    pub from_s: f64,
+    /// End of existence (exclusive), s.
+    pub until_s: f64,
+}
+
+impl Presence {
+    /// An agent that exists at every time.
+    pub const ALWAYS: Presence = Presence {
+        from_s: f64::NEG_INFINITY,
+        until_s: f64::INFINITY,
+    };
+
+    /// Whether `t_s` lies in `[from_s, until_s)`.
+    pub fn contains(&self, t_s: f64) -> bool {
+        self.from_s <= t_s && t_s < self.until_s
+    }
 }
 
 impl Agent {
+    /// Whether the agent exists at `t_s` (see [`Presence`]).
+    pub fn is_present(&self, t_s: f64) -> bool {
+        self.presence.contains(t_s)
+    }
+
     /// The agent's ground-truth box at `t_s`.
     pub fn box_at(&self, t_s: f64) -> GroundTruthBox {
         GroundTruthBox {
@@ -320,8 +352,12 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Every agent's ground-truth box at `t_s`, in `agents` order.
+    /// The ground-truth box of every agent present at `t_s`, in `agents` order.
     pub fn boxes_at(&self, t_s: f64) -> Vec<GroundTruthBox> {
-        self.agents.iter().map(|a| a.box_at(t_s)).collect()
+        self.agents
+            .iter()
+            .filter(|a| a.is_present(t_s))
+            .map(|a| a.box_at(t_s))
+            .collect()
     }
 }

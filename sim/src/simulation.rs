@@ -9,13 +9,14 @@ use crate::record::{
     BiasTruth, BoxTruth, DatasetWriter, EgoTruth, FORMAT_VERSION, Meta, RecordError, RecordedFrame,
     WriteMode, points_per_instance, pose_to_array,
 };
+use crate::replay::{ReplayInput, ReplayReport};
 use crate::scenario::{Family, ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
-use crate::sensors::{Detector, DetectorError};
+use crate::sensors::{DetectionWithTruth, Detector, DetectorError};
 use crate::sensors::{ImuError, ImuSimulator, ImuStream};
 use crate::sensors::{LidarError, LidarSimulator, SimulatedScan};
 use crate::world::World;
-use limot_estimator::input::LidarScan;
+use limot_estimator::input::{Detection, LidarScan};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -62,7 +63,7 @@ pub struct SimulatedFrame {
     pub t_s: f64,
     /// The sweep, its per-point labels and the detections, as written to a dataset.
     pub recorded: RecordedFrame,
-    /// World-frame boxes of all agents at the sweep start.
+    /// World-frame boxes of all agents present at the sweep start.
     pub boxes: Vec<BoxTruth>,
 }
 
@@ -88,6 +89,10 @@ pub struct SimulatedFrame {
 pub struct Simulation {
     spec: ScenarioSpec,
     scene: Scene,
+    /// What the replay builder did (replayed scenarios only).
+    replay: Option<ReplayReport>,
+    /// Recorded detections per frame, used instead of the detector's.
+    replayed_detections: Option<Vec<Vec<Detection>>>,
     world: World,
     lidar: LidarSimulator,
     imu: ImuSimulator,
@@ -115,6 +120,31 @@ impl Simulation {
     pub fn new(spec: &ScenarioSpec) -> Result<Simulation, SimulationError> {
         spec.validate()?;
         let scene = spec.build()?;
+        Self::with_scene(spec, scene, None, None)
+    }
+
+    /// A replayed scenario (a `kitti` spec): its scene built from `input` by
+    /// [`crate::replay::build_scene`], the recorded detections (if the input
+    /// has them) in place of the detector model's.
+    ///
+    /// # Errors
+    /// As [`Simulation::new`], and [`SimulationError::Scenario`] for an
+    /// input the replay builder rejects.
+    pub fn from_replay(
+        spec: &ScenarioSpec,
+        input: &ReplayInput,
+    ) -> Result<Simulation, SimulationError> {
+        spec.validate()?;
+        let (scene, report) = crate::replay::build_scene(spec, input)?;
+        Self::with_scene(spec, scene, Some(report), input.detections.clone())
+    }
+
+    fn with_scene(
+        spec: &ScenarioSpec,
+        scene: Scene,
+        replay: Option<ReplayReport>,
+        replayed_detections: Option<Vec<Vec<Detection>>>,
+    ) -> Result<Simulation, SimulationError> {
         let world = World::new(&scene);
         Ok(Simulation {
             lidar: LidarSimulator::new(spec.lidar.clone(), sub_seed(spec.seed, 1))?,
@@ -122,8 +152,15 @@ impl Simulation {
             detector: Detector::new(spec.detector.clone(), sub_seed(spec.seed, 3))?,
             spec: spec.clone(),
             scene,
+            replay,
+            replayed_detections,
             world,
         })
+    }
+
+    /// What the replay builder did, for a replayed scenario.
+    pub fn replay_report(&self) -> Option<&ReplayReport> {
+        self.replay.as_ref()
     }
 
     /// The validated spec.
@@ -191,17 +228,29 @@ impl Simulation {
         };
         self.lidar
             .scan_into(&self.scene, &self.world, index as u64, t_s, &mut sweep);
-        let detections = self.detector.detect(
-            index as u64,
-            t_s,
-            &self.scene,
-            &points_per_instance(&sweep.labels),
-            &self.spec.lidar,
-        )?;
+        let detections = match &self.replayed_detections {
+            Some(recorded) => recorded
+                .get(index)
+                .into_iter()
+                .flatten()
+                .map(|&detection| DetectionWithTruth {
+                    detection,
+                    truth_id: None,
+                })
+                .collect(),
+            None => self.detector.detect(
+                index as u64,
+                t_s,
+                &self.scene,
+                &points_per_instance(&sweep.labels),
+                &self.spec.lidar,
+            )?,
+        };
         let boxes = self
             .scene
             .agents
             .iter()
+            .filter(|agent| agent.is_present(t_s))
             .map(|agent| {
                 let b = agent.box_at(t_s);
                 BoxTruth {
@@ -275,6 +324,7 @@ impl Simulation {
             family: match self.spec.family {
                 Family::Highway => "highway",
                 Family::Urban => "urban",
+                Family::Kitti => "kitti",
             }
             .to_string(),
             seed: self.spec.seed,

@@ -22,7 +22,7 @@
 //!   safe (never-overshooting) steps from a curvature bound, which converge
 //!   like Newton's method (to 1e-9 m) and take one step on a plane.
 
-use crate::scene::{Ground, STATIC_INSTANCE_ID, Scene, Shape, StaticKind};
+use crate::scene::{Ground, Presence, STATIC_INSTANCE_ID, Scene, Shape, StaticKind};
 use crate::trajectory::Trajectory;
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
@@ -91,6 +91,7 @@ struct AgentBody {
     half_extents_m: Vector3<f64>,
     bounding_radius_m: f64,
     trajectory: Trajectory,
+    presence: Presence,
     body: RigidBodyHandle,
     collider: ColliderHandle,
 }
@@ -232,6 +233,7 @@ impl World {
                     half_extents_m: half,
                     bounding_radius_m: half.norm(),
                     trajectory: agent.trajectory.clone(),
+                    presence: agent.presence,
                     body,
                     collider,
                 }
@@ -335,7 +337,8 @@ impl World {
 
     /// Like [`World::snapshot`], but only the listed agents (indices into
     /// `Scene::agents`) exist in it: for callers that culled the others, e.g.
-    /// with [`World::agent_sweep_spheres`]. Out-of-range indices are skipped.
+    /// with [`World::agent_sweep_spheres`]. Out-of-range indices and agents
+    /// not present at `t_s` ([`crate::scene::Agent::presence`]) are skipped.
     pub fn snapshot_agents(
         &self,
         t_s: f64,
@@ -345,6 +348,9 @@ impl World {
             .into_iter()
             .filter_map(|index| {
                 let agent = self.agents.get(index)?;
+                if !agent.presence.contains(t_s) {
+                    return None;
+                }
                 let t_world_box = agent.trajectory.pose_at(t_s);
                 Some(AgentPose {
                     index,

@@ -185,6 +185,7 @@ proptest! {
                     size_lwh_m: size,
                     parked: b.speed_mps == 0.0,
                     trajectory,
+                    presence: limot_sim::scene::Presence::ALWAYS,
                 }
             })
             .collect();
@@ -209,6 +210,7 @@ proptest! {
                 0.0,
                 (0.0, 0.0),
             ),
+            presence: limot_sim::scene::Presence::ALWAYS,
         });
         let statics = vec![StaticObject {
             kind: StaticKind::Pole,
@@ -295,6 +297,7 @@ fn busy_scene() -> Scene {
                 0.0,
                 (0.0, 0.0),
             ),
+            presence: limot_sim::scene::Presence::ALWAYS,
         })
         .collect();
     Scene {

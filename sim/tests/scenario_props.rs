@@ -602,6 +602,7 @@ fn full_length_scenes_over_seeds() {
                     assert!(cars_across_main_street(&spec, &scene) >= 1, "seed {seed}");
                     assert!(cars_across_in_front_of_waiting_ego(&spec, &scene) >= 1);
                 }
+                Family::Kitti => unreachable!("no built-in scenario is a kitti twin"),
             }
         }
     }

@@ -173,6 +173,7 @@ fn scene_of(spec: &TrafficSpec, ground: &Ground) -> Scene {
                     &vs.size_lwh_m,
                     Suspension::for_class(vs.class).as_ref(),
                 ),
+                presence: limot_sim::scene::Presence::ALWAYS,
             }
         })
         .collect();

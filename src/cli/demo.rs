@@ -7,6 +7,7 @@ pub(super) fn run_demo(
     scenario: &str,
     out: &std::path::Path,
     duration_s: Option<f64>,
+    mcap: Option<&std::path::Path>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut spec = resolve_scenario(scenario)?;
     Overrides {
@@ -21,7 +22,7 @@ pub(super) fn run_demo(
         spec.seed,
         out.display()
     );
-    let s = demo(&spec, out, true)?;
+    let s = demo(&spec, out, true, mcap)?;
     println!(
         "{} sweeps, {:.0} points per sweep, {} moving and {} parked agents, ego drove {:.0} m",
         s.frames, s.mean_points_per_scan, s.moving_agents, s.parked_agents, s.ego_path_length_m
@@ -51,6 +52,9 @@ pub(super) fn run_demo(
             e.fps,
             e.trajectory.display()
         );
+    }
+    if let Some(stats) = &s.mcap {
+        super::print_mcap(stats);
     }
     println!("report: {}", s.report_readme.display());
     Ok(())

@@ -33,8 +33,29 @@ pub struct Cli {
 enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
-        /// Scenario TOML file, or a built-in scenario name (highway, urban, highway-dense, urban-parked).
+        /// Scenario TOML file, a built-in scenario name (highway, urban, highway-dense,
+        /// urban-parked), or `kitti` with --training and --sequence: the digital twin of
+        /// a KITTI tracking sequence.
         scenario: String,
+        /// With `kitti`: the KITTI tracking `training` dir (calib/, oxts/, label_02/).
+        #[arg(long)]
+        training: Option<PathBuf>,
+        /// With `kitti`: the sequence number.
+        #[arg(long)]
+        sequence: Option<u32>,
+        /// With `kitti`: the first KITTI frame replayed.
+        #[arg(long, default_value_t = 0)]
+        first_frame: usize,
+        /// With `kitti`: frames replayed (default: to the end of the sequence).
+        #[arg(long)]
+        frames: Option<usize>,
+        /// With `kitti`: residential, city or highway (default: chosen from the sequence).
+        #[arg(long)]
+        corridor: Option<String>,
+        /// With `kitti`: AB3DMOT-format detections of the sequence (logit scores, e.g.
+        /// PointRCNN's) put into the dataset instead of the detector model's.
+        #[arg(long)]
+        detections: Option<PathBuf>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -53,6 +74,9 @@ enum Command {
         /// Replace an existing dataset in OUT.
         #[arg(long)]
         force: bool,
+        /// Also record the dataset for Foxglove as this MCAP file (cloud, truth, detections).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Simulate the default urban scenario, score it and write a small report (OUT/report).
     Demo {
@@ -65,6 +89,12 @@ enum Command {
         /// Override the scenario's duration, s.
         #[arg(long)]
         duration: Option<f64>,
+        /// The Foxglove recording of the `limot` run (default: OUT/limot.mcap).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
+        /// Write no MCAP recording.
+        #[arg(long, conflicts_with = "mcap")]
+        no_mcap: bool,
     },
     /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
     Run {
@@ -104,6 +134,9 @@ enum Command {
         /// with AB3DMOT's whole-track score gate on the result files).
         #[arg(long, default_value = "paper")]
         tracker: String,
+        /// Also record the run for Foxglove as this MCAP file (cloud, poses, tracks, ...).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
@@ -377,28 +410,51 @@ impl Cli {
         match self.command {
             Command::Simulate {
                 scenario,
+                training,
+                sequence,
+                first_frame,
+                frames,
+                corridor,
+                detections,
                 out,
                 seed,
                 duration,
                 no_kitti,
                 print,
                 force,
+                mcap,
             } => simulate::run_simulate(
                 &scenario,
-                &out,
+                simulate::TwinArgs {
+                    training,
+                    sequence,
+                    first_frame,
+                    frames,
+                    corridor,
+                    detections,
+                },
                 Overrides {
                     seed,
                     duration_s: duration,
                 },
-                !no_kitti,
                 print,
-                force,
+                simulate::SimulateOutputs {
+                    out: &out,
+                    kitti: !no_kitti,
+                    force,
+                    mcap: mcap.as_deref(),
+                },
             ),
             Command::Demo {
                 out,
                 scenario,
                 duration,
-            } => demo::run_demo(&scenario, &out, duration),
+                mcap,
+                no_mcap,
+            } => {
+                let mcap = (!no_mcap).then(|| mcap.unwrap_or_else(|| out.join("limot.mcap")));
+                demo::run_demo(&scenario, &out, duration, mcap.as_deref())
+            }
             Command::Run {
                 dataset,
                 out,
@@ -410,6 +466,7 @@ impl Cli {
                 detections,
                 score_map,
                 tracker,
+                mcap,
             } => run::run_estimator(
                 &dataset,
                 out,
@@ -423,6 +480,7 @@ impl Cli {
                     score_map,
                 },
                 &tracker,
+                mcap.as_deref(),
             ),
             Command::Eval { what } => eval::run_eval(what),
             Command::TrackKitti(args) => track_kitti::run_track_kitti(args),
@@ -444,4 +502,18 @@ impl Cli {
             }
         }
     }
+}
+
+/// Says where a Foxglove recording went and what it holds.
+fn print_mcap(stats: &crate::io::mcap::McapStats) {
+    let span_s = stats
+        .time_range_ns
+        .map_or(0.0, |(first, last)| (last - first) as f64 * 1e-9);
+    println!(
+        "Foxglove recording: {} ({:.1} MB, {} messages over {:.1} s; layout docs/foxglove-layout.json)",
+        stats.path.display(),
+        stats.bytes as f64 / 1e6,
+        stats.messages,
+        span_s
+    );
 }

@@ -23,6 +23,7 @@ pub(super) fn run_estimator(
     max_frames: Option<usize>,
     kitti_tracking: KittiTracking,
     tracker: &str,
+    mcap: Option<&std::path::Path>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::io::Source;
     use crate::run::{RunOptions, run, write_output};
@@ -62,6 +63,17 @@ pub(super) fn run_estimator(
     };
     let output = run(&source, dataset, &options, Some(config))?;
     write_output(&out, &output)?;
+    if let Some(path) = mcap {
+        let stats = crate::io::mcap::write_mcap(
+            path,
+            &crate::io::mcap::McapInput {
+                source: &source,
+                frames: source.frame_range(first_frame, max_frames),
+                estimates: &output.estimates,
+            },
+        )?;
+        super::print_mcap(&stats);
+    }
     let n = output.estimates.len();
     println!(
         "{}: {} frames estimated ({} of them LiDAR-only before the inertial initialisation), {:?} mode, {:.1} s wall ({:.1} FPS)",

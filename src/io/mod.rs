@@ -9,7 +9,9 @@
 //!   which hands the estimator the IMU samples due before each sweep.
 //! - [`write_run_files`]: the files of a run of the estimator (poses,
 //!   estimates, timings, tracks).
+//! - [`mcap`]: the Foxglove MCAP recording of a dataset and of a run.
 pub mod kitti;
+pub mod mcap;
 mod run_files;
 mod source;
 

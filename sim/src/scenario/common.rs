@@ -59,16 +59,7 @@ pub(crate) fn generate_ground(
             width_m: g.crown_width_m,
         }
     });
-    let roughness = (g.roughness_psd_m3 > 0.0).then(|| {
-        let mut stream = ChaCha8Rng::seed_from_u64(seed);
-        stream.set_stream(ROUGHNESS_STREAM);
-        Roughness::iso8608(
-            &mut stream,
-            g.roughness_psd_m3,
-            g.roughness_wavelength_min_m,
-            g.roughness_wavelength_max_m,
-        )
-    });
+    let roughness = road_roughness(g, seed);
     Ground {
         base_height_m: 0.0,
         slope: Vector2::new(slope_dir.cos(), slope_dir.sin()) * slope,
@@ -81,6 +72,21 @@ pub(crate) fn generate_ground(
 /// ChaCha stream (of the scenario seed) of the road roughness texture; the
 /// generators' main stream is 0.
 const ROUGHNESS_STREAM: u64 = 0x0052_4f55_4748; // "ROUGH" in ASCII
+
+/// The road roughness texture of `g` (none for a zero PSD), drawn from the
+/// scenario seed's own ChaCha stream.
+pub(crate) fn road_roughness(g: &GroundParams, seed: u64) -> Option<Roughness> {
+    (g.roughness_psd_m3 > 0.0).then(|| {
+        let mut stream = ChaCha8Rng::seed_from_u64(seed);
+        stream.set_stream(ROUGHNESS_STREAM);
+        Roughness::iso8608(
+            &mut stream,
+            g.roughness_psd_m3,
+            g.roughness_wavelength_min_m,
+            g.roughness_wavelength_max_m,
+        )
+    })
+}
 
 /// An upright static object whose base sits `sink_m` below the ground at
 /// (x, y) (so it never floats on a slope), rotated by `yaw` about z.
@@ -274,6 +280,7 @@ pub(crate) fn parked_agent(
         size_lwh_m,
         parked: true,
         trajectory: Trajectory::stationary(0.0, duration_s, &pose),
+        presence: crate::scene::Presence::ALWAYS,
     }
 }
 
@@ -419,6 +426,7 @@ pub(crate) fn run_traffic(
                 size_lwh_m: vehicle.size_lwh_m,
                 parked: false,
                 trajectory,
+                presence: crate::scene::Presence::ALWAYS,
             });
         }
     }

@@ -11,6 +11,38 @@ pub enum Family {
     Highway,
     /// City street with intersections, parked cars, cyclists and pedestrians.
     Urban,
+    /// A digital twin of a KITTI tracking sequence: the ego and the labelled
+    /// objects replayed, a static scene generated along the driven corridor
+    /// (see [`crate::replay`]; the `[kitti]` table names the sequence).
+    Kitti,
+}
+
+/// The `[kitti]` table of a `kitti` scenario: which KITTI tracking sequence
+/// it replays. The simulator reads no KITTI files itself: the caller (the
+/// `limot` CLI) reads them into a [`crate::replay::ReplayInput`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KittiParams {
+    /// KITTI tracking `training` directory (with `calib/`, `oxts/`, `label_02/`).
+    pub training: String,
+    /// Sequence number, 0..=9999 (`0000.txt`, ...).
+    pub sequence: u32,
+    /// First KITTI frame of the twin (its t = 0).
+    #[serde(default)]
+    pub first_frame: usize,
+    /// Frames replayed, at least 2; unset = to the end of the sequence
+    /// (`duration_s` caps the twin as well).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<usize>,
+    /// Static scene along the corridor; unset = chosen from the sequence
+    /// (see [`crate::replay::Corridor::choose`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub corridor: Option<crate::replay::Corridor>,
+    /// An AB3DMOT-format CSV of real detections of this sequence (camera
+    /// frame, logit scores as PointRCNN's) put into the dataset instead of
+    /// the detector model's boxes; unset = the detector model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detections: Option<String>,
 }
 
 /// The ego vehicle: where it drives and how its sensors are mounted.

@@ -304,6 +304,7 @@ fn simulate_agents(
                 &vehicle.size_lwh_m,
                 Suspension::for_class(vehicle.class).as_ref(),
             ),
+            presence: crate::scene::Presence::ALWAYS,
         })
         .collect())
 }

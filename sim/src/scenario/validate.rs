@@ -1,7 +1,9 @@
 //! Validation of a scenario spec's tables, and the limits the generators
 //! rely on (capacities, spacings, signal timing).
 
-use super::{EgoSpec, GroundParams, HighwayParams, ScenarioError, UrbanParams, invalid};
+use super::{
+    EgoSpec, GroundParams, HighwayParams, KittiParams, ScenarioError, UrbanParams, invalid,
+};
 use crate::sensors::LidarConfig;
 
 pub(super) fn positive_finite(field: &str, value: f64) -> Result<(), ScenarioError> {
@@ -410,4 +412,30 @@ pub(crate) const URBAN_PEDESTRIAN_SPACING_M: f64 = 6.0;
 /// Length of street along which urban agents start: a few blocks.
 pub(crate) fn urban_spawn_length_m(u: &UrbanParams, _duration_s: f64) -> f64 {
     4.0 * u.block_length_min_m
+}
+
+/// Checks the `[kitti]` table (the files themselves are read by the caller).
+pub(super) fn validate_kitti(k: &KittiParams) -> Result<(), ScenarioError> {
+    if k.training.trim().is_empty() {
+        return Err(invalid("kitti.training", "must name a directory"));
+    }
+    if k.sequence > 9999 {
+        return Err(invalid(
+            "kitti.sequence",
+            format!("= {}: must be in 0..=9999", k.sequence),
+        ));
+    }
+    if let Some(frames) = k.frames {
+        count_in_range("kitti.frames", frames, 2, 100_000)?;
+    }
+    if k.first_frame > 100_000 {
+        return Err(invalid(
+            "kitti.first_frame",
+            format!("= {}: must be at most 100000", k.first_frame),
+        ));
+    }
+    if k.detections.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        return Err(invalid("kitti.detections", "must name a file when given"));
+    }
+    Ok(())
 }

@@ -334,7 +334,7 @@ impl Detector {
     }
 
     /// Detections of the sweep starting at `t_scan_s` (frame `frame_index`):
-    /// every agent of the scene is detected with probability
+    /// every agent of the scene present at `t_scan_s` is detected with probability
     /// `recall(range, points_per_instance[id])` and its sighted box noised
     /// per class; then a Poisson number of false positives. Agents come in
     /// scene order, false positives last.
@@ -356,7 +356,8 @@ impl Detector {
         }
         let mut rng = self.frame_rng(frame_index);
         let mut out = Vec::new();
-        for agent in &scene.agents {
+        // agents absent at the sweep start are not there to be detected
+        for agent in scene.agents.iter().filter(|a| a.is_present(t_scan_s)) {
             let truth = Self::sighted_box(agent, &scene.ego, t_scan_s, lidar);
             // a non-finite trajectory or LiDAR timing must not reach the RNG
             truth.validate(t_scan_s, out.len())?;

@@ -51,6 +51,7 @@ fn scene_of(spec: &TrafficSpec, tracks: &[PlanarTrack]) -> Scene {
             size_lwh_m: vs.size_lwh_m,
             parked: false,
             trajectory: lift_to_ground(tr, &ground, &vs.size_lwh_m, None),
+            presence: crate::scene::Presence::ALWAYS,
         })
         .collect();
     Scene {
@@ -433,6 +434,7 @@ fn first_overlap_reports_collisions_with_agents_ego_and_statics() {
         size_lwh_m: size,
         parked: false,
         trajectory,
+        presence: crate::scene::Presence::ALWAYS,
     };
     // two cars crossing at right angles, centres 30 m from the crossing
     scene

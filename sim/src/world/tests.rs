@@ -281,6 +281,7 @@ fn moving_agent(id: u32, x0: f64, speed_mps: f64) -> crate::scene::Agent {
         size_lwh_m: Vector3::new(4.0, 2.0, 1.5),
         parked: false,
         trajectory: Trajectory::new(0.0, 0.1, knots),
+        presence: crate::scene::Presence::ALWAYS,
     }
 }
 

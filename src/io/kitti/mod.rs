@@ -1,7 +1,8 @@
 //! KITTI readers and writers: one module per file format of the tracking
 //! benchmark (calib, labels, object_labels, detections, oxts, poses, results,
 //! seqmap, velodyne), [`raw`] for raw drives and the tracking-sequence
-//! opener, and [`export`] for the KITTI-style copy of a simulated dataset.
+//! opener, [`export`] for the KITTI-style copy of a simulated dataset and
+//! [`twin`] for a sequence as the simulator's replay input (digital twins).
 //!
 //! Frames used throughout:
 //! - `cam` / `rect`: the rectified camera-0 frame of KITTI (x right, y down,
@@ -23,6 +24,7 @@ pub mod poses;
 pub mod raw;
 pub mod results;
 pub mod seqmap;
+pub mod twin;
 pub mod velodyne;
 
 use std::path::{Path, PathBuf};

@@ -1,0 +1,519 @@
+//! The world around a replayed drive: the ground under the ego's path and a
+//! seeded static scene along the driven corridor.
+//!
+//! Ground: the road height under the ego (the LiDAR origin `lidar_height_m`
+//! below, along the body's z) is fitted by weighted least squares with the
+//! existing [`Ground`] terms: a plane plus sinusoids along each of the
+//! path's two principal axes (one per 25 m of extent along that axis, at
+//! most 12 per axis; heights along an L-shaped drive are a sum of a profile
+//! along each leg); the roughness
+//! texture is the scenario's. The residual under the ego is reported.
+//!
+//! Statics: the path (the ego's, extended 60 m straight beyond both ends so
+//! the first and last sweeps see scenery behind and ahead) is lined on both
+//! sides with what a corridor of its type holds, at distances measured from a
+//! road edge per side: [`DEFAULT_EDGE_M`] or, when labelled vehicles drive or
+//! park farther out, 1 m beyond the outermost of them (within
+//! [`EDGE_SEARCH_M`]). A candidate object is dropped when it would come
+//! within 0.5 m of any replayed agent's box at any labelled time or within
+//! the road edge of any part of the path (inside of bends). The straight
+//! street generators of the highway and urban families assume a road along
+//! x and are not used; the object helpers they share are.
+
+use super::ReplayInput;
+use crate::scenario::common::{beside, cuboid_between, tree, uniform, upright_static};
+use crate::scene::{
+    Agent, Ground, Roughness, Shape, StaticKind, StaticObject, Trajectory, Undulation,
+};
+use crate::traffic::LanePath;
+use limot_estimator::input::ObjectClass;
+use nalgebra::{DMatrix, DVector, Point2, Point3, Vector2, Vector3};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::TAU;
+
+/// What lines a replayed drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Corridor {
+    /// Detached houses set back behind front gardens, trees, street lights, hedges.
+    Residential,
+    /// Continuous building fronts close to the road, street lights, a few trees.
+    City,
+    /// Guard rails, light poles, trees and bushes beyond them, stretches of noise wall.
+    Highway,
+}
+
+/// A mean ego speed above this makes an unnamed corridor a highway, m/s.
+pub const HIGHWAY_SPEED_MPS: f64 = 14.0;
+/// Dense traffic without pedestrians or cyclists (at least this many
+/// vehicle tracks and none of them) makes an unnamed corridor a highway
+/// whatever the speed: a congested highway (KITTI tracking 0020).
+pub const HIGHWAY_VEHICLE_TRACKS: usize = 60;
+/// At least this many labelled pedestrians and cyclists make an unnamed
+/// corridor a city street.
+pub const CITY_VULNERABLE_TRACKS: usize = 4;
+/// Road edge (lateral distance from the ego path) when no labelled vehicle
+/// is farther out, m.
+pub const DEFAULT_EDGE_M: f64 = 4.5;
+/// Labelled vehicles within this lateral distance push the road edge out, m.
+pub const EDGE_SEARCH_M: f64 = 14.0;
+/// One ground harmonic per this much of the road's extent along an axis, m.
+const HARMONIC_SPACING_M: f64 = 12.0;
+/// At most this many ground harmonics per axis.
+const MAX_HARMONICS: usize = 24;
+/// How far the corridor continues beyond the drive's ends, m.
+const EXTENSION_M: f64 = 60.0;
+/// Clearance between a static object and any agent box, m.
+const AGENT_CLEARANCE_M: f64 = 0.5;
+
+impl Corridor {
+    /// The corridor of a drive with no corridor named: highway when the ego's
+    /// mean speed exceeds [`HIGHWAY_SPEED_MPS`] or at least
+    /// [`HIGHWAY_VEHICLE_TRACKS`] vehicles and no pedestrian or cyclist are
+    /// labelled, city when at least
+    /// [`CITY_VULNERABLE_TRACKS`] pedestrians or cyclists are labelled,
+    /// residential otherwise.
+    pub fn choose(input: &ReplayInput) -> Corridor {
+        let path_m: f64 = input
+            .t_world_lidar
+            .windows(2)
+            .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+            .sum();
+        let span_s = (input.t_world_lidar.len() - 1).max(1) as f64 * input.frame_period_s;
+        let vulnerable = input
+            .tracks
+            .iter()
+            .filter(|t| matches!(t.class, ObjectClass::Pedestrian | ObjectClass::Cyclist))
+            .count();
+        let vehicles = input.tracks.len() - vulnerable;
+        let congested = vulnerable == 0 && vehicles >= HIGHWAY_VEHICLE_TRACKS;
+        if path_m / span_s > HIGHWAY_SPEED_MPS || congested {
+            Corridor::Highway
+        } else if vulnerable >= CITY_VULNERABLE_TRACKS {
+            Corridor::City
+        } else {
+            Corridor::Residential
+        }
+    }
+
+    /// The lower-case name (as in the TOML).
+    pub fn name(self) -> &'static str {
+        match self {
+            Corridor::Residential => "residential",
+            Corridor::City => "city",
+            Corridor::Highway => "highway",
+        }
+    }
+}
+
+/// The fitted ground's residual under the ego at the frames, m.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GroundFit {
+    /// RMS of (ground - road height under the ego).
+    pub rms_m: f64,
+    /// Largest |ground - road height under the ego|.
+    pub max_m: f64,
+}
+
+/// The ground under `ego` (see the module docs), sampled every 0.1 s over
+/// `[0, duration_s]`.
+pub(super) fn fit_ground(
+    ego: &Trajectory,
+    lidar_height_m: f64,
+    duration_s: f64,
+    roughness: Option<Roughness>,
+) -> (Ground, GroundFit) {
+    let samples = ((duration_s / 0.1).floor() as usize).max(1) + 1;
+    let road: Vec<Vector3<f64>> = (0..samples)
+        .map(|i| {
+            let pose = ego.pose_at(duration_s * i as f64 / (samples - 1) as f64);
+            pose.transform_point(&Point3::new(0.0, 0.0, -lidar_height_m))
+                .coords
+        })
+        .collect();
+    let centre = road.iter().sum::<Vector3<f64>>() / road.len() as f64;
+    // principal horizontal axis of the road points
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in &road {
+        let d = p - centre;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let axes = [
+        Vector2::new(angle.cos(), angle.sin()),
+        Vector2::new(-angle.sin(), angle.cos()),
+    ];
+    // per axis: the coordinate's range and the harmonics along it
+    let terms: Vec<(Vector2<f64>, f64, f64)> = axes
+        .iter()
+        .flat_map(|axis| {
+            let along: Vec<f64> = road.iter().map(|p| axis.dot(&(p - centre).xy())).collect();
+            let (lo, hi) = along
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &s| {
+                    (a.min(s), b.max(s))
+                });
+            let extent_m = (hi - lo).max(1.0);
+            let harmonics = ((extent_m / HARMONIC_SPACING_M).floor() as usize).min(MAX_HARMONICS);
+            (1..=harmonics).map(move |j| (*axis, TAU * j as f64 / (2.0 * extent_m), lo))
+        })
+        .collect();
+    // unknowns: height at the centre, slope x, slope y, (sin, cos) per term
+    let unknowns = 3 + 2 * terms.len();
+    let mut a = DMatrix::<f64>::zeros(road.len(), unknowns);
+    let mut b = DVector::<f64>::zeros(road.len());
+    for (r, p) in road.iter().enumerate() {
+        let d = p - centre;
+        a[(r, 0)] = 1.0;
+        a[(r, 1)] = d.x;
+        a[(r, 2)] = d.y;
+        for (j, (axis, k, lo)) in terms.iter().enumerate() {
+            let phase = k * (axis.dot(&d.xy()) - lo);
+            a[(r, 3 + 2 * j)] = phase.sin();
+            a[(r, 4 + 2 * j)] = phase.cos();
+        }
+        b[r] = p.z;
+    }
+    // a little ridge on the sinusoids keeps an ill-posed fit (a short or
+    // static drive) tame
+    let mut normal = a.transpose() * &a;
+    for k in 3..unknowns {
+        normal[(k, k)] += 1e-3 * road.len() as f64;
+    }
+    let rhs = a.transpose() * &b;
+    let x = normal
+        .clone()
+        .cholesky()
+        .map(|c| c.solve(&rhs))
+        .unwrap_or_else(|| DVector::from_element(unknowns, 0.0));
+    let slope = Vector2::new(x[1], x[2]);
+    let undulations = terms
+        .iter()
+        .enumerate()
+        .map(|(j, (axis, k, lo))| {
+            let (s_coef, c_coef) = (x[3 + 2 * j], x[4 + 2 * j]);
+            // A sin(k (axis . (q - c) - lo) + phi), phi = atan2(c, s)
+            Undulation {
+                amplitude_m: s_coef.hypot(c_coef),
+                wave_vector: axis * *k,
+                phase_rad: c_coef.atan2(s_coef) - k * (axis.dot(&centre.xy()) + lo),
+            }
+        })
+        .collect();
+    let mut ground = Ground {
+        base_height_m: x[0] - slope.dot(&centre.xy()),
+        slope,
+        undulations,
+        crown: None,
+        roughness: None,
+    };
+    let (mut sum, mut max) = (0.0, 0.0f64);
+    for p in &road {
+        let e = ground.height(p.x, p.y) - p.z;
+        sum += e * e;
+        max = max.max(e.abs());
+    }
+    ground.roughness = roughness;
+    let fit = GroundFit {
+        rms_m: (sum / road.len() as f64).sqrt(),
+        max_m: max,
+    };
+    (ground, fit)
+}
+
+/// Where the statics must keep clear of: the path and the agents.
+struct Clearance<'a> {
+    path: &'a LanePath,
+    /// Agent footprint circles (centre, radius) at their labelled times.
+    agents: Vec<(Point2<f64>, f64)>,
+    /// Road edge right (index 0) and left (1), m from the path.
+    edge_m: [f64; 2],
+}
+
+impl Clearance<'_> {
+    /// Whether a footprint circle at `at` of radius `radius_m` is free.
+    fn free(&self, at: &Point2<f64>, radius_m: f64) -> bool {
+        let edge = self.edge_m[0].min(self.edge_m[1]);
+        if let Some((_, lateral)) = self.path.project_near(at, edge + radius_m)
+            && lateral.abs() < edge + radius_m - 0.5
+        {
+            return false;
+        }
+        self.agents
+            .iter()
+            .all(|(c, r)| (c - at).norm() >= r + radius_m + AGENT_CLEARANCE_M)
+    }
+}
+
+/// The path through the ego's positions (points at least 1 m apart),
+/// extended straight by [`EXTENSION_M`] at both ends.
+fn corridor_path(ego: &Trajectory, duration_s: f64) -> Option<LanePath> {
+    let steps = ((duration_s / 0.1).ceil() as usize).max(1);
+    let mut points: Vec<Point2<f64>> = Vec::new();
+    for i in 0..=steps {
+        let p = Point2::from(
+            ego.pose_at(duration_s * i as f64 / steps as f64)
+                .translation
+                .vector
+                .xy(),
+        );
+        if points.last().is_none_or(|q| (p - q).norm() >= 1.0) {
+            points.push(p);
+        }
+    }
+    let heading = |t: f64| {
+        let (_, _, yaw) = ego.pose_at(t).rotation.euler_angles();
+        Vector2::new(yaw.cos(), yaw.sin())
+    };
+    let first = points[0] - heading(0.0) * EXTENSION_M;
+    let last_point = points[points.len() - 1];
+    let mut all = vec![first];
+    all.extend(points);
+    all.push(last_point + heading(duration_s) * EXTENSION_M);
+    LanePath::from_points(&all).ok()
+}
+
+/// The statics of `corridor` along the ego's path (see the module docs).
+pub(super) fn statics(
+    corridor: Corridor,
+    ego: &Trajectory,
+    duration_s: f64,
+    ground: &Ground,
+    agents: &[Agent],
+    rng: &mut ChaCha8Rng,
+) -> Vec<StaticObject> {
+    let Some(path) = corridor_path(ego, duration_s) else {
+        return Vec::new();
+    };
+    let mut footprints = Vec::new();
+    let mut edge_m = [DEFAULT_EDGE_M; 2];
+    for agent in agents {
+        let radius = 0.5 * agent.size_lwh_m.xy().norm();
+        let (t0, t1) = (
+            agent.presence.from_s.max(agent.trajectory.start_s()),
+            agent.presence.until_s.min(agent.trajectory.end_s()),
+        );
+        let steps = (((t1 - t0) / 0.5).ceil() as usize).clamp(1, 10_000);
+        for i in 0..=steps {
+            let t = t0 + (t1 - t0) * i as f64 / steps as f64;
+            let c = Point2::from(agent.trajectory.pose_at(t).translation.vector.xy());
+            footprints.push((c, radius));
+            if matches!(agent.class, ObjectClass::Car | ObjectClass::Truck)
+                && let Some((_, lateral)) = path.project_near(&c, EDGE_SEARCH_M)
+                && lateral.abs() <= EDGE_SEARCH_M
+            {
+                let side = usize::from(lateral > 0.0);
+                edge_m[side] = edge_m[side].max(lateral.abs() + agent.size_lwh_m.y * 0.5 + 1.0);
+            }
+        }
+    }
+    let clearance = Clearance {
+        path: &path,
+        agents: footprints,
+        edge_m,
+    };
+    let mut out = Vec::new();
+    for (side_index, side) in [(0usize, -1.0), (1, 1.0)] {
+        let edge = clearance.edge_m[side_index];
+        let lining = Lining {
+            path: &path,
+            ground,
+            clearance: &clearance,
+            side,
+            edge_m: edge,
+        };
+        match corridor {
+            Corridor::Residential => lining.residential(rng, &mut out),
+            Corridor::City => lining.city(rng, &mut out),
+            Corridor::Highway => lining.highway(rng, &mut out),
+        }
+    }
+    out
+}
+
+/// One side of the corridor being lined.
+struct Lining<'a> {
+    path: &'a LanePath,
+    ground: &'a Ground,
+    clearance: &'a Clearance<'a>,
+    /// -1 right, +1 left.
+    side: f64,
+    edge_m: f64,
+}
+
+impl Lining<'_> {
+    fn at(&self, s_m: f64, offset_m: f64) -> Point2<f64> {
+        beside(self.path, s_m, self.side * (self.edge_m + offset_m))
+    }
+
+    /// Arc lengths from the start, each next `step` further.
+    fn walk(
+        &self,
+        rng: &mut ChaCha8Rng,
+        step: (f64, f64),
+        mut place: impl FnMut(f64, &mut ChaCha8Rng),
+    ) {
+        let mut s = uniform(rng, 0.0, step.1);
+        while s < self.path.length_m() {
+            place(s, rng);
+            s += uniform(rng, step.0, step.1);
+        }
+    }
+
+    /// A building block with its street face `front_m` beyond the edge.
+    fn building(&self, s: f64, front_m: f64, size_m: Vector3<f64>, out: &mut Vec<StaticObject>) {
+        let at = self.at(s, front_m + 0.5 * size_m.y);
+        if !self.clearance.free(&at, 0.5 * size_m.xy().norm()) {
+            return;
+        }
+        let yaw = self.path.heading_at(s);
+        out.push(upright_static(
+            self.ground,
+            StaticKind::Building,
+            Shape::Cuboid {
+                half_extents_m: size_m * 0.5 + Vector3::new(0.0, 0.0, 0.25),
+            },
+            at,
+            -0.5,
+            yaw,
+        ));
+    }
+
+    fn pole(&self, s: f64, offset_m: f64, height_m: f64, out: &mut Vec<StaticObject>) {
+        let at = self.at(s, offset_m);
+        if !self.clearance.free(&at, 0.2) {
+            return;
+        }
+        out.push(upright_static(
+            self.ground,
+            StaticKind::Pole,
+            Shape::Cylinder {
+                radius_m: 0.08,
+                half_height_m: 0.5 * height_m + 0.1,
+            },
+            at,
+            -0.2,
+            0.0,
+        ));
+    }
+
+    fn tree(&self, s: f64, offset_m: f64, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        let at = self.at(s, offset_m);
+        // the crown overhangs: keep the trunk clear by the crown's radius
+        if !self.clearance.free(&at, 1.5) {
+            return;
+        }
+        out.extend(tree(
+            self.ground,
+            at,
+            (2.5, 4.5),
+            (0.12, 0.25),
+            (1.4, 2.4),
+            rng,
+        ));
+    }
+
+    fn residential(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        self.walk(rng, (14.0, 24.0), |s, rng| {
+            let size = Vector3::new(
+                uniform(rng, 8.0, 12.0),
+                uniform(rng, 8.0, 11.0),
+                uniform(rng, 5.5, 8.5),
+            );
+            let front = uniform(rng, 4.0, 9.0);
+            self.building(s, front, size, out);
+        });
+        self.walk(rng, (8.0, 16.0), |s, rng| {
+            let offset = uniform(rng, 1.0, 3.0);
+            self.tree(s, offset, rng, out);
+        });
+        self.walk(rng, (30.0, 45.0), |s, _| self.pole(s, 0.6, 7.0, out));
+        self.walk(rng, (5.0, 10.0), |s, rng| {
+            let at = self.at(s, uniform(rng, 2.5, 3.5));
+            let r = uniform(rng, 0.5, 1.0);
+            if self.clearance.free(&at, r) {
+                out.push(upright_static(
+                    self.ground,
+                    StaticKind::Shrub,
+                    Shape::Ball { radius_m: r },
+                    at,
+                    -r / 3.0,
+                    0.0,
+                ));
+            }
+        });
+    }
+
+    fn city(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        let mut s = uniform(rng, 0.0, 10.0);
+        while s < self.path.length_m() {
+            let width = uniform(rng, 12.0, 30.0);
+            let size = Vector3::new(width, uniform(rng, 12.0, 16.0), uniform(rng, 12.0, 22.0));
+            let front = uniform(rng, 3.0, 5.0);
+            self.building(s + 0.5 * width, front, size, out);
+            s += width + uniform(rng, 0.0, 4.0);
+        }
+        self.walk(rng, (25.0, 35.0), |s, _| self.pole(s, 0.8, 8.0, out));
+        self.walk(rng, (15.0, 30.0), |s, rng| {
+            if uniform(rng, 0.0, 1.0) < 0.5 {
+                self.tree(s, 1.8, rng, out);
+            }
+        });
+    }
+
+    fn highway(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        const RAIL_SEGMENT_M: f64 = 4.0;
+        let rail_offset = 1.0;
+        let mut s = 0.0;
+        while s + RAIL_SEGMENT_M <= self.path.length_m() {
+            let (p0, p1) = (
+                self.at(s, rail_offset),
+                self.at(s + RAIL_SEGMENT_M, rail_offset),
+            );
+            let mid = nalgebra::center(&p0, &p1);
+            if self.clearance.free(&mid, 0.5 * RAIL_SEGMENT_M) {
+                out.push(cuboid_between(
+                    self.ground,
+                    StaticKind::GuardRail,
+                    p0,
+                    p1,
+                    0.3,
+                    (0.45, 0.8),
+                ));
+            }
+            s += RAIL_SEGMENT_M;
+        }
+        self.walk(rng, (45.0, 60.0), |s, _| self.pole(s, 2.0, 10.0, out));
+        self.walk(rng, (12.0, 30.0), |s, rng| {
+            let offset = uniform(rng, 5.0, 12.0);
+            self.tree(s, offset, rng, out);
+        });
+        // stretches of noise wall: 60-200 m long, on about a third of the way
+        let mut s = uniform(rng, 0.0, 100.0);
+        while s < self.path.length_m() {
+            let length = uniform(rng, 60.0, 200.0);
+            if uniform(rng, 0.0, 1.0) < 0.35 {
+                let height = uniform(rng, 3.0, 4.5);
+                let mut u = s;
+                while u + 5.0 <= (s + length).min(self.path.length_m()) {
+                    let (p0, p1) = (self.at(u, 3.5), self.at(u + 5.0, 3.5));
+                    if self.clearance.free(&nalgebra::center(&p0, &p1), 2.5) {
+                        out.push(cuboid_between(
+                            self.ground,
+                            StaticKind::Wall,
+                            p0,
+                            p1,
+                            0.3,
+                            (-0.3, height),
+                        ));
+                    }
+                    u += 5.0;
+                }
+            }
+            s += length + uniform(rng, 50.0, 300.0);
+        }
+    }
+}

@@ -1,0 +1,279 @@
+//! Digital twins of the real KITTI tracking sequences in `../shared/data`
+//! (`limot simulate kitti`): the ego follows OXTS within the fit residual,
+//! labelled objects are where the labels put them, the simulated IMU
+//! dead-reckons the fitted path, the dataset is byte-identical across thread
+//! counts, and every sequence's twin builds. When the data is absent these
+//! print a loud note and return; when it is present they always run.
+
+use limot::io::kitti::calib::Calib;
+use limot::io::kitti::detections::camera_box_to_lidar;
+use limot::io::kitti::labels::read_labels;
+use limot::io::kitti::oxts::read_oxts;
+use limot::io::kitti::sequence_file;
+use limot::io::kitti::twin::{replay_input, world_lidar_poses};
+use limot::simulate::{kitti_scenario, simulation_of};
+use limot_sim::Simulation;
+use limot_sim::replay::{PARKED_SPREAD_M, ReplayInput, ReplayReport};
+use limot_sim::scenario::ScenarioSpec;
+use limot_sim::sensors::{ImuConfig, ImuSimulator};
+use nalgebra::{UnitQuaternion, Vector3};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+mod common;
+
+/// The stretch of 0000 the tests replay: 5 s of residential driving with
+/// parked and moving cars.
+const FIRST_FRAME: usize = 40;
+const FRAMES: usize = 50;
+
+fn training() -> Option<PathBuf> {
+    common::data_root("KITTI twin").map(|root| root.join("kitti_tracking/training"))
+}
+
+fn stretch_spec(training: &Path, sequence: u32) -> ScenarioSpec {
+    kitti_scenario(training, sequence, FIRST_FRAME, Some(FRAMES), None, None).unwrap()
+}
+
+fn replay(spec: &ScenarioSpec) -> ReplayInput {
+    replay_input(spec.kitti.as_ref().unwrap(), usize::MAX)
+        .unwrap()
+        .0
+}
+
+#[test]
+fn the_ego_follows_oxts_within_the_fit_residual() {
+    let Some(training) = training() else { return };
+    let spec = stretch_spec(&training, 0);
+    let input = replay(&spec);
+    let sim = Simulation::from_replay(&spec, &input).unwrap();
+    let report: &ReplayReport = sim.replay_report().unwrap();
+    let fit = report.ego_fit;
+    eprintln!("0000 frames {FIRST_FRAME}+{FRAMES}: {report:?}");
+    assert!(fit.position_max_m < 0.1, "{fit:?}");
+    assert!(fit.rotation_max_rad < 0.01, "{fit:?}");
+    // a car's acceleration, not GPS jitter differentiated twice
+    assert!(fit.accel_max_mps2 < 4.0, "{fit:?}");
+    // the poses the twin was built from are the ones `limot eval` scores the
+    // real sequence with, up to the constant levelling rotation
+    let oxts = read_oxts(&sequence_file(&training.join("oxts"), 0)).unwrap();
+    let calib = Calib::read(&sequence_file(&training.join("calib"), 0)).unwrap();
+    let poses = world_lidar_poses(&oxts[FIRST_FRAME..FIRST_FRAME + FRAMES], &calib);
+    let ego = &sim.scene().ego.trajectory;
+    for (k, pose) in poses.iter().enumerate() {
+        let at = ego.pose_at(k as f64 * 0.1);
+        let dp = (at.translation.vector - pose.translation.vector).norm();
+        let dr = (at.rotation.inverse() * pose.rotation).angle();
+        assert!(dp <= fit.position_max_m + 1e-9, "frame {k}: {dp} m");
+        assert!(dr <= fit.rotation_max_rad + 1e-9, "frame {k}: {dr} rad");
+    }
+    // the world is level: the IMU at rest would read gravity along its z
+    assert!((sim.scene().ground.slope.norm()) < 0.05);
+}
+
+#[test]
+fn labelled_objects_are_where_the_labels_put_them() {
+    let Some(training) = training() else { return };
+    // the whole of 0000: moving and parked cars, a cyclist
+    let spec = kitti_scenario(&training, 0, 0, None, None, None).unwrap();
+    let sim = Simulation::from_replay(&spec, &replay(&spec)).unwrap();
+    let scene = sim.scene();
+    let oxts = read_oxts(&sequence_file(&training.join("oxts"), 0)).unwrap();
+    let calib = Calib::read(&sequence_file(&training.join("calib"), 0)).unwrap();
+    let labels = read_labels(&sequence_file(&training.join("label_02"), 0)).unwrap();
+    let poses = world_lidar_poses(&oxts, &calib);
+    let agents: BTreeMap<u32, &limot_sim::scene::Agent> =
+        scene.agents.iter().map(|a| (a.id, a)).collect();
+    let mut worst_m = [0.0f64; 2]; // moving, parked
+    let mut checked = [0usize; 2];
+    let mut labelled_frames: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    for label in labels.iter().filter(|l| !l.is_dont_care()) {
+        let k = label.frame as usize;
+        let t_s = k as f64 * 0.1;
+        let id = u32::try_from(label.track_id + 1).unwrap();
+        let agent = agents[&id];
+        assert!(
+            agent.is_present(t_s),
+            "track {} absent at frame {k}",
+            label.track_id
+        );
+        let centre =
+            poses[k].transform_point(&camera_box_to_lidar(&label.cam_box, &calib).center.into());
+        let error_m = (agent.box_at(t_s).t_world_box.translation.vector - centre.coords).norm();
+        let kind = usize::from(agent.parked);
+        worst_m[kind] = worst_m[kind].max(error_m);
+        checked[kind] += 1;
+        // moving agents pass through their labels; parked ones rest at the
+        // mean of their labels, which scatter by less than PARKED_SPREAD_M
+        let bound = if agent.parked { PARKED_SPREAD_M } else { 0.1 };
+        assert!(
+            error_m < bound,
+            "track {} at frame {k}: centre {error_m} m off (parked: {})",
+            label.track_id,
+            agent.parked
+        );
+        labelled_frames.entry(id).or_default().push(k);
+    }
+    eprintln!(
+        "0000: {} moving boxes (worst centre error {:.2e} m), {} parked boxes (worst {:.3} m)",
+        checked[0], worst_m[0], checked[1], worst_m[1]
+    );
+    assert!(checked[0] > 100 && checked[1] > 100, "{checked:?}");
+    // present only while labelled: nothing before the first labelled frame,
+    // nor after the sweep of the last
+    for (id, frames) in &labelled_frames {
+        let (first, last) = (frames[0], frames[frames.len() - 1]);
+        let agent = agents[id];
+        if first > 0 {
+            assert!(!agent.is_present((first as f64 - 0.5) * 0.1), "{id}");
+        }
+        assert!(!agent.is_present((last + 1) as f64 * 0.1 + 1e-9), "{id}");
+    }
+}
+
+#[test]
+fn the_simulated_imu_dead_reckons_the_fitted_path() {
+    let Some(training) = training() else { return };
+    let mut spec = stretch_spec(&training, 0);
+    spec.imu = ImuConfig::noise_free();
+    let sim = Simulation::from_replay(&spec, &replay(&spec)).unwrap();
+    let ego = &sim.scene().ego;
+    let imu = sim.imu_stream().unwrap();
+    let gravity = Vector3::new(0.0, 0.0, -spec.imu.gravity_mps2);
+    let start = ImuSimulator::t_world_imu(ego, 0.0);
+    let (mut rotation, mut position) = (start.rotation, start.translation.vector);
+    let mut velocity = ImuSimulator::velocity_world_imu(ego, 0.0);
+    let mut worst_m = 0.0f64;
+    for pair in imu.samples.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        let dt = b.t_s - a.t_s;
+        // trapezoid on the world acceleration, midpoint on the rotation
+        let accel_a = rotation * a.accel_mps2 + gravity;
+        let next_rotation =
+            rotation * UnitQuaternion::from_scaled_axis((a.gyro_radps + b.gyro_radps) * 0.5 * dt);
+        let accel_b = next_rotation * b.accel_mps2 + gravity;
+        position += velocity * dt + (2.0 * accel_a + accel_b) / 6.0 * dt * dt;
+        velocity += (accel_a + accel_b) * 0.5 * dt;
+        rotation = next_rotation;
+        let truth = ImuSimulator::t_world_imu(ego, b.t_s).translation.vector;
+        worst_m = worst_m.max((position - truth).norm());
+    }
+    let span_s = imu.samples.last().unwrap().t_s;
+    eprintln!("IMU dead reckoning over {span_s:.1} s: worst {worst_m:.4} m");
+    assert!(span_s > 4.9);
+    assert!(worst_m < 0.05, "{worst_m} m");
+}
+
+fn read_tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.insert(
+                    path.strip_prefix(dir).unwrap().to_path_buf(),
+                    std::fs::read(&path).unwrap(),
+                );
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_twin_is_byte_identical_across_thread_counts() {
+    let Some(training) = training() else { return };
+    let spec = kitti_scenario(&training, 0, FIRST_FRAME, Some(12), None, None).unwrap();
+    let dirs: Vec<PathBuf> = [1, 2]
+        .iter()
+        .map(|&threads| {
+            let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!(
+                "kitti-twin-threads-{threads}-{}",
+                std::process::id()
+            ));
+            let _ = std::fs::remove_dir_all(&dir);
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| limot::simulate::simulate(&spec, &dir, true, false))
+                .unwrap();
+            dir
+        })
+        .collect();
+    let (a, b) = (read_tree(&dirs[0]), read_tree(&dirs[1]));
+    assert!(a.len() > 20, "{} files", a.len());
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (path, bytes) in &a {
+        assert!(bytes == &b[path], "{} differs", path.display());
+    }
+    for dir in dirs {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+#[test]
+fn recorded_detections_replace_the_detector_model() {
+    let Some(training) = training() else { return };
+    let detections = training.join("../detections/pointrcnn_Car_val/0000.txt");
+    let spec = kitti_scenario(
+        &training,
+        0,
+        FIRST_FRAME,
+        Some(FRAMES),
+        None,
+        Some(&detections),
+    )
+    .unwrap();
+    let (sim, _) = simulation_of(&spec).unwrap();
+    let all = limot::io::kitti::detections::read_ab3dmot_csv(&detections).unwrap();
+    for k in [0, 17, FRAMES - 1] {
+        let frame = sim.frame(k).unwrap();
+        let expected = all
+            .iter()
+            .filter(|d| d.frame as usize == FIRST_FRAME + k)
+            .count();
+        assert_eq!(frame.recorded.detections.len(), expected, "frame {k}");
+        assert!(
+            frame
+                .recorded
+                .detections
+                .iter()
+                .all(|d| d.truth_id.is_none())
+        );
+    }
+}
+
+/// Every sequence in the data builds its twin (scene, sensors); a static
+/// ego (0012, 0016, 0017) and GPS of varying quality included.
+#[test]
+fn every_sequence_builds_a_twin() {
+    let Some(training) = training() else { return };
+    let mut built = 0;
+    for sequence in 0..=20u32 {
+        if !sequence_file(&training.join("oxts"), sequence).is_file() {
+            continue;
+        }
+        let spec = kitti_scenario(&training, sequence, 0, None, None, None).unwrap();
+        let (sim, notes) = simulation_of(&spec).unwrap();
+        let notes = notes.unwrap();
+        let r = sim.replay_report().unwrap();
+        eprintln!(
+            "{sequence:04}: {} frames, {:.0} m, {r}, skipped {:?}",
+            notes.frames, notes.path_length_m, notes.skipped_labels,
+        );
+        assert!(
+            r.ego_fit.position_max_m < 0.3,
+            "{sequence}: {:?}",
+            r.ego_fit
+        );
+        assert!(r.ground.max_m < 0.3, "{sequence}: {:?}", r.ground);
+        assert!(r.statics > 10, "{sequence}: {} statics", r.statics);
+        assert_eq!(sim.frame_count(), notes.frames);
+        built += 1;
+    }
+    assert_eq!(built, 20);
+}
