@@ -176,7 +176,7 @@ pub fn run_demo(
     spec: &ScenarioSpec,
     out: &Path,
     progress: bool,
-    mcap: Option<&Path>,
+    mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<DemoSummary, DemoError> {
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
@@ -457,7 +457,7 @@ fn run_variant(
     out: &Path,
     variant: limot_estimator::Variant,
     progress: bool,
-    mcap: Option<&Path>,
+    mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<VariantRun, DemoError> {
     let run_options = crate::run::RunOptions {
         variant,
@@ -468,13 +468,14 @@ fn run_variant(
     let run_dir = out.join(variant.name());
     crate::run::write_output(&run_dir, &output)?;
     let mcap_stats = mcap
-        .map(|path| {
+        .map(|request| {
             crate::io::mcap::write_mcap(
-                path,
+                &request.path,
                 &crate::io::mcap::McapInput {
                     source,
                     frames: source.frame_range(0, None),
                     estimates: &output.estimates,
+                    max_cloud_points: request.max_cloud_points,
                 },
             )
         })

@@ -278,7 +278,7 @@ pub fn simulate(
 }
 
 /// Records the dataset in `dataset_dir` alone (no run) for Foxglove as the
-/// MCAP file `path`: every sweep de-skewed and placed with the true ego
+/// MCAP file of `request`: every sweep de-skewed and placed with the true ego
 /// poses, the detections and the ground-truth boxes and path
 /// ([`crate::io::mcap::write_mcap`]).
 ///
@@ -286,8 +286,9 @@ pub fn simulate(
 /// A dataset that cannot be read or a file that cannot be written (named).
 pub fn record_dataset_mcap(
     dataset_dir: &Path,
-    path: &Path,
+    request: &crate::io::mcap::McapRequest,
 ) -> Result<crate::io::mcap::McapStats, crate::io::mcap::McapError> {
+    let path = &request.path;
     let source =
         crate::io::Source::open(dataset_dir).map_err(|e| crate::io::mcap::McapError::Input {
             path: path.to_path_buf(),
@@ -299,6 +300,7 @@ pub fn record_dataset_mcap(
             source: &source,
             frames: source.frame_range(0, None),
             estimates: &[],
+            max_cloud_points: request.max_cloud_points,
         },
     )
 }

@@ -11,7 +11,11 @@ fn demo_simulates_scores_and_writes_a_report() {
     let out = std::env::temp_dir().join(format!("limot-demo-{}", std::process::id()));
     let _ = fs::remove_dir_all(&out);
     let mcap = out.join("limot.mcap");
-    let s = run_demo(&spec, &out, false, Some(&mcap)).unwrap();
+    let request = limot::io::mcap::McapRequest {
+        path: mcap.clone(),
+        max_cloud_points: Some(25_000),
+    };
+    let s = run_demo(&spec, &out, false, Some(&request)).unwrap();
     // the `limot` run's Foxglove recording, whole (tests/mcap.rs reads one in detail)
     let stats = s.mcap.as_ref().unwrap();
     assert_eq!(stats.path, mcap);

@@ -5,8 +5,8 @@ use foxglove::Decode;
 use foxglove::schemas::{FrameTransforms, PointCloud, PosesInFrame, SceneUpdate};
 use limot::io::Source;
 use limot::io::mcap::{
-    McapInput, POINT_STRIDE_BYTES, REMOVED, TOPIC_CLOUD, TOPIC_DETECTIONS, TOPIC_PATH, TOPIC_TF,
-    TOPIC_TRACKS, TOPIC_TRUTH_BOXES, TOPIC_TRUTH_PATH, write_mcap,
+    McapInput, McapRequest, POINT_STRIDE_BYTES, REMOVED, TOPIC_CLOUD, TOPIC_DETECTIONS, TOPIC_PATH,
+    TOPIC_TF, TOPIC_TRACKS, TOPIC_TRUTH_BOXES, TOPIC_TRUTH_PATH, write_mcap,
 };
 use limot::run::{RunOptions, run};
 use limot::simulate::{record_dataset_mcap, resolve_scenario, simulate};
@@ -43,7 +43,11 @@ fn dataset_and_run_recordings_hold_every_topic_at_the_data_times() {
 
     // the dataset alone: no tracks or estimated path
     let sim_mcap = dir.join("sim.mcap");
-    let sim_stats = record_dataset_mcap(&dataset_dir, &sim_mcap).unwrap();
+    let sim_request = McapRequest {
+        path: sim_mcap.clone(),
+        max_cloud_points: None,
+    };
+    let sim_stats = record_dataset_mcap(&dataset_dir, &sim_request).unwrap();
     let sim_bytes = fs::read(&sim_mcap).unwrap();
     let sim_topics = topics(&sim_bytes);
     let names: Vec<&str> = sim_topics.keys().map(String::as_str).collect();
@@ -72,6 +76,7 @@ fn dataset_and_run_recordings_hold_every_topic_at_the_data_times() {
         source: &source,
         frames: source.frame_range(0, None),
         estimates: &output.estimates,
+        max_cloud_points: None,
     };
     let stats = write_mcap(&run_mcap, &input).unwrap();
     let bytes = fs::read(&run_mcap).unwrap();
@@ -183,6 +188,36 @@ fn dataset_and_run_recordings_hold_every_topic_at_the_data_times() {
         "every removed feature flagged"
     );
     assert!(track_boxes > 0);
+
+    // thinned: at most the cap per sweep besides the removed points, every
+    // removed point kept
+    let cap = 4000;
+    let thin = dir.join("thin.mcap");
+    let thin_input = McapInput {
+        frames: input.frames.clone(),
+        max_cloud_points: Some(cap),
+        ..input
+    };
+    let thin_stats = write_mcap(&thin, &thin_input).unwrap();
+    assert!(
+        thin_stats.bytes * 3 < stats.bytes,
+        "{} vs {}",
+        thin_stats.bytes,
+        stats.bytes
+    );
+    let mut thin_removed = 0;
+    for message in mcap::MessageStream::new(&fs::read(&thin).unwrap()).unwrap() {
+        let message = message.unwrap();
+        if message.channel.topic == TOPIC_CLOUD {
+            let cloud = PointCloud::decode(&message.data[..]).unwrap();
+            let points: Vec<&[u8]> = cloud.data.chunks_exact(POINT_STRIDE_BYTES).collect();
+            let removed = points.iter().filter(|p| p[12] == REMOVED).count();
+            assert!(points.len() <= cap + removed, "{} points", points.len());
+            assert!(points.len() > cap / 2, "{} points", points.len());
+            thin_removed += removed;
+        }
+    }
+    assert_eq!(thin_removed, removed_indices, "every removed point kept");
 
     // deterministic: the same run writes the same bytes
     let again = dir.join("again.mcap");

@@ -7,7 +7,7 @@ pub(super) fn run_demo(
     scenario: &str,
     out: &std::path::Path,
     duration_s: Option<f64>,
-    mcap: Option<&std::path::Path>,
+    mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut spec = resolve_scenario(scenario)?;
     Overrides {

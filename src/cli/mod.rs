@@ -77,6 +77,11 @@ enum Command {
         /// Also record the dataset for Foxglove as this MCAP file (cloud, truth, detections).
         #[arg(long, value_name = "FILE")]
         mcap: Option<PathBuf>,
+        /// Cloud points per sweep in the MCAP recording: at most N (every
+        /// k-th point, the filter's removed points besides) or `all`. The
+        /// default keeps a 64-beam sweep's shape at a fifth of its size.
+        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        mcap_points: options::McapPoints,
     },
     /// Simulate the default urban scenario, score it and write a small report (OUT/report).
     Demo {
@@ -95,6 +100,11 @@ enum Command {
         /// Write no MCAP recording.
         #[arg(long, conflicts_with = "mcap")]
         no_mcap: bool,
+        /// Cloud points per sweep in the MCAP recording: at most N (every
+        /// k-th point, the filter's removed points besides) or `all`. The
+        /// default keeps a 64-beam sweep's shape at a fifth of its size.
+        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        mcap_points: options::McapPoints,
     },
     /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
     Run {
@@ -137,6 +147,11 @@ enum Command {
         /// Also record the run for Foxglove as this MCAP file (cloud, poses, tracks, ...).
         #[arg(long, value_name = "FILE")]
         mcap: Option<PathBuf>,
+        /// Cloud points per sweep in the MCAP recording: at most N (every
+        /// k-th point, the filter's removed points besides) or `all`. The
+        /// default keeps a 64-beam sweep's shape at a fifth of its size.
+        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        mcap_points: options::McapPoints,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
     Eval {
@@ -423,6 +438,7 @@ impl Cli {
                 print,
                 force,
                 mcap,
+                mcap_points,
             } => simulate::run_simulate(
                 &scenario,
                 simulate::TwinArgs {
@@ -442,7 +458,7 @@ impl Cli {
                     out: &out,
                     kitti: !no_kitti,
                     force,
-                    mcap: mcap.as_deref(),
+                    mcap: mcap.map(|path| mcap_points.request(path)).as_ref(),
                 },
             ),
             Command::Demo {
@@ -451,9 +467,11 @@ impl Cli {
                 duration,
                 mcap,
                 no_mcap,
+                mcap_points,
             } => {
-                let mcap = (!no_mcap).then(|| mcap.unwrap_or_else(|| out.join("limot.mcap")));
-                demo::run_demo(&scenario, &out, duration, mcap.as_deref())
+                let mcap = (!no_mcap)
+                    .then(|| mcap_points.request(mcap.unwrap_or_else(|| out.join("limot.mcap"))));
+                demo::run_demo(&scenario, &out, duration, mcap.as_ref())
             }
             Command::Run {
                 dataset,
@@ -467,6 +485,7 @@ impl Cli {
                 score_map,
                 tracker,
                 mcap,
+                mcap_points,
             } => run::run_estimator(
                 &dataset,
                 out,
@@ -480,7 +499,7 @@ impl Cli {
                     score_map,
                 },
                 &tracker,
-                mcap.as_deref(),
+                mcap.map(|path| mcap_points.request(path)).as_ref(),
             ),
             Command::Eval { what } => eval::run_eval(what),
             Command::TrackKitti(args) => track_kitti::run_track_kitti(args),

@@ -23,7 +23,7 @@ pub(super) fn run_estimator(
     max_frames: Option<usize>,
     kitti_tracking: KittiTracking,
     tracker: &str,
-    mcap: Option<&std::path::Path>,
+    mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::io::Source;
     use crate::run::{RunOptions, run, write_output};
@@ -63,13 +63,14 @@ pub(super) fn run_estimator(
     };
     let output = run(&source, dataset, &options, Some(config))?;
     write_output(&out, &output)?;
-    if let Some(path) = mcap {
+    if let Some(request) = mcap {
         let stats = crate::io::mcap::write_mcap(
-            path,
+            &request.path,
             &crate::io::mcap::McapInput {
                 source: &source,
                 frames: source.frame_range(first_frame, max_frames),
                 estimates: &output.estimates,
+                max_cloud_points: request.max_cloud_points,
             },
         )?;
         super::print_mcap(&stats);

@@ -21,8 +21,8 @@ pub(super) struct SimulateOutputs<'a> {
     pub kitti: bool,
     /// Replace an existing dataset directory.
     pub force: bool,
-    /// Also record the dataset to this MCAP file.
-    pub mcap: Option<&'a std::path::Path>,
+    /// Also record the dataset as this MCAP recording.
+    pub mcap: Option<&'a crate::io::mcap::McapRequest>,
 }
 
 pub(super) fn run_simulate(
@@ -96,8 +96,8 @@ pub(super) fn run_simulate(
     if let Some(k) = &s.kitti_dir {
         println!("KITTI-style copy: {}", k.display());
     }
-    if let Some(path) = mcap {
-        let stats = crate::simulate::record_dataset_mcap(&s.dataset_dir, path)?;
+    if let Some(request) = mcap {
+        let stats = crate::simulate::record_dataset_mcap(&s.dataset_dir, request)?;
         super::print_mcap(&stats);
     }
     Ok(())

@@ -86,21 +86,33 @@ pub fn transform(
 /// [`POINT_STRIDE_BYTES`] per point, little-endian: `x`, `y`, `z` (f32) and
 /// `removed` (u8, [`REMOVED`] for the indices in `removed_indices`, 0
 /// otherwise; indices past the points are ignored).
+///
+/// With `max_points`, a sweep of more points is thinned to every k-th point
+/// in storage order (the smallest k that keeps at most `max_points`), and
+/// every removed point is kept besides: what the filter dropped is what the
+/// recording is looked at for.
 pub fn point_cloud(
     t_ns: u64,
     frame_id: &str,
     points: &[nalgebra::Vector3<f64>],
     removed_indices: &[u32],
+    max_points: Option<usize>,
 ) -> PointCloud {
-    let mut data = vec![0u8; points.len() * POINT_STRIDE_BYTES];
-    for (chunk, p) in data.chunks_exact_mut(POINT_STRIDE_BYTES).zip(points) {
-        chunk[0..4].copy_from_slice(&(p.x as f32).to_le_bytes());
-        chunk[4..8].copy_from_slice(&(p.y as f32).to_le_bytes());
-        chunk[8..12].copy_from_slice(&(p.z as f32).to_le_bytes());
-    }
+    let mut removed = vec![false; points.len()];
     for &i in removed_indices {
-        if let Some(flag) = data.get_mut(i as usize * POINT_STRIDE_BYTES + 12) {
-            *flag = REMOVED;
+        if let Some(flag) = removed.get_mut(i as usize) {
+            *flag = true;
+        }
+    }
+    let stride = max_points.map_or(1, |max| points.len().div_ceil(max.max(1)).max(1));
+    let mut data =
+        Vec::with_capacity((points.len() / stride + removed_indices.len()) * POINT_STRIDE_BYTES);
+    for (i, (p, &is_removed)) in points.iter().zip(&removed).enumerate() {
+        if is_removed || i % stride == 0 {
+            data.extend_from_slice(&(p.x as f32).to_le_bytes());
+            data.extend_from_slice(&(p.y as f32).to_le_bytes());
+            data.extend_from_slice(&(p.z as f32).to_le_bytes());
+            data.push(if is_removed { REMOVED } else { 0 });
         }
     }
     let field = |name: &str, offset: u32, kind: NumericType| PackedElementField {
@@ -303,7 +315,7 @@ mod tests {
             V3::new(3.0, 4.0, -1.0),
             V3::zeros(),
         ];
-        let cloud = point_cloud(7, "lidar", &points, &[1, 99]);
+        let cloud = point_cloud(7, "lidar", &points, &[1, 99], None);
         assert_eq!(cloud.point_stride as usize, POINT_STRIDE_BYTES);
         assert_eq!(cloud.data.len(), 3 * POINT_STRIDE_BYTES);
         let f32_at =
@@ -318,6 +330,37 @@ mod tests {
         let names: Vec<_> = cloud.fields.iter().map(|f| f.name.as_str()).collect();
         assert_eq!(names, ["x", "y", "z", "removed"]);
         assert_eq!(cloud.fields[3].r#type, NumericType::Uint8 as i32);
+    }
+
+    #[test]
+    fn a_thinned_cloud_keeps_every_kth_point_and_every_removed_one() {
+        let points: Vec<_> = (0..10).map(|i| V3::new(i as f64, 0.0, 0.0)).collect();
+        // 10 points, at most 4: every 3rd (0, 3, 6, 9), and removed 4 and 7
+        let cloud = point_cloud(0, "lidar", &points, &[4, 7, 99], Some(4));
+        let kept: Vec<(f32, u8)> = cloud
+            .data
+            .chunks_exact(POINT_STRIDE_BYTES)
+            .map(|c| (f32::from_le_bytes(c[0..4].try_into().unwrap()), c[12]))
+            .collect();
+        assert_eq!(
+            kept,
+            [
+                (0.0, 0),
+                (3.0, 0),
+                (4.0, REMOVED),
+                (6.0, 0),
+                (7.0, REMOVED),
+                (9.0, 0)
+            ]
+        );
+        // a cap above the size, or none, keeps all
+        for max in [Some(10), Some(1000), None] {
+            let all = point_cloud(0, "lidar", &points, &[], max);
+            assert_eq!(all.data.len(), 10 * POINT_STRIDE_BYTES);
+        }
+        // a cap of one keeps the first point (and the removed ones)
+        let one = point_cloud(0, "lidar", &points, &[5], Some(1));
+        assert_eq!(one.data.len(), 2 * POINT_STRIDE_BYTES);
     }
 
     #[test]

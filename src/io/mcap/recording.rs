@@ -15,7 +15,7 @@ use limot_sim::record::{BoxTruth, EgoTruth};
 use nalgebra::Isometry3;
 use std::collections::BTreeMap;
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The world frame of the poses the cloud is placed with: the run's
 /// estimate, or the ground truth's world when a dataset is recorded alone.
@@ -32,7 +32,8 @@ pub const FRAME_WORLD_TRUTH: &str = "world_truth";
 /// and `world -> world_truth` (with ground truth), every frame.
 pub const TOPIC_TF: &str = "/tf";
 /// `foxglove.PointCloud`: the sweep de-skewed to its start (LiDAR frame),
-/// with the `removed` flag on the feature points the filter dropped.
+/// with the `removed` flag on the feature points the filter dropped, thinned
+/// to [`McapInput::max_cloud_points`].
 pub const TOPIC_CLOUD: &str = "/lidar/points";
 /// `foxglove.SceneUpdate`: the sweep's detections (LiDAR frame).
 pub const TOPIC_DETECTIONS: &str = "/detections";
@@ -56,6 +57,18 @@ pub struct McapInput<'a> {
     /// and de-skewed with its ground-truth ego poses. Otherwise only frames
     /// with an estimate are recorded.
     pub estimates: &'a [FrameEstimate],
+    /// At most this many cloud points per sweep besides the removed ones
+    /// (see [`point_cloud`](super::messages::point_cloud)); `None`: every point.
+    pub max_cloud_points: Option<usize>,
+}
+
+/// A recording the CLI asks for: the file, and the points a sweep keeps.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct McapRequest {
+    /// The MCAP file to write.
+    pub path: PathBuf,
+    /// [`McapInput::max_cloud_points`].
+    pub max_cloud_points: Option<usize>,
 }
 
 /// The ground truth a limot dataset carries.
@@ -164,7 +177,13 @@ pub fn write_mcap(path: &Path, input: &McapInput) -> Result<McapStats, McapError
                 file.write(
                     TOPIC_CLOUD,
                     t_ns,
-                    &point_cloud(t_ns, FRAME_LIDAR, &deskewed, removed),
+                    &point_cloud(
+                        t_ns,
+                        FRAME_LIDAR,
+                        &deskewed,
+                        removed,
+                        input.max_cloud_points,
+                    ),
                 )?;
 
                 // each detection moved from the LiDAR frame of its instant to the sweep start's
