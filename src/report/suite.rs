@@ -474,6 +474,7 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
         tables: vec![runs_table(results)?],
         plots: Vec::new(),
     }];
+    sections.extend(crate::report::twins_section(results)?);
     sections.extend([
         Section {
             heading: "Ego-pose accuracy".into(),
