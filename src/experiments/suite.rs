@@ -6,7 +6,7 @@
 //!
 //! The family `kitti` stands for the digital twins of the KITTI tracking
 //! sequences of [`SuiteSpec::twins`] (one family `kitti-SSSS` per sequence,
-//! see [`twins`]); a sequence whose files are not in the data is kept in the
+//! see [`KittiTwins`]); a sequence whose files are not in the data is kept in the
 //! results as not available.
 //!
 //! Layout of OUT:
