@@ -1,16 +1,18 @@
 //! Fingerprints the code that writes a simulated dataset, so that
 //! `limot eval suite` re-simulates a reused dataset when that code changed
-//! even though its scenario did not (src/suite.rs, `ensure_dataset`).
+//! even though its scenario did not (src/experiments/suite.rs, `ensure_dataset`).
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
 /// Everything a dataset's bytes depend on besides its scenario: the
-/// simulator, the input types it writes, the KITTI copy, the lock file.
-const DATASET_SOURCES: [&str; 4] = [
+/// simulator, the input types it writes, the KITTI readers, copy and twin
+/// conversion, the scenario-to-simulation glue, the lock file.
+const DATASET_SOURCES: [&str; 5] = [
     "sim/src",
     "estimator/src/input.rs",
-    "src/kitti_export.rs",
+    "src/io/kitti",
+    "src/simulate.rs",
     "Cargo.lock",
 ];
 

@@ -10,6 +10,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+mod common;
+
+use common::without_timings;
+
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join("suite")
@@ -27,6 +31,7 @@ fn spec(out_dir: PathBuf, duration_s: f64, variants: Vec<Variant>) -> SuiteSpec 
         out_dir,
         shard: None,
         jobs: None,
+        twins: None,
     }
 }
 
@@ -251,20 +256,6 @@ fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
-/// The figures of a suite without its wall-clock measurements.
-fn without_timings(mut results: SuiteResults) -> SuiteResults {
-    for s in &mut results.sequences {
-        for v in &mut s.variants {
-            if let Some(m) = &mut v.metrics {
-                m.wall_time_s = 0.0;
-                m.fps = 0.0;
-                m.timings.clear();
-            }
-        }
-    }
-    results
-}
-
 #[test]
 fn shards_merged_give_the_whole_suite_run_in_parallel() {
     let whole_out = scratch("whole");
@@ -277,6 +268,7 @@ fn shards_merged_give_the_whole_suite_run_in_parallel() {
         out_dir: out,
         shard: shard.map(|s| Shard::parse(s).unwrap()),
         jobs: Some(jobs),
+        twins: None,
     };
     // both sequences at once, against one at a time in two shards
     let whole = run_suite(&two_sequences(whole_out.clone(), None, 2), false).unwrap();

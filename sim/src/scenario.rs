@@ -27,6 +27,9 @@ mod params;
 mod validate;
 
 pub use params::{EgoSpec, Family, GroundParams, HighwayParams, KittiParams, UrbanParams};
+
+/// Longest simulated time span a scenario may have, s.
+pub const MAX_DURATION_S: f64 = 3600.0;
 pub(crate) use validate::{
     HIGHWAY_EGO_FREE_SLOTS, HIGHWAY_TRUCK_LENGTH_M, URBAN_ALL_RED_S, URBAN_CAR_SPACING_M,
     URBAN_CYCLIST_SPACING_M, URBAN_PEDESTRIAN_SPACING_M, highway_min_spacing_m,
@@ -47,7 +50,7 @@ pub struct ScenarioSpec {
     pub family: Family,
     /// Seed of every random draw (generator and sensors).
     pub seed: u64,
-    /// Simulated time span, s (at most 3600).
+    /// Simulated time span, s (at most [`MAX_DURATION_S`]).
     pub duration_s: f64,
     #[serde(default)]
     /// The `[lidar]` table.
@@ -227,12 +230,12 @@ impl ScenarioSpec {
     }
 
     /// The digital twin of a KITTI tracking sequence: default sensors, ego
-    /// and ground, seed 1, as long as the sequence (up to the 3600 s limit).
+    /// and ground, seed 1, as long as the sequence (up to [`MAX_DURATION_S`]).
     pub fn kitti(params: KittiParams) -> ScenarioSpec {
         let name = format!("kitti-{:04}", params.sequence);
         ScenarioSpec {
             kitti: Some(params),
-            ..ScenarioSpec::with_defaults(name, Family::Kitti, 1, 3600.0)
+            ..ScenarioSpec::with_defaults(name, Family::Kitti, 1, MAX_DURATION_S)
         }
     }
 
@@ -359,8 +362,11 @@ impl ScenarioSpec {
             return Err(invalid("name", "must not be empty"));
         }
         positive_finite("duration_s", self.duration_s)?;
-        if self.duration_s > 3600.0 {
-            return Err(invalid("duration_s", "must be at most 3600 s"));
+        if self.duration_s > MAX_DURATION_S {
+            return Err(invalid(
+                "duration_s",
+                format!("must be at most {MAX_DURATION_S} s"),
+            ));
         }
         validate_lidar(&self.lidar)?;
         self.imu.validate().map_err(|e| match e {

@@ -1,8 +1,8 @@
 //! `limot eval`: ego and track scores of result files, the simulated suite and the KITTI suite.
 
-use super::EvalCommand;
 use super::options::{kitti_tracking_options, parse_score_map};
 use super::report::{print_kitti_report, print_suite_report};
+use super::{EvalCommand, SuiteArgs};
 use crate::experiments::EvaluateError;
 use crate::experiments::{EgoEvalOptions, evaluate_ego, parse_rpe_delta};
 use crate::experiments::{TrackEvalOptions, evaluate_tracks};
@@ -97,23 +97,7 @@ pub(super) fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Erro
                 write_output(&path, &r.to_markdown()?)?;
             }
         }
-        EvalCommand::Suite {
-            families,
-            seeds,
-            duration,
-            variants,
-            out,
-            shard,
-            jobs,
-        } => run_eval_suite(
-            &families,
-            &seeds,
-            duration,
-            &variants,
-            out,
-            shard.as_deref(),
-            jobs,
-        )?,
+        EvalCommand::Suite(args) => run_eval_suite(args)?,
         EvalCommand::Kitti {
             training,
             detections,
@@ -140,38 +124,81 @@ pub(super) fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Erro
 }
 
 /// `limot eval suite`: runs the suite, writes OUT/report and prints the ego table.
-pub(super) fn run_eval_suite(
-    families: &str,
-    seeds: &str,
-    duration_s: f64,
-    variants: &str,
-    out: PathBuf,
-    shard: Option<&str>,
-    jobs: Option<usize>,
-) -> Result<(), Box<dyn std::error::Error>> {
-    use crate::experiments::{Shard, SuiteSpec, parse_list, run_suite};
+pub(super) fn run_eval_suite(args: SuiteArgs) -> Result<(), Box<dyn std::error::Error>> {
+    use crate::experiments::{KittiTwins, Shard, SuiteSpec, TWIN_FAMILY};
+    use crate::experiments::{parse_list, parse_sequences, run_suite};
     use limot_estimator::Variant;
+    let families = parse_list("families", &args.families, |s| Ok(s.to_string()))?;
+    let twins_only = families.iter().all(|f| f == TWIN_FAMILY);
+    let twins = match (args.training, args.sequences) {
+        (Some(training), Some(sequences)) => Some(KittiTwins {
+            training,
+            sequences: parse_sequences("sequences", &sequences)?,
+            detections: args.detections,
+        }),
+        (Some(training), None) => {
+            if !training.is_dir() {
+                return Err(format!("--training {}: not a directory", training.display()).into());
+            }
+            Some(KittiTwins::every_sequence(&training, args.detections)?)
+        }
+        (None, Some(_)) => return Err("--sequences needs --training DIR".into()),
+        (None, None) if args.detections.is_some() => {
+            return Err("--detections needs --training DIR and --families kitti".into());
+        }
+        (None, None) => None,
+    };
+    // A twin is as long as its KITTI sequence and one seed of its corridor is
+    // the natural default; generated scenes default to 30 s and two seeds.
+    let seeds = args
+        .seeds
+        .unwrap_or_else(|| if twins_only { "1" } else { "1,2" }.to_string());
+    let duration_s = args.duration.unwrap_or(if twins_only {
+        limot_sim::scenario::MAX_DURATION_S
+    } else {
+        30.0
+    });
     let spec = SuiteSpec {
-        families: parse_list("families", families, |s| Ok(s.to_string()))?,
-        seeds: parse_list("seeds", seeds, |s| {
+        families,
+        seeds: parse_list("seeds", &seeds, |s| {
             s.parse::<u64>().map_err(|e| e.to_string())
         })?,
         duration_s,
-        variants: parse_list("variants", variants, |s| {
+        variants: parse_list("variants", &args.variants, |s| {
             s.parse::<Variant>().map_err(|e| e.to_string())
         })?,
-        out_dir: out,
-        shard: shard.map(Shard::parse).transpose()?,
-        jobs,
+        out_dir: args.out,
+        shard: args.shard.as_deref().map(Shard::parse).transpose()?,
+        jobs: args.jobs,
+        twins,
     };
-    let runs = spec.families.len() * spec.seeds.len() * spec.variants.len();
+    let sequences = spec.sequence_families()?.len() * spec.seeds.len();
+    let runs = sequences * spec.variants.len();
     println!(
-        "limot eval suite: {} sequence(s) x {} variant(s) = {runs} runs of {} s into {}",
-        spec.families.len() * spec.seeds.len(),
+        "limot eval suite: {sequences} sequence(s) x {} variant(s) = {runs} runs of up to {} s into {}",
         spec.variants.len(),
         spec.duration_s,
         spec.out_dir.display()
     );
+    if let Some(twins) = &spec.twins {
+        let missing: Vec<String> = twins
+            .sequences
+            .iter()
+            .filter_map(|&n| twins.missing_files(n))
+            .collect();
+        println!(
+            "KITTI twins of {} sequence(s) in {}, detections: {}",
+            twins.sequences.len(),
+            twins.training.display(),
+            twins.detections.as_ref().map_or_else(
+                || "the simulator's detector model".to_string(),
+                |d| d.display().to_string()
+            )
+        );
+        for why in missing {
+            println!("  not available: {why}");
+        }
+    }
     let results = run_suite(&spec, true)?;
     if let Some(shard) = spec.shard {
         println!(
@@ -220,11 +247,7 @@ pub(super) fn run_eval_kitti(
             s.parse::<Variant>().map_err(|e| e.to_string())
         })?,
         sequences: sequences
-            .map(|s| {
-                parse_list("sequences", &s, |x| {
-                    x.parse::<u32>().map_err(|e| e.to_string())
-                })
-            })
+            .map(|s| crate::experiments::parse_sequences("sequences", &s))
             .transpose()?,
         tracking_peer: tracking_peer
             .map(|p| parse_peer("tracking-peer", &p))

@@ -265,33 +265,10 @@ enum EvalCommand {
         markdown: Option<PathBuf>,
     },
     /// Simulate a scenario suite (families × seeds), run every variant on each
-    /// sequence, score it and write OUT/results.json and OUT/report/README.md.
-    Suite {
-        /// Scenario families: built-in names (highway, urban, highway-dense, urban-parked) or TOML files, comma-separated.
-        #[arg(long, default_value = "highway,highway-dense,urban,urban-parked")]
-        families: String,
-        /// Seeds, comma-separated.
-        #[arg(long, default_value = "1,2")]
-        seeds: String,
-        /// Duration of each sequence, s.
-        #[arg(long, default_value_t = 30.0)]
-        duration: f64,
-        /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
-        #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
-        variants: String,
-        /// Output directory (datasets in OUT/data are reused when their scenario matches).
-        #[arg(long, default_value = "reports/suite")]
-        out: PathBuf,
-        /// Run only shard K of N (sequence i of the family-major list is in
-        /// shard i mod N + 1) into OUT/results-shard-K-of-N.json; join the
-        /// shards with `limot report --merge OUT/results-shard-*.json`.
-        #[arg(long, value_name = "K/N")]
-        shard: Option<String>,
-        /// Sequences run at once (default: one per core). Use 1 for the
-        /// per-stage times of a quiet machine; the scores do not change.
-        #[arg(long, value_name = "N")]
-        jobs: Option<usize>,
-    },
+    /// sequence, score it and write OUT/results.json and OUT/report/README.md;
+    /// `--families kitti --training DIR --sequences 0-20`: the KITTI twins,
+    /// reported beside the paper's Tables I-III.
+    Suite(SuiteArgs),
     /// Real KITTI tracking data: every variant on each sequence with scans, the
     /// tracker alone on each with detections, scored against OXTS and label_02;
     /// writes OUT/results.json and OUT/report/README.md (the paper's Tables I-III).
@@ -328,6 +305,51 @@ enum EvalCommand {
         #[arg(long, default_value = "reports/kitti")]
         out: PathBuf,
     },
+}
+
+/// Options of `limot eval suite`.
+#[derive(clap::Args, Debug)]
+struct SuiteArgs {
+    /// Scenario families: built-in names (highway, urban, highway-dense,
+    /// urban-parked), TOML files, or `kitti` (the digital twins of
+    /// --sequences in --training), comma-separated.
+    #[arg(long, default_value = "highway,highway-dense,urban,urban-parked")]
+    families: String,
+    /// Seeds, comma-separated (default: 1,2; a suite of KITTI twins only: 1).
+    #[arg(long)]
+    seeds: Option<String>,
+    /// Duration of each sequence, s (default: 30; a suite of KITTI twins
+    /// only: the whole sequence). A twin is cut to this.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
+    #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
+    variants: String,
+    /// Output directory (datasets in OUT/data are reused when their scenario matches).
+    #[arg(long, default_value = "reports/suite")]
+    out: PathBuf,
+    /// Run only shard K of N (sequence i of the family-major list is in
+    /// shard i mod N + 1) into OUT/results-shard-K-of-N.json; join the
+    /// shards with `limot report --merge OUT/results-shard-*.json`.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Sequences run at once (default: one per core). Use 1 for the
+    /// per-stage times of a quiet machine; the scores do not change.
+    #[arg(long, value_name = "N")]
+    jobs: Option<usize>,
+    /// With `kitti`: the KITTI tracking `training` dir (oxts/, calib/, label_02/).
+    #[arg(long)]
+    training: Option<PathBuf>,
+    /// With `kitti`: the sequences, numbers and ranges (`0-20`, `0,3,5-7`;
+    /// default: every sequence with OXTS). Those not in --training are
+    /// reported as not available.
+    #[arg(long)]
+    sequences: Option<String>,
+    /// With `kitti`: AB3DMOT-format detections (DIR/SSSS.txt, logit scores,
+    /// e.g. detections/pointrcnn_Car_val) recorded in the twins instead of
+    /// the simulator's detector model.
+    #[arg(long)]
+    detections: Option<PathBuf>,
 }
 
 /// Options of `limot track-kitti`.

@@ -4,8 +4,9 @@
 //! - Scoring result files against ground truth (`limot eval ego|tracks|filtering`,
 //!   a run on a KITTI sequence): [`evaluate_ego`], [`evaluate_tracks`],
 //!   [`evaluate_filtering`], [`score_run`].
-//! - The simulated suite (families × seeds × variants → `results.json`):
-//!   [`run_suite`], [`merge_shards`], [`SuiteResults`].
+//! - The simulated suite (families × seeds × variants → `results.json`),
+//!   with the KITTI twins as the family `kitti`: [`run_suite`],
+//!   [`merge_shards`], [`SuiteResults`], [`KittiTwins`].
 //! - The KITTI suite (variants and the tracker alone on KITTI tracking
 //!   sequences): [`run_kitti_suite`], [`KittiSuiteResults`].
 //! - The tracker alone on KITTI tracking data and its scores:
@@ -43,10 +44,11 @@ pub use score::tracks::{
 pub use score::{EvaluateError, dataset_frame_times, is_limot_dataset};
 pub(crate) use suite::variant_name;
 pub use suite::{
-    EgoMetrics, MOVING_SPEED_MPS, MotMetrics, ObjectMetricsRecord, RESULTS_FILE,
+    EgoMetrics, KittiTwins, MOVING_SPEED_MPS, MotMetrics, ObjectMetricsRecord, RESULTS_FILE,
     RESULTS_FORMAT_VERSION, SequenceResult, Shard, StageSamples, SuiteError, SuiteResults,
-    SuiteSpec, VariantMetrics, VariantResult, error_chain, merge_shards, parse_list, run_suite,
-    sequence_name,
+    SuiteSpec, TWIN_FAMILY, VariantMetrics, VariantResult, error_chain, format_sequences,
+    merge_shards, parse_list, parse_sequences, run_suite, sequence_name, twin_family,
+    twin_sequence,
 };
 pub use track_kitti::{
     BoxSource, OutputPolicy, ResultPolicy, ResultWriter, SequenceResults, SequenceScores,

@@ -4,6 +4,11 @@
 //! `crate::report::suite` renders the tables and plots (also later, without
 //! re-running, via `limot report`).
 //!
+//! The family `kitti` stands for the digital twins of the KITTI tracking
+//! sequences of [`SuiteSpec::twins`] (one family `kitti-SSSS` per sequence,
+//! see [`KittiTwins`]); a sequence whose files are not in the data is kept in the
+//! results as not available.
+//!
 //! Layout of OUT:
 //!
 //! ```text
@@ -36,6 +41,7 @@ use crate::run::{RunOptions, RunOutput, run, write_dataset_kitti_tracks, write_o
 use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate};
 use indicatif::{ProgressBar, ProgressStyle};
 use limot_estimator::Variant;
+use limot_estimator::input::ObjectClass;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::record::Dataset;
 use serde::{Deserialize, Serialize};
@@ -44,11 +50,15 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 mod results;
+mod twins;
 
 pub(crate) use results::variant_name;
 pub use results::{
     EgoMetrics, MotMetrics, ObjectMetricsRecord, SequenceResult, StageSamples, SuiteResults,
     VariantMetrics, VariantResult, merge_shards,
+};
+pub use twins::{
+    KittiTwins, TWIN_FAMILY, format_sequences, parse_sequences, twin_family, twin_sequence,
 };
 
 /// Version of the `results.json` layout; bumped when fields change meaning.
@@ -130,7 +140,8 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuiteSpec {
-    /// Scenario files or built-in names (highway, urban, highway-dense, urban-parked).
+    /// Scenario files or built-in names (highway, urban, highway-dense,
+    /// urban-parked), or [`TWIN_FAMILY`] for the twins of `twins`.
     pub families: Vec<String>,
     /// Seeds, each simulated per family.
     pub seeds: Vec<u64>,
@@ -144,6 +155,8 @@ pub struct SuiteSpec {
     pub shard: Option<Shard>,
     /// Sequences run at once; `None`: one per core.
     pub jobs: Option<usize>,
+    /// The KITTI sequences the `kitti` family stands for (required with it).
+    pub twins: Option<KittiTwins>,
 }
 
 /// Shard `index` (1-based) of `count`: the sequences at positions
@@ -191,12 +204,42 @@ impl Shard {
 }
 
 impl SuiteSpec {
+    /// The families one sequence per seed is simulated of: `families` with
+    /// `kitti` replaced by one twin family per sequence of `twins`.
+    ///
+    /// # Errors
+    ///
+    /// [`SuiteError::Spec`] for `kitti` without `twins` or `twins` without `kitti`.
+    pub fn sequence_families(&self) -> Result<Vec<String>> {
+        let has_twins = self.families.iter().any(|f| f == TWIN_FAMILY);
+        match (&self.twins, has_twins) {
+            (None, true) => Err(SuiteError::Spec(
+                "the kitti family needs a KITTI tracking training dir (--training DIR)".into(),
+            )),
+            (Some(_), false) => Err(SuiteError::Spec(
+                "--training, --sequences and --detections are for the kitti family (--families kitti)"
+                    .into(),
+            )),
+            (twins, _) => Ok(self
+                .families
+                .iter()
+                .flat_map(|f| match twins {
+                    Some(t) if f == TWIN_FAMILY => {
+                        t.sequences.iter().map(|&n| twin_family(n)).collect()
+                    }
+                    _ => vec![f.clone()],
+                })
+                .collect()),
+        }
+    }
+
     /// Non-empty lists without repeats and a positive, finite duration.
     ///
     /// # Errors
     ///
     /// [`SuiteError::Spec`] for an empty or repeated family, seed or variant list, a
-    /// non-positive duration, an invalid shard or zero jobs.
+    /// non-positive duration, an invalid shard or zero jobs, `kitti` without
+    /// twins or twins without `kitti`.
     pub fn validate(&self) -> Result<()> {
         fn no_repeats<T: Ord + std::fmt::Debug>(what: &str, items: &[T]) -> Result<()> {
             if items.is_empty() {
@@ -213,8 +256,10 @@ impl SuiteSpec {
         no_repeats("families", &self.families)?;
         no_repeats("seeds", &self.seeds)?;
         no_repeats("variants", &self.variants)?;
+        let families = self.sequence_families()?;
+        no_repeats("families (with the kitti twins)", &families)?;
         // two scenario files with one stem would share a data directory
-        let names: Vec<String> = self.families.iter().map(|f| sequence_name(f, 0)).collect();
+        let names: Vec<String> = families.iter().map(|f| sequence_name(f, 0)).collect();
         no_repeats("family names (file stems)", &names)?;
         if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
             return Err(SuiteError::Spec(format!(
@@ -323,6 +368,17 @@ const DATASET_CODE: &str = env!("LIMOT_DATASET_CODE");
 /// Where the suite records which code wrote a dataset it simulated.
 const DATASET_CODE_FILE: &str = ".limot-dataset-code";
 
+/// Length of the dataset's true ego path, m.
+fn path_length_m(dataset: &Dataset) -> std::result::Result<f64, Box<dyn std::error::Error>> {
+    let ego = dataset.ego_truth()?;
+    Ok(ego
+        .windows(2)
+        .map(|w| {
+            (w[1].t_world_lidar.translation.vector - w[0].t_world_lidar.translation.vector).norm()
+        })
+        .sum())
+}
+
 /// Ids of the moving ground-truth objects of a dataset.
 fn moving_objects(dataset: &Dataset) -> std::result::Result<Vec<u64>, Box<dyn std::error::Error>> {
     let mut moving = BTreeSet::new();
@@ -363,14 +419,22 @@ fn stage_samples(output: &RunOutput) -> Vec<StageSamples> {
     stages
 }
 
-fn mot_metrics(tracks: &TracksEvaluation) -> Vec<MotMetrics> {
+/// CLEAR-MOT per IoU kind and threshold, of every class (`class` `None`)
+/// or of one class (left out where that class has neither truth nor tracks).
+fn mot_metrics(tracks: &TracksEvaluation, class: Option<ObjectClass>) -> Vec<MotMetrics> {
     tracks
         .scores
         .iter()
-        .map(|s| MotMetrics {
-            iou_kind: iou_kind_name(s.iou_kind).to_string(),
-            iou_threshold: s.iou_threshold,
-            counts: MotSummary::from(&s.all),
+        .filter_map(|s| {
+            let result = match class {
+                None => &s.all,
+                Some(c) => s.per_class.get(&c)?,
+            };
+            Some(MotMetrics {
+                iou_kind: iou_kind_name(s.iou_kind).to_string(),
+                iou_threshold: s.iou_threshold,
+                counts: MotSummary::from(result),
+            })
         })
         .collect()
 }
@@ -450,17 +514,19 @@ fn run_variant(
             rpe_t_m: ego.rpe.as_ref().map(|r| r.trans_rmse_m),
             rpe_r_rad: ego.rpe.as_ref().map(|r| r.rot_rmse_rad),
         },
-        clear_mot: mot_metrics(&tracks),
+        clear_mot: mot_metrics(&tracks, None),
+        clear_mot_car: mot_metrics(&tracks, Some(ObjectClass::Car)),
         objects: object_metrics(&tracks),
         timings: stage_samples(&output),
         filtering,
     })
 }
 
-/// Simulates (or reuses) one sequence and runs every variant on it.
+/// Simulates (or reuses) one sequence and runs every variant on it; a
+/// sequence without a scenario (`Err`: why) is recorded as not available.
 fn run_sequence(
     spec: &SuiteSpec,
-    scenario: &limot_sim::scenario::ScenarioSpec,
+    scenario: std::result::Result<&limot_sim::scenario::ScenarioSpec, &str>,
     family: &str,
     seed: u64,
     bar: &ProgressBar,
@@ -475,9 +541,18 @@ fn run_sequence(
         seed,
         frames: 0,
         dataset_dir: dataset_rel,
+        path_length_m: None,
         moving_objects: Vec::new(),
         error: None,
         variants: Vec::new(),
+    };
+    let scenario = match scenario {
+        Ok(scenario) => scenario,
+        Err(why) => {
+            result.error = Some(why.to_string());
+            bar.inc(spec.variants.len() as u64);
+            return result;
+        }
     };
     bar.set_message(format!("{name}: simulate"));
     // Inner progress bars (serial runs only) draw while the overall bar waits.
@@ -490,13 +565,14 @@ fn run_sequence(
         .and_then(|_| Ok(Dataset::open(&dataset_dir)?))
         .and_then(|d| {
             let moving = moving_objects(&d)?;
-            Ok((d, moving))
+            let path_length_m = path_length_m(&d)?;
+            Ok((d, moving, path_length_m))
         })
-        .and_then(|(d, moving)| {
+        .and_then(|(d, moving, path_length_m)| {
             let source = Source::open(&dataset_dir)?;
-            Ok((d, moving, source))
+            Ok((d, moving, path_length_m, source))
         });
-    let (dataset, moving, source) = match opened {
+    let (dataset, moving, path_length_m, source) = match opened {
         Ok(x) => x,
         Err(e) => {
             result.error = Some(error_chain(e.as_ref()));
@@ -506,6 +582,7 @@ fn run_sequence(
         }
     };
     result.frames = dataset.frame_count();
+    result.path_length_m = Some(path_length_m);
     result.moving_objects = moving;
     for &variant in &spec.variants {
         bar.set_message(format!("{name}: {}", variant.name()));
@@ -551,28 +628,42 @@ fn run_sequence(
 /// [`SuiteError`] when the specification is invalid or the results cannot be written; failures of single sequences or runs are recorded in the results instead.
 pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
     spec.validate()?;
+    let families = spec.sequence_families()?;
+    if let Some(twins) = &spec.twins {
+        twins.check()?;
+    }
     // Resolve every scenario first: a typo fails before hours of simulation.
+    // A twin whose files are missing has the reason instead.
     let mut scenarios = BTreeMap::new();
-    for family in &spec.families {
+    for family in &families {
         for &seed in &spec.seeds {
             let wrap = |source| SuiteError::Scenario {
                 family: family.clone(),
                 source: Box::new(source),
             };
-            let mut scenario = resolve_scenario(family).map_err(wrap)?;
+            let twin = twin_sequence(family).zip(spec.twins.as_ref());
+            let mut scenario = match twin {
+                Some((n, twins)) => match twins.missing_files(n) {
+                    Some(why) => {
+                        scenarios.insert((family.clone(), seed), Err(why));
+                        continue;
+                    }
+                    None => twins.scenario(n)?,
+                },
+                None => resolve_scenario(family).map_err(wrap)?,
+            };
             Overrides {
                 seed: Some(seed),
                 duration_s: Some(spec.duration_s),
             }
             .apply(&mut scenario)
             .map_err(wrap)?;
-            scenarios.insert((family.clone(), seed), scenario);
+            scenarios.insert((family.clone(), seed), Ok(scenario));
         }
     }
     fs::create_dir_all(&spec.out_dir).map_err(io_err(&spec.out_dir))?;
     // families in the given order, then seeds in the given order
-    let mine: Vec<(&String, u64)> = spec
-        .families
+    let mine: Vec<(&String, u64)> = families
         .iter()
         .flat_map(|family| spec.seeds.iter().map(move |&seed| (family, seed)))
         .enumerate()
@@ -600,7 +691,9 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
         use rayon::prelude::*;
         mine.par_iter()
             .map(|(family, seed)| {
-                let scenario = &scenarios[&((*family).clone(), *seed)];
+                let scenario = scenarios[&((*family).clone(), *seed)]
+                    .as_ref()
+                    .map_err(String::as_str);
                 run_sequence(spec, scenario, family, *seed, &bar, inner_progress)
             })
             .collect()
@@ -608,7 +701,8 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
     bar.finish_and_clear();
     let results = SuiteResults {
         format_version: RESULTS_FORMAT_VERSION,
-        families: spec.families.clone(),
+        families,
+        twins: spec.twins.clone(),
         seeds: spec.seeds.clone(),
         duration_s: spec.duration_s,
         variants: spec.variants.clone(),
@@ -632,6 +726,7 @@ mod tests {
             out_dir: PathBuf::from("unused"),
             shard: None,
             jobs: None,
+            twins: None,
         }
     }
 

@@ -1,7 +1,7 @@
 //! Evaluation metrics: ego trajectory (ATE, RPE, alignment), 3D boxes (IoU),
 //! multi-object tracking (CLEAR-MOT, the KITTI 2D/3D benchmarks, AB3DMOT's
 //! sAMOTA, per-object TP % and ATE), dynamic-point filtering (precision/recall),
-//! realism statistics of LiDAR sequences and timing.
+//! realism statistics of LiDAR sequences, agreement of rankings and timing.
 //!
 //! The metric functions take plain inputs (timestamped poses, oriented boxes,
 //! masks) so the KITTI reader and the simulator feed them alike. Conventions
@@ -11,7 +11,7 @@
 //! Entry points: [`ate`] / [`ate_with`], [`rpe`], [`iou_3d`] / [`iou_bev`] /
 //! [`iou_image`], [`clear_mot`], [`kitti_2d_clear_mot`] / [`kitti_3d_clear_mot`],
 //! [`ab3dmot_evaluate`] (sAMOTA), [`object_scores`], [`filter_precision_recall`],
-//! [`RealismAccumulator`] and [`TimingAccumulator`].
+//! [`RealismAccumulator`], [`kendall_tau_b`] and [`TimingAccumulator`].
 mod align;
 mod assignment;
 mod ate;
@@ -21,6 +21,7 @@ mod interpolate;
 mod iou;
 mod kitti_mot;
 mod objects;
+mod ranking;
 mod realism;
 mod rpe;
 mod samota;
@@ -42,6 +43,7 @@ pub use kitti_mot::{
     kitti_2d_clear_mot, kitti_2d_frames, kitti_3d_clear_mot,
 };
 pub use objects::{ObjectScore, object_scores};
+pub use ranking::{best_items, kendall_tau_b};
 pub use realism::{
     GroundPlane, Histogram, RealismAccumulator, RealismConfig, RealismStats, Spread,
     StatComparison, compare_realism, fit_ground_plane, roll_pitch_rad, surface_normals,

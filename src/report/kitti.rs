@@ -1,7 +1,8 @@
 //! The report of `limot eval kitti`: our figures on real KITTI tracking data
 //! in the shapes of the paper's Tables I-III, with the paper's published rows
 //! for the same sequences beside them (values copied from the paper, cited
-//! per table; rows of methods we do not run are marked as such).
+//! per table; rows of methods we do not run are marked as such); and the
+//! same shapes for the KITTI twins of a suite ([`twins_section`]).
 
 use crate::experiments::{EgoScores, ObjectSummary, TrackScores};
 use crate::experiments::{KittiSequenceResult, KittiSuiteResults, TRACKER_ALONE};
@@ -13,6 +14,9 @@ use limot_estimator::Variant;
 use std::path::{Path, PathBuf};
 
 mod paper;
+mod twins;
+
+pub use twins::{DIVERGED_ATE_PER_PATH, STATIC_EGO_PATH_M, twins_section};
 
 use paper::{
     PAPER_EGO_METHODS, PAPER_OBJECT_METHODS, PAPER_TABLE_I, PAPER_TABLE_II, PAPER_TABLE_III,

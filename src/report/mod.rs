@@ -10,8 +10,9 @@ mod suite;
 mod table;
 
 pub use kitti::{
-    ab3dmot_table, ego_table as kitti_ego_table, kitti_report, object_table as kitti_object_table,
-    tracking_table as kitti_tracking_table, write_kitti_report,
+    DIVERGED_ATE_PER_PATH, STATIC_EGO_PATH_M, ab3dmot_table, ego_table as kitti_ego_table,
+    kitti_report, object_table as kitti_object_table, tracking_table as kitti_tracking_table,
+    twins_section, write_kitti_report,
 };
 pub use plot::{
     LineKind, Series2D, Style, plot_error_over_time, plot_object_tracks, plot_speed,

@@ -67,16 +67,20 @@ fn variants_with_metrics(results: &SuiteResults) -> Vec<Variant> {
         .collect()
 }
 
+/// The sequences that were simulated: one that was not has no figures for
+/// any variant (it is listed under Failures), so it would only blank the means.
+fn simulated(results: &SuiteResults) -> impl Iterator<Item = &SequenceResult> {
+    results.sequences.iter().filter(|s| s.error.is_none())
+}
+
 /// Paper Table "tab_ego_track": Seq | per variant ATE_T \[m\], ATE_R \[rad\];
-/// best per row in bold; a mean row.
+/// best per row in bold; a mean row; simulated sequences only.
 ///
 /// # Errors
 ///
 /// [`SuiteError::Report`] when the table cannot be built.
 pub fn ego_table(results: &SuiteResults) -> Result<Table> {
-    let rows: Vec<EgoAteRow> = results
-        .sequences
-        .iter()
+    let rows: Vec<EgoAteRow> = simulated(results)
         .map(|s| EgoAteRow {
             sequence: s.name.clone(),
             per_variant: s
@@ -150,7 +154,7 @@ fn mean_of_all(values: &[Option<f64>]) -> Option<f64> {
 }
 
 /// Paper Table "tab_ab3dmot_compare": Method | MOTP [%] at 3D IoU 0.25 and
-/// 0.5, mean over the sequences; the best in bold.
+/// 0.5, mean over the simulated sequences; the best in bold.
 ///
 /// # Errors
 ///
@@ -164,9 +168,7 @@ pub fn motp_table(results: &SuiteResults) -> Result<Table> {
     table.set_decimals(2, 2);
     for v in variants_with_metrics(results) {
         let motp = |threshold: f64| {
-            let per_seq: Vec<Option<f64>> = results
-                .sequences
-                .iter()
+            let per_seq: Vec<Option<f64>> = simulated(results)
                 .map(|s| {
                     s.metrics(v)
                         .and_then(|m| m.mot("3D", threshold))
@@ -435,14 +437,26 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
     let variant_names: Vec<&str> = results.variants.iter().map(|v| v.name()).collect();
     let seeds: Vec<String> = results.seeds.iter().map(u64::to_string).collect();
     let failed = failures(results);
+    let families = results.given_families();
+    let twin_options = results.twins.as_ref().map_or_else(String::new, |t| {
+        let mut options = format!(
+            " --training {} --sequences {}",
+            t.training.display(),
+            crate::experiments::format_sequences(&t.sequences)
+        );
+        if let Some(d) = &t.detections {
+            let _ = write!(options, " --detections {}", d.display());
+        }
+        options
+    });
     let mut overview = format!(
-        "Families {}, seeds {}, {} s each; variants {}. Regenerate with \
-         `limot eval suite --families {} --seeds {} --duration {} --variants {}`.",
-        results.families.join(", "),
+        "Families {}, seeds {}, {} s each at most; variants {}. Regenerate with \
+         `limot eval suite --families {}{twin_options} --seeds {} --duration {} --variants {}`.",
+        families.join(", "),
         seeds.join(", "),
         results.duration_s,
         variant_names.join(", "),
-        results.families.join(","),
+        families.join(","),
         seeds.join(","),
         results.duration_s,
         variant_names.join(","),
@@ -454,13 +468,14 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
             failed.len()
         );
     }
-    let mut sections = vec![
-        Section {
-            heading: "Suite".into(),
-            text: overview,
-            tables: vec![runs_table(results)?],
-            plots: Vec::new(),
-        },
+    let mut sections = vec![Section {
+        heading: "Suite".into(),
+        text: overview,
+        tables: vec![runs_table(results)?],
+        plots: Vec::new(),
+    }];
+    sections.extend(crate::report::twins_section(results)?);
+    sections.extend([
         Section {
             heading: "Ego-pose accuracy".into(),
             text: "RMSE of the absolute trajectory error after SE(3) alignment of the \
@@ -505,7 +520,7 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
             tables: vec![filtering_table(results)?],
             plots: Vec::new(),
         },
-    ];
+    ]);
     let mut timing = Vec::new();
     for &v in &results.variants {
         if let Some(t) = timing_table_of(results, v)? {

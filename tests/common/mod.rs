@@ -73,3 +73,21 @@ pub fn ate(dataset: &std::path::Path, output: &limot::run::RunOutput) -> (f64, f
     let eval = evaluate_trajectories(&truth, &estimate, &opts).unwrap();
     (eval.ate.ate_t_rmse_m, eval.ate.ate_r_rmse_rad)
 }
+
+/// The figures of a suite without its wall-clock measurements (which differ
+/// from run to run).
+#[allow(dead_code)] // only the suite tests compare whole suites
+pub fn without_timings(
+    mut results: limot::experiments::SuiteResults,
+) -> limot::experiments::SuiteResults {
+    for s in &mut results.sequences {
+        for v in &mut s.variants {
+            if let Some(m) = &mut v.metrics {
+                m.wall_time_s = 0.0;
+                m.fps = 0.0;
+                m.timings.clear();
+            }
+        }
+    }
+    results
+}

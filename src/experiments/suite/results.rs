@@ -1,7 +1,9 @@
 //! What a suite run saves: the figures of every sequence and variant
 //! (`results.json`, [`SuiteResults`]), and the join of a sharded run's files.
 
-use super::{RESULTS_FILE, RESULTS_FORMAT_VERSION, Result, Shard, SuiteError, sequence_name};
+use super::{
+    KittiTwins, RESULTS_FILE, RESULTS_FORMAT_VERSION, Result, Shard, SuiteError, sequence_name,
+};
 use crate::experiments::FilterEvaluation;
 use crate::metrics::{MotSummary, TimingAccumulator};
 use limot_estimator::Variant;
@@ -120,6 +122,10 @@ pub struct VariantMetrics {
     pub ego: EgoMetrics,
     /// Class-agnostic CLEAR-MOT per IoU kind and threshold.
     pub clear_mot: Vec<MotMetrics>,
+    /// CLEAR-MOT of class Car alone (the class of KITTI's car benchmark),
+    /// per IoU kind and threshold (absent from results written before it was measured).
+    #[serde(default)]
+    pub clear_mot_car: Vec<MotMetrics>,
     /// Per-object TP % and ATE.
     pub objects: Vec<ObjectMetricsRecord>,
     /// Pipeline stages in order, then "total".
@@ -134,6 +140,13 @@ impl VariantMetrics {
     /// CLEAR-MOT at `kind` ("3D"/"BEV") and `threshold`.
     pub fn mot(&self, kind: &str, threshold: f64) -> Option<&MotMetrics> {
         self.clear_mot
+            .iter()
+            .find(|m| m.iou_kind == kind && m.iou_threshold == threshold)
+    }
+
+    /// CLEAR-MOT of class Car at `kind` ("3D"/"BEV") and `threshold`.
+    pub fn car_mot(&self, kind: &str, threshold: f64) -> Option<&MotMetrics> {
+        self.clear_mot_car
             .iter()
             .find(|m| m.iou_kind == kind && m.iou_threshold == threshold)
     }
@@ -177,6 +190,10 @@ pub struct SequenceResult {
     pub frames: usize,
     /// Dataset directory, relative to the suite directory.
     pub dataset_dir: PathBuf,
+    /// Length of the true ego path, m (absent when the dataset could not be
+    /// read, and from results written before it was measured).
+    #[serde(default)]
+    pub path_length_m: Option<f64>,
     /// Ground-truth ids of the moving objects (see [`MOVING_SPEED_MPS`](crate::experiments::MOVING_SPEED_MPS)).
     pub moving_objects: Vec<u64>,
     /// Set when the sequence could not be simulated or read.
@@ -202,8 +219,11 @@ impl SequenceResult {
 pub struct SuiteResults {
     /// Version of this layout ([`RESULTS_FORMAT_VERSION`]).
     pub format_version: u32,
-    /// Scenario families.
+    /// Scenario families, the `kitti` family as its twin families (`kitti-SSSS`).
     pub families: Vec<String>,
+    /// Where the twins of the `kitti` family came from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub twins: Option<KittiTwins>,
     /// Seeds.
     pub seeds: Vec<u64>,
     /// Duration of each sequence, s.
@@ -219,6 +239,21 @@ pub struct SuiteResults {
 }
 
 impl SuiteResults {
+    /// The families as given to the suite: the twin families as one `kitti`.
+    pub fn given_families(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for family in &self.families {
+            let given = match (&self.twins, super::twin_sequence(family)) {
+                (Some(_), Some(_)) => super::TWIN_FAMILY.to_string(),
+                _ => family.clone(),
+            };
+            if !out.contains(&given) {
+                out.push(given);
+            }
+        }
+        out
+    }
+
     /// Writes `dir/results.json` (a shard's: `dir/results-shard-K-of-N.json`).
     ///
     /// # Errors
@@ -318,16 +353,17 @@ pub fn merge_shards(files: &[PathBuf]) -> Result<(SuiteResults, PathBuf)> {
                 shard.index
             )));
         }
-        if (&r.families, &r.seeds, r.duration_s, &r.variants)
+        if (&r.families, &r.twins, &r.seeds, r.duration_s, &r.variants)
             != (
                 &first.families,
+                &first.twins,
                 &first.seeds,
                 first.duration_s,
                 &first.variants,
             )
         {
             return Err(spec_err(format!(
-                "{}: families, seeds, duration or variants differ from {}",
+                "{}: families, twins, seeds, duration or variants differ from {}",
                 file.display(),
                 first_file.display()
             )));

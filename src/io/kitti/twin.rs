@@ -176,6 +176,12 @@ pub fn world_lidar_poses(records: &[OxtsRecord], calib: &Calib) -> Vec<Isometry3
         .collect()
 }
 
+/// The agent (and ground-truth) id of KITTI track `kitti_track_id` in its
+/// twin (its first class; see the module docs for reused ids).
+pub fn twin_agent_id(kitti_track_id: i64) -> u32 {
+    u32::try_from(kitti_track_id + 1).unwrap_or(u32::MAX)
+}
+
 /// The labelled tracks of the replayed frames (see the module docs).
 fn tracks(
     labels: &[TrackingLabel],
@@ -235,7 +241,7 @@ fn tracks(
     let mut out = Vec::new();
     for ((kitti_id, _), (class, boxes)) in groups {
         let id = if seen.insert(kitti_id) {
-            u32::try_from(kitti_id + 1).unwrap_or(u32::MAX)
+            twin_agent_id(kitti_id)
         } else {
             notes.reused_ids += 1;
             next_spare = next_spare.saturating_add(1);

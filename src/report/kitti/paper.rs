@@ -328,3 +328,23 @@ pub(super) const PAPER_TABLE_III: [PaperObjectRow; 10] = [
 
 /// Table III's methods; the last is ours.
 pub(super) const PAPER_OBJECT_METHODS: [&str; 3] = ["DL-SLOT", "LIO-SEGMOT", "LIMOT"];
+
+/// The paper's Table I figures (ATE_T m, ATE_R rad) of `variant`'s
+/// counterpart on `sequence`, when the table has that sequence.
+pub(super) fn paper_ego(sequence: u32, variant: Variant) -> Option<(f64, f64)> {
+    let column = PAPER_EGO_METHODS
+        .iter()
+        .position(|(_, v)| *v == Some(variant))?;
+    PAPER_TABLE_I
+        .iter()
+        .find(|(s, _)| *s == sequence)
+        .map(|(_, row)| row[column])
+}
+
+/// The paper's name of `variant`'s counterpart in Table I.
+pub(super) fn paper_name(variant: Variant) -> &'static str {
+    PAPER_EGO_METHODS
+        .iter()
+        .find(|(_, v)| *v == Some(variant))
+        .map_or("?", |(name, _)| name)
+}

@@ -53,6 +53,7 @@ fn metrics(ate_t_m: f64, motp: f64, total_ms: &[f64]) -> VariantMetrics {
                 })
             })
             .collect(),
+        clear_mot_car: Vec::new(),
         objects: vec![
             object(1, 30, 50.0, Some(0.3)),
             object(2, 40, 0.0, None),
@@ -98,6 +99,7 @@ fn sequence(name: &str, variants: Vec<VariantResult>) -> SequenceResult {
         seed: 1,
         frames: 40,
         dataset_dir: PathBuf::from("data").join(name),
+        path_length_m: Some(50.0),
         moving_objects: vec![1, 2, 3],
         error: None,
         variants,
@@ -108,6 +110,7 @@ fn results() -> SuiteResults {
     SuiteResults {
         format_version: RESULTS_FORMAT_VERSION,
         families: vec!["urban".into()],
+        twins: None,
         seeds: vec![1, 2],
         duration_s: 4.0,
         variants: vec![Variant::Lio, Variant::Dynafilt, Variant::Limot],
