@@ -116,8 +116,8 @@ enum Command {
         /// A limot dataset, a KITTI raw drive dir (velodyne_points/, oxts/), a dir of KITTI
         /// .bin scans, or a ROS 2 bag file (.mcap) with --lidar-topic and --imu-topic.
         dataset: PathBuf,
-        /// Output directory (default: DATASET/<variant>; for a bag, BAG without
-        /// its extension/<variant>).
+        /// Output directory (default: DATASET/<variant>; for a bag FILE.mcap,
+        /// FILE-<variant> beside it).
         #[arg(long)]
         out: Option<PathBuf>,
         /// The bag's sensor_msgs/PointCloud2 topic.

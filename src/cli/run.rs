@@ -53,7 +53,10 @@ pub(super) fn run_estimator(
         .ok_or_else(|| format!("unknown variant `{variant}` (lio, allfilt, dynafilt, limot)"))?;
     let is_bag = dataset.is_file();
     let out = out.unwrap_or_else(|| match is_bag {
-        true => dataset.with_extension("").join(variant.name()),
+        true => {
+            let stem = dataset.file_stem().unwrap_or_default().to_string_lossy();
+            dataset.with_file_name(format!("{stem}-{}", variant.name()))
+        }
         false => dataset.join(variant.name()),
     });
     if bag.any() && !is_bag {
@@ -67,8 +70,9 @@ pub(super) fn run_estimator(
         _ if is_bag => {
             let (Some(lidar_topic), Some(imu_topic)) = (bag.lidar, bag.imu) else {
                 return Err(format!(
-                    "{}: a ROS 2 bag needs --lidar-topic TOPIC and --imu-topic TOPIC",
-                    dataset.display()
+                    "{}: a ROS 2 bag needs --lidar-topic TOPIC and --imu-topic TOPIC; its topics: {}",
+                    dataset.display(),
+                    crate::io::rosbag::topic_listing(dataset)?
                 )
                 .into());
             };

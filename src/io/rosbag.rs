@@ -20,7 +20,7 @@ pub mod msgs;
 pub mod pointcloud2;
 mod writer;
 
-pub use bag::{BagOptions, RosBag, TOPIC_TF_STATIC};
+pub use bag::{BagOptions, RosBag, TOPIC_TF_STATIC, topic_listing};
 pub use error::BagError;
 pub use extrinsic::read_extrinsic_file;
 pub use writer::{TOPIC_DETECTIONS, TOPIC_IMU, TOPIC_POINTS, write_bag};

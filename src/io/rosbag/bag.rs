@@ -177,6 +177,34 @@ fn check_stamp_order(
     }
 }
 
+/// `topic (schema), ...` for every topic, or `none`.
+fn listing(topics: &BTreeMap<String, String>) -> String {
+    let list: Vec<String> = topics.iter().map(|(t, s)| format!("{t} ({s})")).collect();
+    if list.is_empty() {
+        "none".to_string()
+    } else {
+        list.join(", ")
+    }
+}
+
+/// The topics with messages in the bag `path` and their schemas, as
+/// `topic (schema), ...` (sorted by topic), or `none`.
+///
+/// # Errors
+/// An unreadable or malformed file.
+pub fn topic_listing(path: &Path) -> Result<String, BagError> {
+    let mut topics = BTreeMap::new();
+    for message in messages(path)? {
+        let message = message.map_err(|e| mcap_error(path, e))?;
+        let channel = &message.channel;
+        if !topics.contains_key(&channel.topic) {
+            let schema = channel.schema.as_ref().map_or("no schema", |s| &s.name);
+            topics.insert(channel.topic.clone(), schema.to_string());
+        }
+    }
+    Ok(listing(&topics))
+}
+
 impl RosBag {
     /// Opens the bag `path` with the topics of `options` (see the module docs).
     ///
@@ -292,14 +320,7 @@ impl RosBag {
             }
         }
 
-        let listing = || {
-            let list: Vec<String> = topics.iter().map(|(t, s)| format!("{t} ({s})")).collect();
-            if list.is_empty() {
-                "none".to_string()
-            } else {
-                list.join(", ")
-            }
-        };
+        let listing = || listing(&topics);
         let mut required = vec![("LiDAR", &options.lidar_topic), ("IMU", &options.imu_topic)];
         if let Some(topic) = &options.detections_topic {
             required.push(("detections", topic));
