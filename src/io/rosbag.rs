@@ -9,7 +9,8 @@
 //! - [`write_bag`]: a source's raw streams as such a bag (`limot simulate
 //!   --bag FILE`), which [`RosBag`] reads back to the same frames.
 //!
-//! Messages are CDR with `ros2msg` schemas ([`msgs`]); errors
+//! Messages are CDR with `ros2msg` schemas ([`msgs`]), in chunks that are
+//! uncompressed or zstd-compressed (rosbag2's default); errors
 //! ([`BagError`]) name the bag, topic, message index and field.
 mod bag;
 mod detections;
@@ -19,6 +20,7 @@ mod imu;
 pub mod msgs;
 pub mod pointcloud2;
 mod writer;
+mod zstd;
 
 pub use bag::{BagOptions, RosBag, TOPIC_TF_STATIC, topic_listing};
 pub use error::BagError;

@@ -17,6 +17,7 @@ use super::msgs::{
     PointCloud2, TF_MESSAGE, TfMessage, ns_to_s,
 };
 use super::pointcloud2::{Sweep, read_sweep};
+use super::zstd::ZstdChunks;
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample, LidarScan};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -90,14 +91,18 @@ fn messages(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, Bag
         path: path.to_path_buf(),
         source,
     })?;
-    Ok(mcap::io::MessageReader::new(BufReader::new(file)))
+    let mut reader = mcap::io::MessageReader::new(BufReader::new(file));
+    reader
+        .add_decompressor(ZstdChunks::default())
+        .map_err(|e| mcap_error(path, e))?;
+    Ok(reader)
 }
 
 fn mcap_error(path: &Path, e: mcap::McapError) -> BagError {
     let message = match e {
         mcap::McapError::UnsupportedCompression(c) => format!(
             "its chunks are compressed with `{c}`, which this build does not read; \
-             write the bag uncompressed (e.g. `mcap compress --compression none`)"
+             write it uncompressed or with zstd (e.g. `mcap compress --compression zstd`)"
         ),
         e => e.to_string(),
     };
