@@ -189,7 +189,8 @@ impl TimeField {
 /// Reads `cloud` as a sweep.
 ///
 /// Points: `x`, `y`, `z` (any numeric type), `intensity` (0 when absent),
-/// `ring` and the first time field of [`TIME_FIELDS`]; points with a
+/// `ring` (or Livox's `line`) and the first time field of [`TIME_FIELDS`];
+/// points with a
 /// non-finite coordinate or at the origin (no return) are dropped. Times
 /// are relative to `header.stamp` or absolute by the field's name, in
 /// nanoseconds for integer fields and in seconds for float fields (in
@@ -217,7 +218,10 @@ pub fn read_sweep(cloud: &PointCloud2) -> Result<Sweep, CloudError> {
     };
     let [x, y, z] = [need("x")?, need("y")?, need("z")?];
     let intensity = find(cloud, "intensity")?;
-    let ring = find(cloud, "ring")?;
+    let ring = match find(cloud, "ring")? {
+        Some(field) => Some(("ring", field)),
+        None => find(cloud, "line")?.map(|field| ("line", field)),
+    };
     let mut time = None;
     for (name, reference) in TIME_FIELDS {
         if let Some(field) = find(cloud, name)? {
@@ -296,11 +300,11 @@ pub fn read_sweep(cloud: &PointCloud2) -> Result<Sweep, CloudError> {
                 ));
             }
             let ring = match ring {
-                Some(f) => {
+                Some((name, f)) => {
                     let r = f.read(point, big_endian);
                     if !(0.0..=f64::from(u16::MAX)).contains(&r) || r.fract() != 0.0 {
                         return Err(error(
-                            "ring",
+                            name,
                             format!("point {}: {r} is no ring number", row * width + column),
                         ));
                     }
