@@ -60,6 +60,19 @@ pub(super) fn run_estimator(
         false => dataset.join(variant.name()),
     });
     if bag.any() && !is_bag {
+        let mcap_inside = std::fs::read_dir(dataset)
+            .into_iter()
+            .flatten()
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .find(|p| p.extension().is_some_and(|x| x == "mcap"));
+        if let Some(file) = mcap_inside {
+            return Err(format!(
+                "{} is a rosbag2 directory: give one of its MCAP files, e.g. {}",
+                dataset.display(),
+                file.display()
+            )
+            .into());
+        }
         return Err(format!(
             "--lidar-topic, --imu-topic, --detections-topic and --extrinsic are for a ROS 2 bag file, and {} is none",
             dataset.display()

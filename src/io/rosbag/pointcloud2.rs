@@ -302,7 +302,7 @@ pub fn read_sweep(cloud: &PointCloud2) -> Result<Sweep, CloudError> {
             let ring = match ring {
                 Some((name, f)) => {
                     let r = f.read(point, big_endian);
-                    if !(0.0..=f64::from(u16::MAX)).contains(&r) || r.fract() != 0.0 {
+                    if !(0.0..f64::from(u16::MAX)).contains(&r) || r.fract() != 0.0 {
                         return Err(error(
                             name,
                             format!("point {}: {r} is no ring number", row * width + column),
