@@ -304,3 +304,22 @@ pub fn record_dataset_mcap(
         },
     )
 }
+
+/// Writes the dataset in `dataset_dir` as the ROS 2 bag `path`: its raw
+/// sweeps, IMU samples, extrinsic and detections
+/// ([`crate::io::rosbag::write_bag`]), which `limot run` reads back to the
+/// same frames.
+///
+/// # Errors
+/// A dataset that cannot be read or a file that cannot be written (named).
+pub fn write_dataset_bag(
+    dataset_dir: &Path,
+    path: &Path,
+) -> Result<crate::io::mcap::McapStats, crate::io::mcap::McapError> {
+    let source =
+        crate::io::Source::open(dataset_dir).map_err(|e| crate::io::mcap::McapError::Input {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+    crate::io::rosbag::write_bag(path, &source)
+}

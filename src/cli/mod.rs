@@ -77,6 +77,11 @@ enum Command {
         /// Also record the dataset for Foxglove as this MCAP file (cloud, truth, detections).
         #[arg(long, value_name = "FILE")]
         mcap: Option<PathBuf>,
+        /// Also write the raw sensor streams as this ROS 2 bag (MCAP: /points_raw,
+        /// /imu, /tf_static, /detections3d), which `limot run FILE --lidar-topic
+        /// /points_raw --imu-topic /imu` reads.
+        #[arg(long, value_name = "FILE")]
+        bag: Option<PathBuf>,
         /// Cloud points per sweep in the MCAP recording: at most N (every
         /// k-th point, the filter's removed points besides) or `all`. The
         /// default keeps a 64-beam sweep's shape at a fifth of its size.
@@ -108,11 +113,26 @@ enum Command {
     },
     /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
     Run {
-        /// A limot dataset, a KITTI raw drive dir (velodyne_points/, oxts/) or a dir of KITTI .bin scans.
+        /// A limot dataset, a KITTI raw drive dir (velodyne_points/, oxts/), a dir of KITTI
+        /// .bin scans, or a ROS 2 bag file (.mcap) with --lidar-topic and --imu-topic.
         dataset: PathBuf,
-        /// Output directory (default: DATASET/<variant>).
+        /// Output directory (default: DATASET/<variant>; for a bag FILE.mcap,
+        /// FILE-<variant> beside it).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// The bag's sensor_msgs/PointCloud2 topic.
+        #[arg(long, value_name = "TOPIC")]
+        lidar_topic: Option<String>,
+        /// The bag's sensor_msgs/Imu topic.
+        #[arg(long, value_name = "TOPIC")]
+        imu_topic: Option<String>,
+        /// The bag's vision_msgs/Detection3DArray topic (boxes in the LiDAR frame).
+        #[arg(long, value_name = "TOPIC")]
+        detections_topic: Option<String>,
+        /// The bag's LiDAR-IMU extrinsic: TOML `t_lidar_imu = [x, y, z, qx, qy, qz, qw]`
+        /// (default: from /tf_static).
+        #[arg(long, value_name = "FILE")]
+        extrinsic: Option<PathBuf>,
         /// System variant: lio, allfilt, dynafilt or limot.
         #[arg(long, default_value = "lio")]
         variant: String,
@@ -461,6 +481,7 @@ impl Cli {
                 force,
                 mcap,
                 mcap_points,
+                bag,
             } => simulate::run_simulate(
                 &scenario,
                 simulate::TwinArgs {
@@ -481,6 +502,7 @@ impl Cli {
                     kitti: !no_kitti,
                     force,
                     mcap: mcap.map(|path| mcap_points.request(path)).as_ref(),
+                    bag: bag.as_deref(),
                 },
             ),
             Command::Demo {
@@ -498,6 +520,10 @@ impl Cli {
             Command::Run {
                 dataset,
                 out,
+                lidar_topic,
+                imu_topic,
+                detections_topic,
+                extrinsic,
                 variant,
                 lidar_only,
                 first_frame,
@@ -519,6 +545,12 @@ impl Cli {
                     sequence,
                     detections,
                     score_map,
+                },
+                run::BagTopics {
+                    lidar: lidar_topic,
+                    imu: imu_topic,
+                    detections: detections_topic,
+                    extrinsic,
                 },
                 &tracker,
                 mcap.map(|path| mcap_points.request(path)).as_ref(),

@@ -13,6 +13,24 @@ pub(super) struct KittiTracking {
     pub(super) score_map: String,
 }
 
+/// `limot run BAG --lidar-topic T --imu-topic T [--detections-topic T]
+/// [--extrinsic F]`: a ROS 2 bag.
+pub(super) struct BagTopics {
+    pub(super) lidar: Option<String>,
+    pub(super) imu: Option<String>,
+    pub(super) detections: Option<String>,
+    pub(super) extrinsic: Option<PathBuf>,
+}
+
+impl BagTopics {
+    fn any(&self) -> bool {
+        self.lidar.is_some()
+            || self.imu.is_some()
+            || self.detections.is_some()
+            || self.extrinsic.is_some()
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run_estimator(
     dataset: &std::path::Path,
@@ -22,6 +40,7 @@ pub(super) fn run_estimator(
     first_frame: usize,
     max_frames: Option<usize>,
     kitti_tracking: KittiTracking,
+    bag: BagTopics,
     tracker: &str,
     mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<(), Box<dyn std::error::Error>> {
@@ -32,8 +51,54 @@ pub(super) fn run_estimator(
         .into_iter()
         .find(|v| v.name() == variant)
         .ok_or_else(|| format!("unknown variant `{variant}` (lio, allfilt, dynafilt, limot)"))?;
-    let out = out.unwrap_or_else(|| dataset.join(variant.name()));
+    let is_bag = dataset.is_file();
+    let out = out.unwrap_or_else(|| match is_bag {
+        true => {
+            let stem = dataset.file_stem().unwrap_or_default().to_string_lossy();
+            dataset.with_file_name(format!("{stem}-{}", variant.name()))
+        }
+        false => dataset.join(variant.name()),
+    });
+    if bag.any() && !is_bag {
+        let mcap_inside = std::fs::read_dir(dataset)
+            .into_iter()
+            .flatten()
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .find(|p| p.extension().is_some_and(|x| x == "mcap"));
+        if let Some(file) = mcap_inside {
+            return Err(format!(
+                "{} is a rosbag2 directory: give one of its MCAP files, e.g. {}",
+                dataset.display(),
+                file.display()
+            )
+            .into());
+        }
+        return Err(format!(
+            "--lidar-topic, --imu-topic, --detections-topic and --extrinsic are for a ROS 2 bag file, and {} is none",
+            dataset.display()
+        )
+        .into());
+    }
     let source = match (kitti_tracking.sequence, &kitti_tracking.detections) {
+        _ if is_bag => {
+            let (Some(lidar_topic), Some(imu_topic)) = (bag.lidar, bag.imu) else {
+                return Err(format!(
+                    "{}: a ROS 2 bag needs --lidar-topic TOPIC and --imu-topic TOPIC; its topics: {}",
+                    dataset.display(),
+                    crate::io::rosbag::topic_listing(dataset)?
+                )
+                .into());
+            };
+            Source::open_bag(
+                dataset,
+                &crate::io::rosbag::BagOptions {
+                    lidar_topic,
+                    imu_topic,
+                    detections_topic: bag.detections,
+                    extrinsic: bag.extrinsic,
+                },
+            )?
+        }
         (Some(sequence), detections) => Source::open_kitti_tracking(
             dataset,
             sequence,

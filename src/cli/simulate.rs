@@ -23,6 +23,8 @@ pub(super) struct SimulateOutputs<'a> {
     pub force: bool,
     /// Also record the dataset as this MCAP recording.
     pub mcap: Option<&'a crate::io::mcap::McapRequest>,
+    /// Also write the raw streams as this ROS 2 bag.
+    pub bag: Option<&'a std::path::Path>,
 }
 
 pub(super) fn run_simulate(
@@ -37,6 +39,7 @@ pub(super) fn run_simulate(
         kitti,
         force,
         mcap,
+        bag,
     } = outputs;
     let mut spec = if scenario == "kitti" && !std::path::Path::new(scenario).exists() {
         let (Some(training), Some(sequence)) = (twin.training, twin.sequence) else {
@@ -99,6 +102,19 @@ pub(super) fn run_simulate(
     if let Some(request) = mcap {
         let stats = crate::simulate::record_dataset_mcap(&s.dataset_dir, request)?;
         super::print_mcap(&stats);
+    }
+    if let Some(path) = bag {
+        let stats = crate::simulate::write_dataset_bag(&s.dataset_dir, path)?;
+        println!(
+            "ROS 2 bag: {} ({:.1} MB, {} messages; limot run {} --lidar-topic {} --imu-topic {} --detections-topic {})",
+            stats.path.display(),
+            stats.bytes as f64 / 1e6,
+            stats.messages,
+            stats.path.display(),
+            crate::io::rosbag::TOPIC_POINTS,
+            crate::io::rosbag::TOPIC_IMU,
+            crate::io::rosbag::TOPIC_DETECTIONS,
+        );
     }
     Ok(())
 }

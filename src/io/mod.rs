@@ -5,13 +5,15 @@
 //!   drive and tracking-sequence openers, and the KITTI-style export of a
 //!   simulated dataset.
 //! - [`Source`]: a dataset opened for the estimator (a limot dataset, a KITTI
-//!   raw drive, bare scans or a KITTI tracking sequence), with [`ImuFeed`],
+//!   raw drive, bare scans, a KITTI tracking sequence or a ROS 2 bag), with [`ImuFeed`],
 //!   which hands the estimator the IMU samples due before each sweep.
 //! - [`write_run_files`]: the files of a run of the estimator (poses,
 //!   estimates, timings, tracks).
 //! - [`mcap`]: the Foxglove MCAP recording of a dataset and of a run.
+//! - [`rosbag`]: ROS 2 bags (MCAP): read as a source, written from one.
 pub mod kitti;
 pub mod mcap;
+pub mod rosbag;
 mod run_files;
 mod source;
 

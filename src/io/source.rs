@@ -4,14 +4,15 @@
 //! Sources: a limot dataset (LiDAR, IMU, detections, extrinsics), a KITTI raw
 //! drive (`velodyne_points/` + `oxts/`; the IMU is used when the date
 //! directory's `calib_imu_to_velo.txt` is next to the drive), a directory of
-//! bare KITTI scans (LiDAR only) or a sequence of a KITTI tracking directory
-//! (scans, 10 Hz OXTS, detections).
+//! bare KITTI scans (LiDAR only), a sequence of a KITTI tracking directory
+//! (scans, 10 Hz OXTS, detections) or a ROS 2 bag ([`RosBag`]).
 
 use crate::io::kitti::KittiError;
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_csv};
 use crate::io::kitti::raw::{RawCalib, RawDrive, nominal_period_s};
 use crate::io::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
+use crate::io::rosbag::{BagError, BagOptions, RosBag};
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
 use limot_sim::record::{Dataset, RecordError};
 use std::fs;
@@ -40,6 +41,9 @@ pub enum SourceError {
     /// A KITTI file could not be read (it names the file, line and field).
     #[error(transparent)]
     Kitti(#[from] KittiError),
+    /// A ROS 2 bag could not be read (it names the topic, message and field).
+    #[error(transparent)]
+    Bag(#[from] BagError),
     /// The path is none of the known layouts.
     #[error(
         "{path}: not a limot dataset (meta.toml), a KITTI raw drive (velodyne_points/) or a directory of KITTI .bin scans"
@@ -74,6 +78,8 @@ pub enum Source {
         /// Detections per frame (LiDAR frame), empty when none were given.
         detections: Vec<Vec<Detection>>,
     },
+    /// A ROS 2 bag (MCAP).
+    Bag(Box<RosBag>),
 }
 
 impl Source {
@@ -190,11 +196,21 @@ impl Source {
         })
     }
 
+    /// The ROS 2 bag `path` with the topics and extrinsic of `options`
+    /// (see [`RosBag::open`]).
+    ///
+    /// # Errors
+    /// As [`RosBag::open`].
+    pub fn open_bag(path: &Path, options: &BagOptions) -> Result<Source, SourceError> {
+        Ok(Source::Bag(Box::new(RosBag::open(path, options)?)))
+    }
+
     /// Number of frames (LiDAR sweeps).
     pub fn frame_count(&self) -> usize {
         match self {
             Source::Dataset(d) => d.frame_count(),
             Source::Kitti { drive, .. } => drive.num_scans(),
+            Source::Bag(bag) => bag.frame_count(),
         }
     }
 
@@ -208,10 +224,12 @@ impl Source {
                 Some(e) if !imu.is_empty() => Some((imu, *e)),
                 _ => None,
             },
+            Source::Bag(bag) => (!bag.imu().is_empty()).then(|| (bag.imu(), bag.extrinsics())),
         }
     }
 
-    /// Frame `index`: its scan and detections.
+    /// Frame `index`: its scan and detections (a bag is streamed up to it:
+    /// [`Source::for_each_frame`] reads many at once).
     ///
     /// # Errors
     /// An unreadable or malformed scan (named).
@@ -224,6 +242,7 @@ impl Source {
                 scan: drive.scan(index)?,
                 detections: detections.get(index).cloned().unwrap_or_default(),
             },
+            Source::Bag(bag) => bag.frame(index)?,
         })
     }
 
@@ -251,6 +270,16 @@ impl Source {
         std::thread::scope(|scope| -> Result<(), E> {
             let (to_consumer, frames_read) = std::sync::mpsc::sync_channel(2);
             scope.spawn(move || {
+                if let Source::Bag(bag) = self {
+                    // one pass over the file for all the frames
+                    let streamed = bag.for_each_frame(frames, |index, frame| {
+                        to_consumer.send((index, Ok(frame))).is_ok()
+                    });
+                    if let Err(e) = streamed {
+                        let _ = to_consumer.send((usize::MAX, Err(e.into())));
+                    }
+                    return;
+                }
                 for index in frames {
                     let frame = self.frame(index);
                     let failed = frame.is_err();

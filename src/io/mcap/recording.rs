@@ -101,7 +101,7 @@ pub fn write_mcap(path: &Path, input: &McapInput) -> Result<McapStats, McapError
                 .box_truth()
                 .map_err(|e| input_error(e.to_string()))?,
         }),
-        Source::Kitti { .. } => None,
+        Source::Kitti { .. } | Source::Bag(_) => None,
     };
     let truth_pose_at = |t_s: f64| {
         truth.as_ref().and_then(|truth| {

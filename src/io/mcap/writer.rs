@@ -129,6 +129,15 @@ impl McapFile {
     /// [`McapError::Io`] when the partial file cannot be created,
     /// [`McapError::Mcap`] when its header cannot be written.
     pub fn create(path: &Path) -> Result<McapFile, McapError> {
+        McapFile::create_with_profile(path, "")
+    }
+
+    /// [`McapFile::create`] with the header's `profile` (`ros2` for a ROS 2
+    /// bag, as rosbag2 writes it; empty for Foxglove's schemas).
+    ///
+    /// # Errors
+    /// As [`McapFile::create`].
+    pub fn create_with_profile(path: &Path, profile: &str) -> Result<McapFile, McapError> {
         let mut partial = path.as_os_str().to_owned();
         partial.push(".partial");
         let partial = PathBuf::from(partial);
@@ -141,6 +150,7 @@ impl McapFile {
             // but its C build costs more than a minute of every clean build
             .compression(None)
             .chunk_size(Some(CHUNK_SIZE_BYTES))
+            .profile(profile)
             .library(LIBRARY);
         let mut mcap_file = McapFile {
             path: path.to_path_buf(),
