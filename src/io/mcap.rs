@@ -29,4 +29,5 @@ pub use recording::{
     TOPIC_DETECTIONS, TOPIC_PATH, TOPIC_TF, TOPIC_TRACKS, TOPIC_TRUTH_BOXES, TOPIC_TRUTH_PATH,
     write_mcap,
 };
+pub(crate) use writer::FrameError;
 pub use writer::{LIBRARY, McapError, McapFile, McapStats};

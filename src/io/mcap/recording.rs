@@ -5,7 +5,7 @@ use super::messages::{
     BoxStyle, box_entity, point_cloud, poses_path, replace_scene, rgba, time_ns, track_entity,
     transform,
 };
-use super::writer::{McapError, McapFile, McapStats};
+use super::writer::{FrameError, McapError, McapFile, McapStats};
 use crate::io::Source;
 use foxglove::schemas::{FrameTransforms, SceneEntity};
 use limot_estimator::geometry::OrientedBox;
@@ -250,10 +250,7 @@ pub fn write_mcap(path: &Path, input: &McapInput) -> Result<McapStats, McapError
                 Ok(())
             },
         )
-        .map_err(|e| match e {
-            FrameError::Mcap(e) => e,
-            FrameError::Source(e) => input_error(e.to_string()),
-        })?;
+        .map_err(|e| e.into_mcap(path))?;
     file.finish()
 }
 
@@ -277,22 +274,4 @@ fn truth_entity(t_ns: u64, b: &BoxTruth) -> SceneEntity {
             ],
         },
     )
-}
-
-/// Why a frame could not be recorded: the MCAP, or the frame's source.
-enum FrameError {
-    Mcap(McapError),
-    Source(crate::io::SourceError),
-}
-
-impl From<McapError> for FrameError {
-    fn from(e: McapError) -> Self {
-        FrameError::Mcap(e)
-    }
-}
-
-impl From<crate::io::SourceError> for FrameError {
-    fn from(e: crate::io::SourceError) -> Self {
-        FrameError::Source(e)
-    }
 }

@@ -87,6 +87,39 @@ pub enum McapError {
     },
 }
 
+/// Why a frame could not be written into an MCAP file while a source's
+/// frames are streamed into it: the MCAP, or the frame's source.
+pub(crate) enum FrameError {
+    Mcap(McapError),
+    Source(crate::io::SourceError),
+}
+
+impl FrameError {
+    /// The error as the MCAP file `path`'s: a source error becomes
+    /// [`McapError::Input`].
+    pub(crate) fn into_mcap(self, path: &Path) -> McapError {
+        match self {
+            FrameError::Mcap(e) => e,
+            FrameError::Source(e) => McapError::Input {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            },
+        }
+    }
+}
+
+impl From<McapError> for FrameError {
+    fn from(e: McapError) -> Self {
+        FrameError::Mcap(e)
+    }
+}
+
+impl From<crate::io::SourceError> for FrameError {
+    fn from(e: crate::io::SourceError) -> Self {
+        FrameError::Source(e)
+    }
+}
+
 /// One channel: its MCAP id, schema name and the next sequence number.
 #[derive(Debug)]
 struct Channel {

@@ -20,7 +20,7 @@ use super::msgs::{
 };
 use super::pointcloud2::cloud_message;
 use crate::io::Source;
-use crate::io::mcap::{FRAME_IMU, FRAME_LIDAR, McapError, McapFile, McapStats};
+use crate::io::mcap::{FRAME_IMU, FRAME_LIDAR, FrameError, McapError, McapFile, McapStats};
 use limot_estimator::input::ImuSample;
 use std::path::Path;
 
@@ -104,13 +104,7 @@ pub fn write_bag(path: &Path, source: &Source) -> Result<McapStats, McapError> {
                 Ok(())
             },
         )
-        .map_err(|e| match e {
-            FrameError::Mcap(e) => e,
-            FrameError::Source(e) => McapError::Input {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            },
-        })?;
+        .map_err(|e| e.into_mcap(path))?;
     write_imu_until(&mut file, f64::INFINITY)?;
     file.finish()
 }
@@ -153,23 +147,5 @@ fn static_transform(stamp: Time, t_lidar_imu: &nalgebra::Isometry3<f64>) -> TfMe
                 },
             },
         }],
-    }
-}
-
-/// Why a frame could not be written: the MCAP, or the frame's source.
-enum FrameError {
-    Mcap(McapError),
-    Source(crate::io::SourceError),
-}
-
-impl From<McapError> for FrameError {
-    fn from(e: McapError) -> Self {
-        FrameError::Mcap(e)
-    }
-}
-
-impl From<crate::io::SourceError> for FrameError {
-    fn from(e: crate::io::SourceError) -> Self {
-        FrameError::Source(e)
     }
 }
