@@ -82,10 +82,7 @@ enum Command {
         /// /points_raw --imu-topic /imu` reads.
         #[arg(long, value_name = "FILE")]
         bag: Option<PathBuf>,
-        /// Cloud points per sweep in the MCAP recording: at most N (every
-        /// k-th point, the filter's removed points besides) or `all`. The
-        /// default keeps a 64-beam sweep's shape at a fifth of its size.
-        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        #[command(flatten)]
         mcap_points: options::McapPoints,
     },
     /// Simulate the default urban scenario, score it and write a small report (OUT/report).
@@ -105,10 +102,7 @@ enum Command {
         /// Write no MCAP recording.
         #[arg(long, conflicts_with = "mcap")]
         no_mcap: bool,
-        /// Cloud points per sweep in the MCAP recording: at most N (every
-        /// k-th point, the filter's removed points besides) or `all`. The
-        /// default keeps a 64-beam sweep's shape at a fifth of its size.
-        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        #[command(flatten)]
         mcap_points: options::McapPoints,
     },
     /// Run the estimator on a dataset and write its trajectory (OUT/poses_tum.txt, ...).
@@ -167,10 +161,7 @@ enum Command {
         /// Also record the run for Foxglove as this MCAP file (cloud, poses, tracks, ...).
         #[arg(long, value_name = "FILE")]
         mcap: Option<PathBuf>,
-        /// Cloud points per sweep in the MCAP recording: at most N (every
-        /// k-th point, the filter's removed points besides) or `all`. The
-        /// default keeps a 64-beam sweep's shape at a fifth of its size.
-        #[arg(long, value_name = "N|all", default_value = "25000", value_parser = options::parse_mcap_points)]
+        #[command(flatten)]
         mcap_points: options::McapPoints,
     },
     /// Evaluate result files against ground truth (ego trajectory or tracks).
