@@ -74,6 +74,16 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             // tracks only; the misses are mostly objects the detector misses).
             assert!(mota > 0.45 && motp > 0.75, "MOTA {mota} MOTP {motp}");
         }
+        // The kept moving features, each counted under exactly one cause
+        // (trajectory-based filters only).
+        match (variant, c.kept_moving_causes) {
+            (Variant::Dynafilt, Some(causes)) => {
+                assert_eq!(causes.total(), c.moving_features - c.removed_moving);
+                eprintln!("dynafilt kept moving features by cause: {causes:?}");
+            }
+            (Variant::Allfilt, None) => {}
+            (v, causes) => panic!("{v:?}: causes {causes:?}"),
+        }
         let score = c.score();
         let object_precision =
             (c.removed_moving + c.removed_static_object) as f64 / c.removed.max(1) as f64;
@@ -86,21 +96,27 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
         );
         results.push((variant, moving_precision, recall, parked_removed));
     }
-    // Measured (seed 2, 30 s, 0.6 m box inflation; tracks compared with
-    // each detection at its own time): dynafilt precision 0.91, recall
-    // 0.93, 4.1 % of the static-object features removed; allfilt
-    // recall 0.94 (the ceiling the detector's misses leave), 94 % of the
-    // static-object features removed. The issue aims at recall >= 0.9 and
-    // precision >= 0.8.
+    // Measured (seed 2, 30 s): dynafilt precision 0.86, recall 0.98, 6.6 %
+    // of the static-object features removed (stopped cars pulling away
+    // are filtered from their first departing detection); allfilt recall
+    // 0.94, 94 % of the static-object features removed. Of the moving
+    // features dynafilt keeps, 83 % lie on cars whose confirmed track is
+    // still static (pulling away, not yet past the departure bound).
     let (_, precision, recall, parked) = results[0];
     assert!(recall >= 0.9, "dynafilt recall {recall}");
     assert!(precision >= 0.85, "dynafilt precision {precision}");
     assert!(
-        parked < 0.06,
+        parked < 0.08,
         "dynafilt removed {parked} of the static-object features"
     );
     let (_, _, allfilt_recall, allfilt_parked) = results[1];
-    assert!(allfilt_recall >= recall);
+    // This sweep's detections that no settled static track explains are
+    // filtered too, so the trajectory-based filter misses no more moving
+    // features than dropping every box does.
+    assert!(
+        recall >= allfilt_recall,
+        "dynafilt recall {recall} below allfilt's {allfilt_recall}"
+    );
     assert!(
         allfilt_parked > 0.8,
         "allfilt removed only {allfilt_parked} of static features"

@@ -91,6 +91,12 @@ pub struct FilterConfig {
     /// Number of equal time bins per sweep at which boxes and ego pose are
     /// evaluated (>= 1). More bins: closer to exact per-point time, slower.
     pub time_bins: usize,
+    /// A detection belongs to the track whose predicted centre is nearest
+    /// to it within this distance, metres (for the detections the
+    /// trajectory-based filter also uses; default 2 m: half a car length,
+    /// below the spacing of queued cars, above the detector's and the
+    /// prediction's errors).
+    pub detection_track_gate_m: f64,
 }
 
 impl Default for FilterConfig {
@@ -99,6 +105,7 @@ impl Default for FilterConfig {
             inflate_m: 0.3,
             inflate_bottom_m: 0.0,
             time_bins: 10,
+            detection_track_gate_m: 2.0,
         }
     }
 }
@@ -120,6 +127,12 @@ impl FilterConfig {
             return Err(FilterError::Config {
                 field: "inflate_bottom_m",
                 reason: "not finite",
+            });
+        }
+        if !(self.detection_track_gate_m.is_finite() && self.detection_track_gate_m >= 0.0) {
+            return Err(FilterError::Config {
+                field: "detection_track_gate_m",
+                reason: "must be finite and non-negative",
             });
         }
         if self.time_bins == 0 {
@@ -689,5 +702,43 @@ mod tests {
         assert_eq!((s.false_positive, s.false_negative), (1, 1));
         assert!((s.precision - 2.0 / 3.0).abs() < 1e-12);
         assert!((s.recall - 2.0 / 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn config_validation_names_the_field() {
+        assert!(FilterConfig::default().validate().is_ok());
+        for (config, field) in [
+            (
+                FilterConfig {
+                    inflate_m: f64::NAN,
+                    ..FilterConfig::default()
+                },
+                "inflate_m",
+            ),
+            (
+                FilterConfig {
+                    time_bins: 0,
+                    ..FilterConfig::default()
+                },
+                "time_bins",
+            ),
+            (
+                FilterConfig {
+                    detection_track_gate_m: -1.0,
+                    ..FilterConfig::default()
+                },
+                "detection_track_gate_m",
+            ),
+            (
+                FilterConfig {
+                    detection_track_gate_m: f64::INFINITY,
+                    ..FilterConfig::default()
+                },
+                "detection_track_gate_m",
+            ),
+        ] {
+            let err = config.validate().unwrap_err();
+            assert!(err.to_string().contains(field), "{err}");
+        }
     }
 }

@@ -466,6 +466,7 @@ fn sensitivity_to_inflation_bins_and_box_error() {
                     inflate_m,
                     inflate_bottom_m,
                     time_bins,
+                    ..FilterConfig::default()
                 };
                 let boxes: [&dyn BoxAtTime; 1] = [car];
                 let mask = dynamic_feature_mask(

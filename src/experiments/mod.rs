@@ -32,7 +32,10 @@ pub use score::ego::{
     EgoEvalOptions, EgoEvaluation, PoseFormat, Trajectory, detect_pose_format, evaluate_ego,
     evaluate_trajectories, load_estimate, load_truth, parse_rpe_delta,
 };
-pub use score::filtering::{FILTER_MOVING_SPEED_MPS, FilterEvaluation, evaluate_filtering};
+pub use score::filtering::{
+    FILTER_MOVING_SPEED_MPS, FilterEvaluation, KeptMovingCauses, TRACK_OBJECT_GATE_M,
+    evaluate_filtering,
+};
 pub use score::kitti_sequence::{
     EgoScores, KittiEgoTruth, KittiRunScores, KittiScoreOptions, ObjectSummary, RPE_PATH_DELTA_M,
     TrackScores, read_ego_truth, read_sequence_labels, score_ego, score_run, score_tracks,

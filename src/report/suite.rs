@@ -196,7 +196,10 @@ pub fn motp_table(results: &SuiteResults) -> Result<Table> {
 
 /// Dynamic-feature filtering per sequence × filtering variant: precision
 /// and recall of the removed features against the points of moving objects
-/// (per-point labels), and the share of static objects' features removed.
+/// (per-point labels), the share of static objects' features removed, and
+/// for the trajectory-based filters the moving objects' features kept, by
+/// cause ([`crate::experiments::KeptMovingCauses`]), as shares of all
+/// features on moving objects.
 ///
 /// # Errors
 ///
@@ -208,6 +211,10 @@ pub fn filtering_table(results: &SuiteResults) -> Result<Table> {
         "precision [%]",
         "recall [%]",
         "static-object features removed [%]",
+        "kept moving: untracked [%]",
+        "tentative static [%]",
+        "confirmed static [%]",
+        "dynamic, outside box [%]",
     ]
     .map(String::from)
     .to_vec();
@@ -215,7 +222,7 @@ pub fn filtering_table(results: &SuiteResults) -> Result<Table> {
         "Dynamic-feature filtering vs per-point labels (LiDAR features)",
         header,
     );
-    for column in 2..5 {
+    for column in 2..9 {
         table.set_decimals(column, 1);
     }
     for s in &results.sequences {
@@ -225,12 +232,23 @@ pub fn filtering_table(results: &SuiteResults) -> Result<Table> {
             };
             let score = f.score();
             let percent = |x: Option<f64>| x.map(|v| 100.0 * v).into();
+            let of_moving = |n: Option<usize>| {
+                percent(
+                    n.filter(|_| f.moving_features > 0)
+                        .map(|n| n as f64 / f.moving_features as f64),
+                )
+            };
+            let causes = f.kept_moving_causes;
             table.push_row(vec![
                 Cell::from(s.name.as_str()),
                 Cell::from(r.variant.label()),
                 percent(score.precision),
                 percent(score.recall),
                 percent(f.static_object_removed_fraction()),
+                of_moving(causes.map(|c| c.untracked)),
+                of_moving(causes.map(|c| c.tentative_static)),
+                of_moving(causes.map(|c| c.confirmed_static)),
+                of_moving(causes.map(|c| c.dynamic_outside_box)),
             ])?;
         }
     }

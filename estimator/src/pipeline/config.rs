@@ -122,6 +122,13 @@ pub struct EstimatorConfig {
     /// objects); `false` also uses tentative tracks already judged dynamic,
     /// which catches objects in their first frames.
     pub filter_confirmed_only: bool,
+    /// `dynafilt` / `limot` also drop the points in this sweep's detections
+    /// that no confirmed static track explains (see
+    /// `FilterConfig::detection_track_gate_m`): objects too new to be judged
+    /// static or dynamic, and the measured position of moving ones, which
+    /// the prediction from the previous sweep may miss. `false` filters with
+    /// the dynamic tracks' predicted boxes only (the paper's rule).
+    pub filter_unsettled_detections: bool,
     /// Report every feature index per frame (for filter evaluation).
     pub record_feature_indices: bool,
     /// Ego states in the sliding window (the paper uses 5).
@@ -210,6 +217,7 @@ impl Default for EstimatorConfig {
             objects: ObjectGraphConfig::default(),
             record_feature_indices: false,
             filter_confirmed_only: false,
+            filter_unsettled_detections: true,
             window_size: 5,
             gravity_mps2: 9.80511,
             imu_noise: ImuNoise::default(),

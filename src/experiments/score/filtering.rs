@@ -1,17 +1,61 @@
 //! The dynamic-feature filter of a run against the per-point instance
 //! labels of a limot dataset: of the LiDAR features (edge and planar points)
 //! the estimator extracted, which it dropped as dynamic, which lie on moving
-//! objects, which on static ones (parked, or stopped at a light).
+//! objects, which on static ones (parked, or stopped at a light), and for
+//! the trajectory-based filters why a moving object's features were kept.
 
-use crate::metrics::{FilterScore, filter_precision_recall};
+use crate::metrics::{FilterScore, filter_precision_recall, pose_at};
 use crate::run::RunOutput;
-use limot_sim::record::{Dataset, RecordError};
+use limot_estimator::Variant;
+use limot_estimator::tracking::{Lifecycle, Motion, TrackOutput};
+use limot_sim::record::{BoxTruth, Dataset, EgoTruth, RecordError};
+use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// A moving object is faster than this at the frame (the paper's v_thres):
 /// stopped cars count as static objects, like parked ones.
 pub const FILTER_MOVING_SPEED_MPS: f64 = 1.0;
+
+/// A track stands for a ground-truth object when its centre is within this
+/// horizontal distance of the object's, both in the LiDAR frame (m): half a
+/// car length, well below the spacing of cars in a queue.
+pub const TRACK_OBJECT_GATE_M: f64 = 2.0;
+
+/// Why features on moving objects survived a trajectory-based filter
+/// (`dynafilt`, `limot`), judged by the tracks that filter had: those of the
+/// previous estimated frame, predicted to each point's time. Each kept
+/// feature on a moving object counts once, under the state of the track
+/// nearest its object (within [`TRACK_OBJECT_GATE_M`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct KeptMovingCauses {
+    /// No track near the object: not detected yet, missed by the detector,
+    /// or lost.
+    pub untracked: usize,
+    /// A tentative track near it, not (yet) judged dynamic.
+    pub tentative_static: usize,
+    /// A confirmed track near it, judged static.
+    pub confirmed_static: usize,
+    /// A dynamic track near it: the point lay outside the box predicted for
+    /// its time (box too small, or predicted at the wrong place).
+    pub dynamic_outside_box: usize,
+}
+
+impl KeptMovingCauses {
+    /// All kept features on moving objects.
+    pub fn total(&self) -> usize {
+        self.untracked + self.tentative_static + self.confirmed_static + self.dynamic_outside_box
+    }
+
+    fn count(&mut self, track: Option<&TrackOutput>) {
+        match track.map(|t| (t.motion, t.lifecycle)) {
+            None => self.untracked += 1,
+            Some((Motion::Dynamic, _)) => self.dynamic_outside_box += 1,
+            Some((Motion::Static, Lifecycle::Tentative)) => self.tentative_static += 1,
+            Some((Motion::Static, Lifecycle::Confirmed)) => self.confirmed_static += 1,
+        }
+    }
+}
 
 /// The filter of one run over every estimated frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -28,6 +72,10 @@ pub struct FilterEvaluation {
     pub static_object_features: usize,
     /// Of those, removed.
     pub removed_static_object: usize,
+    /// Why the kept features on moving objects were kept (trajectory-based
+    /// filters only; absent from results written before it existed).
+    #[serde(default)]
+    pub kept_moving_causes: Option<KeptMovingCauses>,
 }
 
 impl FilterEvaluation {
@@ -65,9 +113,14 @@ pub fn evaluate_filtering(
         removed_moving: 0,
         static_object_features: 0,
         removed_static_object: 0,
+        kept_moving_causes: None,
     };
+    let trajectory_based = matches!(output.variant, Variant::Dynafilt | Variant::Limot);
+    let mut causes = KeptMovingCauses::default();
+    let mut ego = dataset.ego_truth()?;
+    ego.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     let mut any = false;
-    for e in &output.estimates {
+    for (k, e) in output.estimates.iter().enumerate() {
         if e.feature_indices.is_empty() {
             continue;
         }
@@ -108,6 +161,74 @@ pub fn evaluate_filtering(
                 total.removed_static_object += usize::from(r);
             }
         }
+        if trajectory_based {
+            // The filter of frame `e` used the tracks after the estimate
+            // before it (none for the first estimate).
+            let previous = k
+                .checked_sub(1)
+                .map(|p| &output.estimates[p])
+                .filter(|p| p.frame_index + 1 == e.frame_index);
+            let nearest = previous.map(|p| {
+                nearest_tracks(
+                    p.frame_index as usize,
+                    &p.t_world_lidar,
+                    &p.tracks,
+                    &boxes,
+                    &ego,
+                    &moving,
+                )
+            });
+            for (&label, &r) in feature_labels.iter().zip(&removed_mask) {
+                if !r && moving.contains(&label) {
+                    let track = nearest
+                        .as_ref()
+                        .and_then(|n| n.get(&label).copied().flatten());
+                    causes.count(track);
+                }
+            }
+        }
     }
+    total.kept_moving_causes = trajectory_based.then_some(causes);
     Ok(any.then_some(total))
+}
+
+/// For each of `objects` labelled at `frame`, the track of `tracks` (the
+/// estimate of that frame, LiDAR pose `t_world_lidar` in the estimator's
+/// world) nearest to it in the LiDAR frame within [`TRACK_OBJECT_GATE_M`].
+fn nearest_tracks<'a>(
+    frame: usize,
+    t_world_lidar: &Isometry3<f64>,
+    tracks: &'a [TrackOutput],
+    boxes: &[Vec<BoxTruth>],
+    ego: &[EgoTruth],
+    objects: &BTreeSet<u32>,
+) -> BTreeMap<u32, Option<&'a TrackOutput>> {
+    let t_lidar_world = t_world_lidar.inverse();
+    let tracks_lidar: Vec<Vector3<f64>> = tracks
+        .iter()
+        .map(|t| t_lidar_world * nalgebra::Point3::from(t.center_world))
+        .map(|p| p.coords)
+        .collect();
+    let mut out = BTreeMap::new();
+    for b in boxes.get(frame).into_iter().flatten() {
+        if !objects.contains(&b.id) {
+            continue;
+        }
+        let Some(t_world_lidar_truth) = pose_at(ego, b.t_s, |g| (g.t_s, g.t_world_lidar)) else {
+            out.insert(b.id, None);
+            continue;
+        };
+        let center = (t_world_lidar_truth.inverse() * b.t_world_box)
+            .translation
+            .vector;
+        let track = tracks
+            .iter()
+            .zip(&tracks_lidar)
+            .map(|(t, c)| (t, (c - center).xy().norm()))
+            .filter(|(_, d)| *d < TRACK_OBJECT_GATE_M)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(t, _)| t);
+        out.insert(b.id, track);
+    }
+    out
 }

@@ -2,11 +2,11 @@
 
 use super::plots::{read_tracks_csv, thin};
 use super::*;
-use crate::experiments::FilterEvaluation;
 use crate::experiments::{
     EgoMetrics, MotMetrics, ObjectMetricsRecord, RESULTS_FORMAT_VERSION, StageSamples,
     VariantResult,
 };
+use crate::experiments::{FilterEvaluation, KeptMovingCauses};
 
 fn object(gt_id: u64, gt_frames: usize, tp_percent: f64, ate: Option<f64>) -> ObjectMetricsRecord {
     ObjectMetricsRecord {
@@ -196,6 +196,12 @@ fn filtering_table_scores_the_variants_that_filter() {
         removed_moving: 15,
         static_object_features: 30,
         removed_static_object: 3,
+        kept_moving_causes: Some(KeptMovingCauses {
+            untracked: 2,
+            tentative_static: 1,
+            confirmed_static: 0,
+            dynamic_outside_box: 2,
+        }),
     });
     let t = filtering_table(&r).unwrap();
     assert_eq!(t.rows.len(), 1, "only dynafilt on urban_s1 has figures");
@@ -206,6 +212,11 @@ fn filtering_table_scores_the_variants_that_filter() {
     assert!((num("precision [%]") - 75.0).abs() < 1e-9);
     assert!((num("recall [%]") - 75.0).abs() < 1e-9);
     assert!((num("static-object features removed [%]") - 10.0).abs() < 1e-9);
+    // the 5 kept moving features by cause, as shares of the 20
+    assert!((num("kept moving: untracked [%]") - 10.0).abs() < 1e-9);
+    assert!((num("tentative static [%]") - 5.0).abs() < 1e-9);
+    assert!((num("confirmed static [%]") - 0.0).abs() < 1e-9);
+    assert!((num("dynamic, outside box [%]") - 10.0).abs() < 1e-9);
     let md = t.to_markdown().unwrap();
     assert!(md.contains("urban_s1"), "{md}");
 }

@@ -12,10 +12,10 @@ use crate::lidar::LocalMapError;
 use crate::lidar::ScanFeatures;
 use crate::lidar::{DeskewError, SweepMotion};
 use crate::lidar::{ScanMatchResult, match_scan};
-use crate::object_removal::{BoxAtTime, all_boxes_mask, dynamic_feature_mask};
+use crate::object_removal::{BoxAtTime, ConstantVelocityBox, all_boxes_mask, dynamic_feature_mask};
 use crate::pipeline::config::Variant;
 use crate::pipeline::estimate::{ModuleTimings, ScanMatchSummary};
-use crate::tracking::{Lifecycle, Motion, Track};
+use crate::tracking::{Lifecycle, Motion, Track, TrackerConfig};
 use nalgebra::{Isometry3, Vector3};
 use std::time::Instant;
 
@@ -31,6 +31,32 @@ impl BoxAtTime for TrackBox {
             size_lwh: self.0.size_lwh(),
         }
     }
+}
+
+/// The 99 % quantile of the chi-square distribution with 2 degrees of
+/// freedom: a horizontal offset this many variances away is not noise.
+const CHI2_2DOF_99: f64 = 9.21;
+
+/// Whether a detection centred at `center_world` has left the place where
+/// the static `track` stood: its horizontal offset from the mean centre of
+/// the track's motion window exceeds the detection noise
+/// (`detection_sigma_m` per axis, plus the mean's own) at 99 %.
+fn departs_from_standstill(
+    track: &Track,
+    center_world: &Vector3<f64>,
+    config: &TrackerConfig,
+) -> bool {
+    let history = track.history();
+    let n = history.len().min(config.motion_window_frames.max(1));
+    let mean = history
+        .iter()
+        .rev()
+        .take(n)
+        .map(|b| b.center_world)
+        .sum::<Vector3<f64>>()
+        / n as f64;
+    let variance_m2 = config.detection_sigma_m.powi(2) * (1.0 + 1.0 / n as f64);
+    (center_world - mean).xy().norm_squared() > CHI2_2DOF_99 * variance_m2
 }
 
 /// Features of one de-skewed sweep, LiDAR frame at the scan start.
@@ -171,19 +197,79 @@ impl Estimator {
                     })
                     .collect(),
             ),
-            Variant::Dynafilt | Variant::Limot => FeatureFilter::Moving(
-                self.tracker
+            Variant::Dynafilt | Variant::Limot => {
+                let moving = |t: &&Track| {
+                    t.motion() == Motion::Dynamic
+                        && (t.lifecycle() == Lifecycle::Confirmed
+                            || !self.config.filter_confirmed_only)
+                };
+                let mut boxes: Vec<Box<dyn BoxAtTime>> = self
+                    .tracker
                     .tracks()
                     .iter()
-                    .filter(|t| {
-                        t.motion() == Motion::Dynamic
-                            && (t.lifecycle() == Lifecycle::Confirmed
-                                || !self.config.filter_confirmed_only)
-                    })
+                    .filter(moving)
                     .map(|t| Box::new(TrackBox(t.clone())) as Box<dyn BoxAtTime>)
-                    .collect(),
-            ),
+                    .collect();
+                if self.config.filter_unsettled_detections {
+                    boxes.extend(self.unsettled_detection_boxes(scan, motion));
+                }
+                FeatureFilter::Moving(boxes)
+            }
         }
+    }
+
+    /// This sweep's detections that no confirmed static track explains, as
+    /// boxes for the trajectory-based filter. A detection belongs to the
+    /// track whose predicted centre is nearest within
+    /// `filter.detection_track_gate_m`; a confirmed static track explains it
+    /// unless the detection has left where the track stood (see
+    /// [`departs_from_standstill`]: a car pulling away is judged dynamic
+    /// only once its window-average speed is significant, a second or more
+    /// later). A detection of a moving (or departing) track moves on from
+    /// its own time with the track's fitted velocity: this sweep's
+    /// measurement of where the car is, which the prediction from the last
+    /// sweep may miss. Any other one (an object too new to be judged, a
+    /// tentative track) stays where it was detected, as in `allfilt`.
+    fn unsettled_detection_boxes(
+        &self,
+        scan: &LidarScan,
+        motion: &SweepMotion,
+    ) -> Vec<Box<dyn BoxAtTime>> {
+        let gate_sq = self.config.filter.detection_track_gate_m.powi(2);
+        let mut boxes: Vec<Box<dyn BoxAtTime>> = Vec::new();
+        for d in &self.frame_detections {
+            let t_s = scan.t_s + d.time_offset_s;
+            let box_world = d.box_lidar.transformed(&motion.pose_at(t_s));
+            let nearest = self
+                .tracker
+                .tracks()
+                .iter()
+                .map(|t| (t, t.predict(t_s)))
+                .map(|(t, p)| (t, (p.center_world - box_world.center).norm_squared(), p))
+                .filter(|(_, d_sq, _)| *d_sq <= gate_sq)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let moving_box = |velocity_world_mps| {
+                Box::new(ConstantVelocityBox {
+                    box_ref: box_world,
+                    t_ref_s: t_s,
+                    velocity_world_mps,
+                    yaw_rate_radps: 0.0,
+                }) as Box<dyn BoxAtTime>
+            };
+            match nearest {
+                Some((t, _, p)) if t.motion() == Motion::Dynamic => {
+                    boxes.push(moving_box(p.velocity_world_mps));
+                }
+                Some((t, _, p)) if t.lifecycle() == Lifecycle::Confirmed => {
+                    if departs_from_standstill(t, &box_world.center, &self.config.tracker) {
+                        boxes.push(moving_box(p.velocity_world_mps));
+                    }
+                    // otherwise a settled static object: its features stay
+                }
+                _ => boxes.push(Box::new(box_world)),
+            }
+        }
+        boxes
     }
 
     /// Drops the feature points that lie in the variant's object boxes,
@@ -320,5 +406,52 @@ pub(super) fn summary(result: &ScanMatchResult, features: &SweepFeatures) -> Sca
         converged: result.converged,
         degenerate_directions: result.degenerate_directions,
         rms_residual_m: result.rms_residual_m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracking::TimedBox;
+
+    /// A track of a car standing at x = 10 m for 12 frames, with the
+    /// detector's ±σ scatter along y.
+    fn standing_track(config: &TrackerConfig) -> Track {
+        let at = |k: usize| TimedBox {
+            t_s: 0.1 * k as f64,
+            center_world: Vector3::new(
+                10.0,
+                config.detection_sigma_m * if k.is_multiple_of(2) { 1.0 } else { -1.0 },
+                0.8,
+            ),
+            yaw_rad: 0.0,
+            size_lwh: Vector3::new(4.2, 1.8, 1.6),
+        };
+        let mut track = Track::new(1, crate::input::ObjectClass::Car, at(0), config).unwrap();
+        for k in 1..12 {
+            track.record_hit(at(k), config).unwrap();
+        }
+        track
+    }
+
+    #[test]
+    fn a_standing_car_explains_its_noisy_detections_but_not_a_departure() {
+        let config = TrackerConfig::default();
+        let track = standing_track(&config);
+        assert_eq!(track.motion(), Motion::Static);
+        assert_eq!(track.lifecycle(), Lifecycle::Confirmed);
+        let sigma = config.detection_sigma_m;
+        // within the detector's noise, in any direction: still standing
+        for (dx, dy) in [(2.0, 0.0), (0.0, -2.0), (1.5, 1.5)] {
+            let c = Vector3::new(10.0 + dx * sigma, dy * sigma, 0.8);
+            assert!(!departs_from_standstill(&track, &c, &config), "{dx} {dy}");
+        }
+        // 0.6 m ahead (a car pulling away at 1.4 m/s², 0.9 s and 1.3 m/s
+        // later; the 99 % bound is 0.48 m): departed
+        let c = Vector3::new(10.6, 0.0, 0.8);
+        assert!(departs_from_standstill(&track, &c, &config));
+        // height is not a departure (the detector's box height varies)
+        let c = Vector3::new(10.0, 0.0, 2.0);
+        assert!(!departs_from_standstill(&track, &c, &config));
     }
 }
