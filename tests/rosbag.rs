@@ -14,15 +14,13 @@ use limot::io::rosbag::{BagError, BagOptions, RosBag, TOPIC_DETECTIONS, TOPIC_IM
 use limot::run::{RunOptions, run};
 use limot::simulate::{resolve_scenario, simulate, write_dataset_bag};
 use limot_estimator::input::LidarPoint;
+use limot_test_support::ScratchDir;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("limot-rosbag-{name}-{}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> ScratchDir {
+    ScratchDir::new(&format!("rosbag-{name}"))
 }
 
 fn simulated(dir: &Path, duration_s: f64) -> PathBuf {
@@ -112,7 +110,6 @@ fn a_dataset_run_from_its_bag_reproduces_the_dataset_run() {
         got.estimates.len()
     );
     assert!(worst_m < 1e-6, "{worst_m} m");
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -142,7 +139,6 @@ fn rings_from_elevation_recover_the_simulated_lasers() {
     );
     assert_eq!(usize::from(sweep.rings), lasers);
     assert!(lasers > 60, "{lasers} lasers");
-    let _ = fs::remove_dir_all(&dir);
 }
 
 /// A small hand-made bag: `clouds` clouds 0.1 s apart, IMU at 100 Hz over
@@ -249,11 +245,15 @@ impl TinyBag {
         file.finish().unwrap();
     }
 
-    fn open(&self, name: &str) -> Result<RosBag, BagError> {
+    /// Writes the bag into a scratch dir and opens it; the bag re-reads
+    /// its file for each frame, so the dir lives as long as the caller
+    /// keeps it.
+    fn open(&self, name: &str) -> (ScratchDir, Result<RosBag, BagError>) {
         let dir = temp_dir(name);
         let path = dir.join("tiny.mcap");
         self.write(&path);
-        RosBag::open(&path, &options(false))
+        let bag = RosBag::open(&path, &options(false));
+        (dir, bag)
     }
 }
 
@@ -269,7 +269,8 @@ fn assert_names(e: &BagError, topic: &str, index: usize, field: &str) {
 
 #[test]
 fn a_tiny_bag_opens() {
-    let bag = TinyBag::new().open("tiny-ok").unwrap();
+    let (_dir, bag) = TinyBag::new().open("tiny-ok");
+    let bag = bag.unwrap();
     assert_eq!(bag.frame_count(), 3);
     assert_eq!(bag.imu().len(), 40);
     assert!((bag.sweep_duration_s() - 0.1).abs() < 1e-15);
@@ -283,20 +284,20 @@ fn a_tiny_bag_opens() {
 fn clouds_without_position_or_time_fields_are_named() {
     let mut tiny = TinyBag::new();
     tiny.clouds[1].fields.retain(|f| f.name != "time");
-    let e = tiny.open("no-time").unwrap_err();
+    let e = tiny.open("no-time").1.unwrap_err();
     assert_names(&e, TOPIC_POINTS, 1, "time");
     assert!(e.to_string().contains("[x, y, z, intensity, ring]"), "{e}");
 
     let mut tiny = TinyBag::new();
     tiny.clouds[2].fields.retain(|f| f.name != "z");
-    assert_names(&tiny.open("no-z").unwrap_err(), TOPIC_POINTS, 2, "z");
+    assert_names(&tiny.open("no-z").1.unwrap_err(), TOPIC_POINTS, 2, "z");
 }
 
 #[test]
 fn unsupported_encodings_are_refused() {
     let mut tiny = TinyBag::new();
     tiny.lidar_encoding = "protobuf";
-    let e = tiny.open("protobuf").unwrap_err();
+    let e = tiny.open("protobuf").1.unwrap_err();
     assert!(matches!(e, BagError::Unsupported { .. }), "{e}");
     assert!(
         e.to_string()
@@ -306,7 +307,7 @@ fn unsupported_encodings_are_refused() {
 
     let mut tiny = TinyBag::new();
     tiny.lidar_schema = "sensor_msgs/msg/LaserScan";
-    let e = tiny.open("laserscan").unwrap_err();
+    let e = tiny.open("laserscan").1.unwrap_err();
     assert!(
         e.to_string()
             .contains("`sensor_msgs/msg/LaserScan`, but limot reads `sensor_msgs/msg/PointCloud2`"),
@@ -318,7 +319,7 @@ fn unsupported_encodings_are_refused() {
     let mut bytes = msgs::encode(&tiny.clouds[0]);
     bytes[1] = 7;
     tiny.cloud_bytes = Some((0, bytes));
-    let e = tiny.open("xcdr2").unwrap_err();
+    let e = tiny.open("xcdr2").1.unwrap_err();
     assert_names(&e, TOPIC_POINTS, 0, "data");
     assert!(e.to_string().contains("0x0007"), "{e}");
 
@@ -328,7 +329,7 @@ fn unsupported_encodings_are_refused() {
     bytes.truncate(bytes.len() / 2);
     tiny.cloud_bytes = Some((1, bytes));
     assert_names(
-        &tiny.open("short-cloud").unwrap_err(),
+        &tiny.open("short-cloud").1.unwrap_err(),
         TOPIC_POINTS,
         1,
         "data",
@@ -339,13 +340,13 @@ fn unsupported_encodings_are_refused() {
 fn duplicate_and_unordered_stamps_are_named() {
     let mut tiny = TinyBag::new();
     tiny.imu[7].header.stamp = tiny.imu[6].header.stamp;
-    let e = tiny.open("duplicate").unwrap_err();
+    let e = tiny.open("duplicate").1.unwrap_err();
     assert_names(&e, TOPIC_IMU, 7, "header.stamp");
     assert!(e.to_string().contains("the same as message 6"), "{e}");
 
     let mut tiny = TinyBag::new();
     tiny.clouds.swap(1, 2);
-    let e = tiny.open("unordered").unwrap_err();
+    let e = tiny.open("unordered").1.unwrap_err();
     assert_names(&e, TOPIC_POINTS, 2, "header.stamp");
     assert!(e.to_string().contains("before message 1"), "{e}");
 }
@@ -354,7 +355,7 @@ fn duplicate_and_unordered_stamps_are_named() {
 fn a_bag_without_extrinsic_asks_for_one() {
     let mut tiny = TinyBag::new();
     tiny.tf = false;
-    let e = tiny.open("no-tf").unwrap_err();
+    let e = tiny.open("no-tf").1.unwrap_err();
     assert!(matches!(e, BagError::Extrinsic { .. }), "{e}");
     assert!(e.to_string().contains("--extrinsic"), "{e}");
 
@@ -372,7 +373,6 @@ fn a_bag_without_extrinsic_asks_for_one() {
     )
     .unwrap();
     assert_eq!(bag.extrinsics().t_lidar_imu.translation.vector.x, 0.5);
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -390,7 +390,6 @@ fn truncated_bags_are_errors_not_panics() {
             "{len}: {e}"
         );
     }
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -435,7 +434,6 @@ fn the_cli_lists_the_topics_and_writes_nothing_for_a_bad_bag() {
         "{stderr}"
     );
     assert!(!out.exists(), "nothing written for a bad bag");
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]

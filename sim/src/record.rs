@@ -579,6 +579,7 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
 mod tests {
     use super::*;
     use limot_estimator::input::LidarPoint;
+    use limot_test_support::ScratchDir;
     use scan::SCAN_HEADER_BYTES;
 
     fn sample_scan() -> (LidarScan, Vec<u32>) {
@@ -628,10 +629,10 @@ mod tests {
         }
     }
 
-    /// A 2-frame dataset written by [`DatasetWriter`] into a fresh temp dir.
-    fn tiny_dataset(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("limot-record-{}-{name}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
+    /// A 2-frame dataset written by [`DatasetWriter`] into a fresh scratch
+    /// dir (removed when dropped).
+    fn tiny_dataset(name: &str) -> ScratchDir {
+        let dir = ScratchDir::new(&format!("record-{name}"));
         let mut writer = DatasetWriter::begin(&dir, "").unwrap();
         let size = Vector3::new(4.0, 1.8, 1.5);
         for frame in 0..2 {
@@ -703,7 +704,8 @@ mod tests {
             num_rings: 64,
             t_lidar_imu: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
         };
-        writer.finish(meta, &imu, &biases, &ego).unwrap()
+        writer.finish(meta, &imu, &biases, &ego).unwrap();
+        dir
     }
 
     /// Rewrites line `line` (1-based) of `file`: `column` set to `value`.

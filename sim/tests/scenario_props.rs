@@ -35,10 +35,9 @@ fn to_toml_round_trips() {
     }
 }
 
-/// Writes `text` into a scratch file and loads it.
+/// Writes `text` into a scratch file (removed afterwards) and loads it.
 fn load_text(tag: &str, text: &str) -> (PathBuf, ScenarioError) {
-    let dir = std::env::temp_dir().join(format!("limot_scenario_props_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = limot_test_support::ScratchDir::new("scenario-props");
     let path = dir.join(format!("{tag}.toml"));
     std::fs::write(&path, text).unwrap();
     let err = ScenarioSpec::load(&path).unwrap_err();

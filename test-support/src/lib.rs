@@ -5,6 +5,53 @@
 #![warn(missing_docs)]
 
 use nalgebra::Vector3;
+use std::ops::Deref;
+use std::path::Path;
+
+/// A fresh directory under the system's temp dir for one test, removed with
+/// everything in it when dropped, also when the test panics. Derefs to its
+/// [`Path`] (and is `AsRef<Path>`), so `&dir` goes wherever a path does.
+///
+/// ```
+/// use limot_test_support::ScratchDir;
+/// let kept;
+/// {
+///     let dir = ScratchDir::new("doc");
+///     std::fs::write(dir.join("a.txt"), "x").unwrap();
+///     kept = dir.to_path_buf();
+///     assert!(kept.join("a.txt").exists());
+/// }
+/// assert!(!kept.exists());
+/// ```
+#[derive(Debug)]
+pub struct ScratchDir(tempfile::TempDir);
+
+impl ScratchDir {
+    /// Creates `limot-<tag>-XXXXXX` under the temp dir.
+    ///
+    /// # Panics
+    /// When the directory cannot be created (a test cannot run without it).
+    pub fn new(tag: &str) -> ScratchDir {
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("limot-{tag}-"))
+            .tempdir()
+            .unwrap_or_else(|e| panic!("cannot create a scratch dir for {tag}: {e}"));
+        ScratchDir(dir)
+    }
+}
+
+impl AsRef<Path> for ScratchDir {
+    fn as_ref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+impl Deref for ScratchDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny deterministic generator,
 /// fixed forever, so a test's seed always gives the same data.

@@ -371,16 +371,12 @@ impl Drop for McapFile {
 mod tests {
     use super::*;
     use foxglove::schemas::{PosesInFrame, Vector3};
-
-    fn temp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("limot-mcap-writer-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
-    }
+    use limot_test_support::ScratchDir;
 
     #[test]
     fn finished_file_appears_under_its_name_and_reads_back() {
-        let path = temp("ok.mcap");
+        let dir = ScratchDir::new("mcap-writer");
+        let path = dir.join("ok.mcap");
         let mut file = McapFile::create(&path).unwrap();
         assert!(!path.exists(), "written under FILE.partial until finished");
         let v = Vector3 {
@@ -394,7 +390,7 @@ mod tests {
         assert_eq!((stats.messages, stats.time_range_ns), (2, Some((5, 9))));
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(bytes.len() as u64, stats.bytes);
-        assert!(!temp("ok.mcap.partial").exists());
+        assert!(!dir.join("ok.mcap.partial").exists());
         let messages: Vec<_> = mcap::MessageStream::new(&bytes)
             .unwrap()
             .map(Result::unwrap)
@@ -408,18 +404,20 @@ mod tests {
 
     #[test]
     fn dropped_file_leaves_nothing_and_a_topic_keeps_its_schema() {
-        let path = temp("dropped.mcap");
+        let dir = ScratchDir::new("mcap-writer");
+        let path = dir.join("dropped.mcap");
         let mut file = McapFile::create(&path).unwrap();
         file.write("/v", 1, &Vector3::default()).unwrap();
         let e = file.write("/v", 2, &PosesInFrame::default()).unwrap_err();
         assert!(matches!(e, McapError::SchemaMismatch { .. }), "{e}");
         drop(file);
-        assert!(!path.exists() && !temp("dropped.mcap.partial").exists());
+        assert!(!path.exists() && !dir.join("dropped.mcap.partial").exists());
     }
 
     #[test]
     fn uncreatable_file_is_named_in_the_error() {
-        let path = temp("no/such/dir/x.mcap");
+        let dir = ScratchDir::new("mcap-writer");
+        let path = dir.join("no/such/dir/x.mcap");
         let e = McapFile::create(&path).err().unwrap();
         assert!(e.to_string().contains("no/such/dir/x.mcap.partial"), "{e}");
     }

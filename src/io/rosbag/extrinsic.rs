@@ -166,8 +166,7 @@ mod tests {
 
     #[test]
     fn extrinsic_files_are_checked() {
-        let dir = std::env::temp_dir().join(format!("limot-extrinsic-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = limot_test_support::ScratchDir::new("extrinsic");
         let good = dir.join("good.toml");
         std::fs::write(&good, "t_lidar_imu = [0.1, 0, -0.2, 0, 0, 0, 1]\n").unwrap();
         let t = read_extrinsic_file(&good).unwrap();
