@@ -287,7 +287,7 @@ fn limot_objects_beat_the_tracker_and_the_detections_on_the_congested_highway() 
     // ObjectGraphConfig::dynamic_objects_inform_ego), static ones inform it,
     // so limot's ego stays within noise of dynafilt's: the ordering itself
     // flips with 1e-11 m changes of scan matching (making the coupling pay
-    // for the ego is issue 17). Measured: 0.143 m vs 0.136 m (lio 1.91 m).
+    // for the ego is issue 17). Measured: 0.115 m vs 0.116 m (lio 1.91 m).
     assert!(
         c.ate_limot_m <= 1.1 * c.ate_dynafilt_m,
         "{} vs {}",
@@ -347,7 +347,7 @@ fn limot_objects_beat_the_tracker_on_the_parked_street() {
 fn fully_joint_graph_runs_and_beats_the_detections() {
     // The paper's form: moving objects' observations correct the ego too.
     // Measured (seed 1, 20 s): objects 0.164 m, speed 0.22 m/s, as good as
-    // the default; ego ATE_T 0.46 m vs dynafilt 0.14 m and lio 1.91 m: the
+    // the default; ego ATE_T 0.44 m vs dynafilt 0.12 m and lio 1.91 m: the
     // congested traffic's departures from constant velocity (every car
     // ahead speeds up at once) pull the ego along the road, the more the
     // stiffer the chains. Why the default conditions them.
