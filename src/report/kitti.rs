@@ -19,7 +19,7 @@ mod twins;
 pub use twins::{DIVERGED_ATE_PER_PATH, STATIC_EGO_PATH_M, twins_section};
 
 use paper::{
-    PAPER_EGO_METHODS, PAPER_OBJECT_METHODS, PAPER_TABLE_I, PAPER_TABLE_II, PAPER_TABLE_III,
+    PAPER_EGO_METHODS, PAPER_OBJECT_METHODS, PAPER_TABLE_I, PAPER_TABLE_III, paper_table_ii_rows,
 };
 
 /// How many of each scanned sequence's longest-labelled cars the object table lists.
@@ -197,18 +197,7 @@ pub fn tracking_table(results: &KittiSuiteResults) -> Result<Table, ReportError>
     for c in 3..8 {
         table.set_decimals(c, 2);
     }
-    for (name, motp25, motp50) in PAPER_TABLE_II {
-        let mut cells = vec![
-            Cell::from(name),
-            Cell::from("paper, Table II (CenterPoint detections)"),
-            Cell::from("all"),
-            Cell::Missing,
-            Cell::Missing,
-            motp25.into(),
-            Cell::Missing,
-            motp50.into(),
-        ];
-        cells.extend(vec![Cell::Missing; 4]);
+    for cells in paper_table_ii_rows("paper, Table II (CenterPoint detections)", true) {
         table.push_row(cells)?;
     }
     let mut push =

@@ -1,6 +1,7 @@
 //! The paper's published figures that the KITTI report sets beside ours
 //! (Tables I-III of the LIMOT paper, copied by hand).
 
+use crate::report::Cell;
 use limot_estimator::Variant;
 
 /// A row of the paper's Table I: sequence, then (ATE_T m, ATE_R rad) for
@@ -228,6 +229,25 @@ pub(super) const PAPER_TABLE_II: [(&str, f64, f64); 5] = [
     ("LIMOT", 62.25, 64.26),
 ];
 
+/// The paper's Table II as rows of our Table II layouts: method, `source`,
+/// "all" sequences, then (MOTA, MOTP) at IoU 0.25 and 0.5 (the paper gives
+/// MOTP only) and four empty count columns (IDSW, FP, FN, GT). With
+/// `with_2d_mota` an empty 2D MOTA column comes before the 3D ones.
+pub(super) fn paper_table_ii_rows(source: &str, with_2d_mota: bool) -> Vec<Vec<Cell>> {
+    PAPER_TABLE_II
+        .iter()
+        .map(|&(name, motp25, motp50)| {
+            let mut cells = vec![Cell::from(name), Cell::from(source), Cell::from("all")];
+            if with_2d_mota {
+                cells.push(Cell::Missing);
+            }
+            cells.extend([Cell::Missing, motp25.into(), Cell::Missing, motp50.into()]);
+            cells.extend(vec![Cell::Missing; 4]);
+            cells
+        })
+        .collect()
+}
+
 /// The paper's Table III: sequence, object id, then (TP %, ATE_T m, ATE_R rad)
 /// for DL-SLOT, LIO-SEGMOT and LIMOT.
 pub(super) type PaperObjectRow = (u32, u64, [(f64, f64, f64); 3]);
@@ -347,4 +367,27 @@ pub(super) fn paper_name(variant: Variant) -> &'static str {
         .iter()
         .find(|(_, v)| *v == Some(variant))
         .map_or("?", |(name, _)| name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_ii_rows_put_the_motp_under_their_columns() {
+        let twins = paper_table_ii_rows("paper", false);
+        let real = paper_table_ii_rows("paper", true);
+        assert_eq!((twins.len(), real.len()), (5, 5));
+        let limot_twins = &twins[4];
+        let limot_real = &real[4];
+        // method, source, sequences, MOTA/MOTP@0.25, MOTA/MOTP@0.5, 4 counts
+        assert_eq!((limot_twins.len(), limot_real.len()), (11, 12));
+        assert_eq!(limot_twins[0], Cell::from("LIMOT"));
+        assert_eq!(limot_twins[4], Cell::from(62.25));
+        assert_eq!(limot_twins[6], Cell::from(64.26));
+        // the 2D MOTA column shifts the 3D ones by one
+        assert_eq!(limot_real[3], Cell::Missing);
+        assert_eq!(limot_real[5], Cell::from(62.25));
+        assert_eq!(limot_real[7], Cell::from(64.26));
+    }
 }

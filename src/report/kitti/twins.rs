@@ -7,7 +7,9 @@
 //! Rankings compare ATE_T to the millimetre (the paper's precision), so
 //! values equal to the millimetre tie in both orderings.
 
-use super::paper::{PAPER_OBJECT_METHODS, PAPER_TABLE_II, PAPER_TABLE_III, paper_ego, paper_name};
+use super::paper::{
+    PAPER_OBJECT_METHODS, PAPER_TABLE_III, paper_ego, paper_name, paper_table_ii_rows,
+};
 use crate::experiments::{SequenceResult, SuiteResults, format_sequences, twin_sequence};
 use crate::io::kitti::twin::twin_agent_id;
 use crate::metrics::{MotSummary, best_items, kendall_tau_b};
@@ -378,17 +380,7 @@ fn tracking_table(twins: &[Twin], variants: &[Variant]) -> Result<Table, ReportE
     for c in 3..7 {
         table.set_decimals(c, 2);
     }
-    for (name, motp25, motp50) in PAPER_TABLE_II {
-        let mut cells = vec![
-            Cell::from(name),
-            Cell::from("paper, Table II (real KITTI, CenterPoint)"),
-            Cell::from("all"),
-            Cell::Missing,
-            motp25.into(),
-            Cell::Missing,
-            motp50.into(),
-        ];
-        cells.extend(vec![Cell::Missing; 4]);
+    for cells in paper_table_ii_rows("paper, Table II (real KITTI, CenterPoint)", false) {
         table.push_row(cells)?;
     }
     let trackers: Vec<Variant> = variants
