@@ -180,9 +180,7 @@ pub fn evaluate_filtering(
             });
             for (&label, &r) in feature_labels.iter().zip(&removed_mask) {
                 if !r && moving.contains(&label) {
-                    let track = nearest
-                        .as_ref()
-                        .and_then(|n| n.get(&label).copied().flatten());
+                    let track = nearest.as_ref().and_then(|n| n.get(&label).copied());
                     causes.count(track);
                 }
             }
@@ -194,7 +192,8 @@ pub fn evaluate_filtering(
 
 /// For each of `objects` labelled at `frame`, the track of `tracks` (the
 /// estimate of that frame, LiDAR pose `t_world_lidar` in the estimator's
-/// world) nearest to it in the LiDAR frame within [`TRACK_OBJECT_GATE_M`].
+/// world) nearest to it in the LiDAR frame within [`TRACK_OBJECT_GATE_M`];
+/// objects without one are absent.
 fn nearest_tracks<'a>(
     frame: usize,
     t_world_lidar: &Isometry3<f64>,
@@ -202,7 +201,7 @@ fn nearest_tracks<'a>(
     boxes: &[Vec<BoxTruth>],
     ego: &[EgoTruth],
     objects: &BTreeSet<u32>,
-) -> BTreeMap<u32, Option<&'a TrackOutput>> {
+) -> BTreeMap<u32, &'a TrackOutput> {
     let t_lidar_world = t_world_lidar.inverse();
     let tracks_lidar: Vec<Vector3<f64>> = tracks
         .iter()
@@ -215,7 +214,6 @@ fn nearest_tracks<'a>(
             continue;
         }
         let Some(t_world_lidar_truth) = pose_at(ego, b.t_s, |g| (g.t_s, g.t_world_lidar)) else {
-            out.insert(b.id, None);
             continue;
         };
         let center = (t_world_lidar_truth.inverse() * b.t_world_box)
@@ -226,9 +224,10 @@ fn nearest_tracks<'a>(
             .zip(&tracks_lidar)
             .map(|(t, c)| (t, (c - center).xy().norm()))
             .filter(|(_, d)| *d < TRACK_OBJECT_GATE_M)
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(t, _)| t);
-        out.insert(b.id, track);
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((track, _)) = track {
+            out.insert(b.id, track);
+        }
     }
     out
 }
