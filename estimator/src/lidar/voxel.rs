@@ -27,11 +27,9 @@ pub type VoxelKey = (i64, i64, i64);
 #[inline]
 pub(crate) fn floor_to_i64(v: f64) -> i64 {
     let t = v as i64;
-    if (t as f64) > v {
-        t.saturating_sub(1)
-    } else {
-        t
-    }
+    // Without a branch: half the coordinates of a scan are negative, which
+    // makes "truncation rounded up" unpredictable.
+    t.saturating_sub(i64::from((t as f64) > v))
 }
 
 /// Voxel key of `p` for voxel edge `voxel_m` (> 0). Coordinates beyond the
