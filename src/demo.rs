@@ -464,22 +464,19 @@ fn run_variant(
         progress,
         ..crate::run::RunOptions::default()
     };
-    let output = crate::run::run(source, dataset_dir, &run_options, None)?;
+    let (output, mcap_stats) = match mcap {
+        Some(request) => {
+            let (output, stats) =
+                crate::run::run_recorded(source, dataset_dir, &run_options, None, request)?;
+            (output, Some(stats))
+        }
+        None => (
+            crate::run::run(source, dataset_dir, &run_options, None)?,
+            None,
+        ),
+    };
     let run_dir = out.join(variant.name());
     crate::run::write_output(&run_dir, &output)?;
-    let mcap_stats = mcap
-        .map(|request| {
-            crate::io::mcap::write_mcap(
-                &request.path,
-                &crate::io::mcap::McapInput {
-                    source,
-                    frames: source.frame_range(0, None),
-                    estimates: &output.estimates,
-                    max_cloud_points: request.max_cloud_points,
-                },
-            )
-        })
-        .transpose()?;
     let eval_options = crate::experiments::EgoEvalOptions::default();
     let truth = crate::experiments::load_truth(dataset_dir, &eval_options)?;
     let estimate = crate::experiments::Trajectory {

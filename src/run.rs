@@ -4,15 +4,18 @@
 //! [`Source::open_kitti_tracking`]) -> [`run`] (each sweep after the IMU
 //! samples due before it, [`ImuFeed`]) -> [`write_output`] (the files of
 //! [`write_run_files`]) and, for tracking, KITTI result files
-//! ([`kitti_track_labels`], [`write_kitti_tracks`]).
+//! ([`kitti_track_labels`], [`write_kitti_tracks`]). [`run_recorded`] also
+//! records the run for Foxglove as it goes ([`McapRecorder`]), from each
+//! sweep as the estimator de-skewed it ([`run_observed`]).
 use crate::cli::frame_progress_bar;
 use crate::io::kitti::KittiError;
 use crate::io::kitti::poses::StampedPose;
 use crate::io::kitti::velodyne::raise_elevation;
+use crate::io::mcap::{McapError, McapRecorder, McapRequest, McapStats};
 use crate::io::{ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, write_run_files};
-use limot_estimator::input::{Extrinsics, ImuSample};
+use limot_estimator::input::{Extrinsics, Frame, ImuSample};
 use limot_estimator::pipeline::{
-    Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant,
+    DeskewedSweep, Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant,
 };
 use limot_estimator::tracking::TrackerConfig;
 use std::fs;
@@ -46,6 +49,9 @@ pub enum RunError {
     /// An output file or directory could not be written.
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// The recording of the run could not be written.
+    #[error(transparent)]
+    Mcap(#[from] McapError),
     /// A directory of KITTI result files could not be created.
     #[error("{path}: {source}")]
     Io {
@@ -121,7 +127,8 @@ pub struct RunOutput {
     /// Detections the estimator skipped: non-finite or non-positive fields,
     /// scores outside [0, 1], times outside their sweep.
     pub invalid_detections: u64,
-    /// Wall time of the frames' loop.
+    /// Wall time of the frames' loop, less the time an observer of
+    /// [`run_observed`] took.
     pub wall_time: Duration,
 }
 
@@ -155,6 +162,20 @@ impl RunOutput {
     }
 }
 
+/// One frame of a run as [`run_observed`] shows it, right after the
+/// estimator took it.
+pub struct RunStep<'a> {
+    /// The frame's index in the source.
+    pub source_index: usize,
+    /// The frame as read.
+    pub frame: &'a Frame,
+    /// The sweep as the estimator de-skewed and filtered it
+    /// ([`Estimator::deskewed_sweep`]).
+    pub sweep: DeskewedSweep<'a>,
+    /// The estimates the frame completed ([`Estimator::push_frame`]).
+    pub completed: &'a [FrameEstimate],
+}
+
 /// Runs the estimator over `source` (read from `source_path`, named in
 /// errors) with `config` (default: [`EstimatorConfig::default`]) set to
 /// `options`' variant, LiDAR-only when the source has no usable IMU or
@@ -168,6 +189,43 @@ pub fn run(
     source_path: &Path,
     options: &RunOptions,
     config: Option<EstimatorConfig>,
+) -> Result<RunOutput, RunError> {
+    run_observed(source, source_path, options, config, |_| Ok(()))
+}
+
+/// [`run`], recording it as it goes into the MCAP file of `request`
+/// ([`McapRecorder`]): each frame's sweep as the estimator de-skewed it,
+/// with its estimate.
+///
+/// # Errors
+/// As [`run`], or a recording that cannot be written (then no file is left).
+pub fn run_recorded(
+    source: &Source,
+    source_path: &Path,
+    options: &RunOptions,
+    config: Option<EstimatorConfig>,
+    request: &McapRequest,
+) -> Result<(RunOutput, McapStats), RunError> {
+    let mut recorder = McapRecorder::create(request, source)?;
+    let output = run_observed(source, source_path, options, config, |step| {
+        recorder.sweep(step.source_index, step.frame, &step.sweep)?;
+        recorder.estimates(step.completed)?;
+        Ok(())
+    })?;
+    Ok((output, recorder.finish()?))
+}
+
+/// [`run`], showing `observe` every frame ([`RunStep`]) after the estimator
+/// took it; the time `observe` takes is not in the output's wall time.
+///
+/// # Errors
+/// As [`run`], or the first error of `observe`.
+pub fn run_observed(
+    source: &Source,
+    source_path: &Path,
+    options: &RunOptions,
+    config: Option<EstimatorConfig>,
+    mut observe: impl FnMut(&RunStep) -> Result<(), RunError>,
 ) -> Result<RunOutput, RunError> {
     let imu = if options.lidar_only {
         None
@@ -186,14 +244,25 @@ pub fn run(
     let frames = source.frame_range(options.first_frame, options.max_frames);
     let bar = frame_progress_bar(frames.len(), options.progress, options.variant.name());
     let started = Instant::now();
+    let mut observing = Duration::ZERO;
     let mut imu_feed = ImuFeed::new(samples);
     let mut estimates = Vec::with_capacity(frames.len());
     let mut frames_before_init = 0;
-    source.for_each_frame(frames, |_, frame| -> Result<(), RunError> {
+    source.for_each_frame(frames, |index, frame| -> Result<(), RunError> {
         for &sample in imu_feed.due_before(&frame) {
             estimator.push_imu(sample).map_err(estimator_error)?;
         }
         let completed = estimator.push_frame(&frame).map_err(estimator_error)?;
+        if let Some(sweep) = estimator.deskewed_sweep() {
+            let clock = Instant::now();
+            observe(&RunStep {
+                source_index: index,
+                frame: &frame,
+                sweep,
+                completed: &completed,
+            })?;
+            observing += clock.elapsed();
+        }
         if estimates.is_empty() && completed.len() > 1 {
             frames_before_init = completed.len() - 1;
         }
@@ -213,7 +282,7 @@ pub fn run(
         estimates,
         frames_before_init,
         invalid_detections: estimator.invalid_detections(),
-        wall_time: started.elapsed(),
+        wall_time: started.elapsed().saturating_sub(observing),
     })
 }
 

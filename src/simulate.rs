@@ -280,7 +280,7 @@ pub fn simulate(
 /// Records the dataset in `dataset_dir` alone (no run) for Foxglove as the
 /// MCAP file of `request`: every sweep de-skewed and placed with the true ego
 /// poses, the detections and the ground-truth boxes and path
-/// ([`crate::io::mcap::write_mcap`]).
+/// ([`crate::io::mcap::record_dataset`]).
 ///
 /// # Errors
 /// A dataset that cannot be read or a file that cannot be written (named).
@@ -294,15 +294,7 @@ pub fn record_dataset_mcap(
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
-    crate::io::mcap::write_mcap(
-        path,
-        &crate::io::mcap::McapInput {
-            source: &source,
-            frames: source.frame_range(0, None),
-            estimates: &[],
-            max_cloud_points: request.max_cloud_points,
-        },
-    )
+    crate::io::mcap::record_dataset(request, &source, source.frame_range(0, None))
 }
 
 /// Writes the dataset in `dataset_dir` as the ROS 2 bag `path`: its raw

@@ -79,10 +79,27 @@ fn still_room_initialises_and_stays_put() {
             est.push_imu(still_imu(next_sample as f64 * 0.01)).unwrap();
             next_sample += 1;
         }
-        let completed = est.push_frame(&frame(t)).unwrap();
+        let scan = frame(t);
+        let completed = est.push_frame(&scan).unwrap();
         if first_inertial.is_none() && !completed.is_empty() {
             first_inertial = Some(k as u64);
         }
+        // The sweep as the estimator used it: de-skewed to the scan start
+        // once inertial, to the sweep's middle while LiDAR-only; standing
+        // still, the points are where the sensor saw them.
+        let sweep = est.deskewed_sweep().unwrap();
+        assert_eq!((sweep.frame_index, sweep.t_s), (k as u64, t));
+        let t_ref_s = if first_inertial.is_some() {
+            t
+        } else {
+            t + 0.05
+        };
+        assert!((sweep.t_ref_s - t_ref_s).abs() < 1e-12, "{}", sweep.t_ref_s);
+        assert_eq!(sweep.points_lidar.len(), scan.scan.points.len());
+        for (p, raw) in sweep.points_lidar.iter().zip(&scan.scan.points) {
+            assert!((p - raw.position()).norm() < 0.02, "{p} vs {raw:?}");
+        }
+        assert!(sweep.t_lidar_lidar_at(t) == nalgebra::Isometry3::identity());
         estimates.extend(completed);
     }
     assert!(est.is_initialized());
@@ -143,6 +160,8 @@ fn nan_points_are_dropped_and_empty_scans_do_not_panic() {
     }
     let first = est.push_frame(&f).unwrap();
     assert_eq!(first.len(), 1, "LiDAR-only estimates at once");
+    let finite = f.scan.points.iter().filter(|p| p.x.is_finite()).count();
+    assert_eq!(est.deskewed_sweep().unwrap().points_lidar.len(), finite);
     let first = &first[0];
     assert!(first.t_world_lidar.translation.vector.norm() < 1e-9);
     // An empty sweep: no features, no match; the pose is the prediction.

@@ -45,7 +45,7 @@ pub(super) fn run_estimator(
     mcap: Option<&crate::io::mcap::McapRequest>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use crate::io::Source;
-    use crate::run::{RunOptions, run, write_output};
+    use crate::run::{RunOptions, run, run_recorded, write_output};
     use limot_estimator::Variant;
     let variant = Variant::ALL
         .into_iter()
@@ -126,20 +126,15 @@ pub(super) fn run_estimator(
             ..Default::default()
         }
     };
-    let output = run(&source, dataset, &options, Some(config))?;
+    let output = match mcap {
+        Some(request) => {
+            let (output, stats) = run_recorded(&source, dataset, &options, Some(config), request)?;
+            super::print_mcap(&stats);
+            output
+        }
+        None => run(&source, dataset, &options, Some(config))?,
+    };
     write_output(&out, &output)?;
-    if let Some(request) = mcap {
-        let stats = crate::io::mcap::write_mcap(
-            &request.path,
-            &crate::io::mcap::McapInput {
-                source: &source,
-                frames: source.frame_range(first_frame, max_frames),
-                estimates: &output.estimates,
-                max_cloud_points: request.max_cloud_points,
-            },
-        )?;
-        super::print_mcap(&stats);
-    }
     let n = output.estimates.len();
     println!(
         "{}: {} frames estimated ({} of them LiDAR-only before the inertial initialisation), {:?} mode, {:.1} s wall ({:.1} FPS)",

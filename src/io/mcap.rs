@@ -25,9 +25,9 @@ mod writer;
 
 pub use messages::{POINT_STRIDE_BYTES, REMOVED};
 pub use recording::{
-    FRAME_IMU, FRAME_LIDAR, FRAME_WORLD, FRAME_WORLD_TRUTH, McapInput, McapRequest, TOPIC_CLOUD,
+    FRAME_IMU, FRAME_LIDAR, FRAME_WORLD, FRAME_WORLD_TRUTH, McapRecorder, McapRequest, TOPIC_CLOUD,
     TOPIC_DETECTIONS, TOPIC_PATH, TOPIC_TF, TOPIC_TRACKS, TOPIC_TRUTH_BOXES, TOPIC_TRUTH_PATH,
-    write_mcap,
+    record_dataset,
 };
 pub(crate) use writer::FrameError;
 pub use writer::{LIBRARY, McapError, McapFile, McapStats};

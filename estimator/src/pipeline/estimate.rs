@@ -1,6 +1,7 @@
 //! What the estimator reports per frame.
 
 use crate::imu::ImuBias;
+use crate::lidar::SweepMotion;
 use crate::tracking::TrackOutput;
 use nalgebra::{Isometry3, Vector3};
 use std::time::Duration;
@@ -53,6 +54,42 @@ impl FrameEstimate {
                 .collect(),
             ..self.clone()
         }
+    }
+}
+
+/// The sweep the estimator processed last, as it used it: its points
+/// de-skewed, the feature points its filter dropped and the motion it
+/// de-skewed with. A borrow of the estimator's own buffers, valid until the
+/// next frame ([`Estimator::deskewed_sweep`](super::Estimator::deskewed_sweep)).
+#[derive(Debug, Clone, Copy)]
+pub struct DeskewedSweep<'a> {
+    /// 0-based index of the frame in the input stream.
+    pub frame_index: u64,
+    /// Scan start time, s.
+    pub t_s: f64,
+    /// The instant the points are de-skewed to, s: the scan start, or the
+    /// sweep's middle where the sweep ran through LiDAR-only odometry.
+    pub t_ref_s: f64,
+    /// The scan's finite points in their order (what the feature indices
+    /// index), in the LiDAR frame at `t_ref_s`, m.
+    pub points_lidar: &'a [Vector3<f64>],
+    /// The feature points the variant's filter dropped (indices into
+    /// `points_lidar`), as in the frame's [`FrameEstimate`].
+    pub removed_feature_indices: &'a [u32],
+    /// The LiDAR motion over the sweep the points were de-skewed with (in
+    /// the world of the prediction: only its relative poses mean anything).
+    pub motion: &'a SweepMotion,
+}
+
+impl DeskewedSweep<'_> {
+    /// `t_lidar_lidar_then`: the LiDAR frame at `t_then_s` in the LiDAR
+    /// frame at the scan start, along [`DeskewedSweep::motion`]; the
+    /// identity at the scan start.
+    pub fn t_lidar_lidar_at(&self, t_then_s: f64) -> Isometry3<f64> {
+        if t_then_s == self.t_s {
+            return Isometry3::identity();
+        }
+        self.motion.pose_at(self.t_s).inverse() * self.motion.pose_at(t_then_s)
     }
 }
 

@@ -9,6 +9,6 @@ mod initialization;
 mod objects;
 
 pub use config::{EstimatorConfig, Mode, ParseVariantError, Variant};
-pub use estimate::{FrameEstimate, ModuleTimings, ScanMatchSummary};
+pub use estimate::{DeskewedSweep, FrameEstimate, ModuleTimings, ScanMatchSummary};
 pub use estimator::{Estimator, EstimatorError, Footprint};
 pub use objects::{ObjectEstimate, ObjectGraph, ObjectGraphConfig};

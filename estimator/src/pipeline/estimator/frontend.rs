@@ -69,6 +69,16 @@ pub(super) struct SweepFeatures {
     pub(super) all_indices: Vec<u32>,
 }
 
+/// What [`Estimator::deskewed_sweep`] shows of the last sweep besides the
+/// de-skewed points.
+pub(super) struct LastSweep {
+    pub(super) frame_index: u64,
+    pub(super) t_s: f64,
+    pub(super) t_ref_s: f64,
+    pub(super) motion: SweepMotion,
+    pub(super) removed: Vec<u32>,
+}
+
 /// Which feature points to drop before matching (the variants).
 pub(super) enum FeatureFilter {
     /// `lio`: keep everything.
@@ -159,6 +169,13 @@ impl Estimator {
         let clock = Instant::now();
         let removed = self.filter_features(scan, motion, filter, &mut features);
         timings.filter = clock.elapsed();
+        self.last_sweep = Some(LastSweep {
+            frame_index: self.next_frame_index - 1,
+            t_s: scan.t_s,
+            t_ref_s,
+            motion: motion.clone(),
+            removed: removed.clone(),
+        });
 
         let clock = Instant::now();
         let deskewed = &self.deskewed;

@@ -28,7 +28,7 @@ mod tracks;
 pub use error::EstimatorError;
 
 use super::config::{EstimatorConfig, Mode, Variant};
-use super::estimate::FrameEstimate;
+use super::estimate::{DeskewedSweep, FrameEstimate};
 use super::objects::ObjectGraph;
 use crate::graph::SlidingWindowSmoother;
 use crate::imu::ImuBias;
@@ -176,6 +176,8 @@ pub struct Estimator {
     // (about a dozen of the scan's size) again.
     deskewer: Deskewer,
     deskewed: Vec<Vector3<f64>>,
+    /// Of the sweep in `deskewed`: its frame, times, motion, dropped features.
+    last_sweep: Option<frontend::LastSweep>,
     feature_extractor: FeatureExtractor,
     downsampler: VoxelDownsampler,
     /// One feature class's de-skewed points, gathered for the downsampler.
@@ -229,6 +231,7 @@ impl Estimator {
             bootstrap_estimates: Vec::new(),
             deskewer: Deskewer::new(),
             deskewed: Vec::new(),
+            last_sweep: None,
             feature_extractor,
             downsampler: VoxelDownsampler::default(),
             gathered: Vec::new(),
@@ -262,6 +265,20 @@ impl Estimator {
             objects: self.objects.len(),
             bootstrap_frames: self.bootstrap_estimates.len() + self.bootstrap_mids.len(),
         }
+    }
+
+    /// The last sweep as it was de-skewed and filtered (`None` before the
+    /// first): what a recording of the run shows of each frame, read after
+    /// [`Estimator::push_frame`] and before the next.
+    pub fn deskewed_sweep(&self) -> Option<DeskewedSweep<'_>> {
+        self.last_sweep.as_ref().map(|last| DeskewedSweep {
+            frame_index: last.frame_index,
+            t_s: last.t_s,
+            t_ref_s: last.t_ref_s,
+            points_lidar: &self.deskewed,
+            removed_feature_indices: &last.removed,
+            motion: &last.motion,
+        })
     }
 
     /// True once the ego state is initialised (always, in LiDAR-only mode).
