@@ -299,9 +299,14 @@ impl SegmentTransform {
 
 /// Largest rotation between two table steps, rad: linear interpolation
 /// between the exact rotations at a step's ends is off by at most
-/// `step² / 8` of the point's range (the chord's sagitta): 3e-10 of it,
-/// 4e-8 m at 120 m, far below an f32 coordinate's resolution there.
+/// `step² / 8` of the point's range (the chord's sagitta).
 const MAX_STEP_RAD: f64 = 5.0e-5;
+
+/// How far a de-skewed point may be from its exact transform
+/// `pose_at(t_ref)⁻¹·pose_at(t)·p`, as a fraction of its range, beyond
+/// rounding: the rotation table's `MAX_STEP_RAD² / 8`, 3.2e-10 (4e-8 m at
+/// 120 m, far below an f32 coordinate's resolution there).
+pub const DESKEW_RELATIVE_TOLERANCE: f64 = MAX_STEP_RAD * MAX_STEP_RAD / 8.0;
 
 /// Segments that would need more steps keep the exact per-point rotation
 /// (fast spins: the table would cost more than it saves).
@@ -373,7 +378,7 @@ impl RotationSteps {
     }
 
     /// `T_ref⁻¹·T(t)·p` in segment `k` of the sweep's segments, within
-    /// `MAX_STEP_RAD² / 8 · |p|` of [`SegmentTransform::apply`]; that
+    /// [`DESKEW_RELATIVE_TOLERANCE`]` · |p|` of [`SegmentTransform::apply`]; that
     /// function itself outside the table's span and for segments that turn
     /// too fast.
     #[inline]
@@ -708,7 +713,7 @@ mod tests {
                 let t = scan.t_s + p.time_offset_s as f64;
                 let expected = inv_ref * m.pose_at(t) * nalgebra::Point3::from(p.position());
                 // single-time points go through the rotation table
-                let bound = 1e-12 + MAX_STEP_RAD * MAX_STEP_RAD / 8.0 * p.position().norm();
+                let bound = 1e-12 + DESKEW_RELATIVE_TOLERANCE * p.position().norm();
                 assert!((expected.coords - q).norm() < bound, "{t}");
             }
         }
@@ -760,7 +765,7 @@ mod tests {
             for (p, q) in scan.points.iter().zip(&out) {
                 let t = scan.t_s + p.time_offset_s as f64;
                 let expected = inv_ref * m.pose_at(t) * nalgebra::Point3::from(p.position());
-                let bound = 1e-12 + MAX_STEP_RAD * MAX_STEP_RAD / 8.0 * p.position().norm();
+                let bound = 1e-12 + DESKEW_RELATIVE_TOLERANCE * p.position().norm();
                 assert!((expected.coords - q).norm() < bound, "{t}");
             }
         }

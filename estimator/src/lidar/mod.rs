@@ -9,7 +9,7 @@
 //! Points are in metres; `_lidar` names the sensor frame, `_world` the map
 //! frame.
 
-pub use deskew::{DeskewError, Deskewer, SweepMotion, deskew};
+pub use deskew::{DESKEW_RELATIVE_TOLERANCE, DeskewError, Deskewer, SweepMotion, deskew};
 pub use features::{
     FeatureConfig, FeatureConfigError, FeatureExtractor, ScanFeatures, extract_features,
 };
