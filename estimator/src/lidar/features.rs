@@ -210,14 +210,41 @@ struct OrderedPoint {
     y: f32,
 }
 
-/// Sorts one ring by key. The storage is usually a few monotone runs of
-/// the time order, ascending (simulator: sweep from the rear) or descending
-/// (KITTI: each laser stored counter-clockwise while the head spins
-/// clockwise); the stable sort detects and merges such runs in ~O(n) (the
-/// keys are unique, so stable and unstable orders agree).
+/// Sorts one ring by key. The storage is usually the time order rotated,
+/// ascending (simulator: sweep from the rear) or descending (KITTI: each
+/// laser stored counter-clockwise while the head spins clockwise): a
+/// reversal and a rotation sort those in three linear passes; anything
+/// else goes to the stable sort (the keys are unique, so every route gives
+/// the same order).
 fn sort_ring(slice: &mut [OrderedPoint]) {
-    if !slice.is_sorted_by_key(|o| o.key) {
-        slice.sort_by_key(|o| o.key);
+    if let Some(start) = rotated_start(slice) {
+        slice.rotate_left(start);
+        return;
+    }
+    slice.reverse();
+    if let Some(start) = rotated_start(slice) {
+        slice.rotate_left(start);
+        return;
+    }
+    slice.sort_by_key(|o| o.key);
+}
+
+/// If `slice` is an ascending sequence rotated (at most one descent, and
+/// the last key below the first when there is one), the index where it
+/// starts.
+fn rotated_start(slice: &[OrderedPoint]) -> Option<usize> {
+    let mut start = None;
+    for (i, pair) in slice.windows(2).enumerate() {
+        if pair[0].key > pair[1].key {
+            if start.is_some() {
+                return None;
+            }
+            start = Some(i + 1);
+        }
+    }
+    match start {
+        None => Some(0),
+        Some(i) => (slice[slice.len() - 1].key < slice[0].key).then_some(i),
     }
 }
 
@@ -770,6 +797,35 @@ mod tests {
             sort_ring(&mut ring);
             let got: Vec<u64> = ring.iter().map(|o| o.key).collect();
             assert_eq!(got, sorted);
+        }
+        // every order of up to 6 keys (rotations, reversals, near misses)
+        fn permutations(n: usize) -> Vec<Vec<u64>> {
+            if n == 0 {
+                return vec![vec![]];
+            }
+            let mut all = Vec::new();
+            for p in permutations(n - 1) {
+                for at in 0..=p.len() {
+                    let mut q = p.clone();
+                    q.insert(at, (n - 1) as u64);
+                    all.push(q);
+                }
+            }
+            all
+        }
+        for n in 0..=6 {
+            for keys in permutations(n) {
+                let mut ring: Vec<OrderedPoint> = keys
+                    .iter()
+                    .map(|&key| OrderedPoint {
+                        key,
+                        ..OrderedPoint::default()
+                    })
+                    .collect();
+                sort_ring(&mut ring);
+                let got: Vec<u64> = ring.iter().map(|o| o.key).collect();
+                assert_eq!(got, (0..n as u64).collect::<Vec<_>>(), "{keys:?}");
+            }
         }
     }
 
