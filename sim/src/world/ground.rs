@@ -5,7 +5,8 @@ use crate::scene::Ground;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// Rays descending at least this steeply (sin of the depression) trust the
-/// fast path's verdict; shallower ones it leaves unsettled go the safe way.
+/// fast path's crossing beyond the maximum range; shallower ones, and all
+/// the fast path leaves unsettled, go the safe way.
 const FAST_PATH_MIN_DESCENT: f64 = 0.05;
 
 /// Nearest ground hit within `max_range_m` and the upward normal there.
@@ -56,8 +57,6 @@ pub(super) fn intersect_ground(
             if s > max_range_m && dir.z < -FAST_PATH_MIN_DESCENT {
                 return None;
             }
-        } else if dir.z < -FAST_PATH_MIN_DESCENT {
-            return None;
         }
     }
     let (s0, (_, gx0, gy0)) = intersect_terrain(
