@@ -42,7 +42,7 @@ pub struct Roughness {
     /// Row-major, `heights[iy * TILE_CELLS + ix] * scale_m`: 16-bit
     /// heights keep the tile (512 KiB) in a core's L2 cache, which the ray
     /// caster's scattered lookups need, at a resolution of bound / 32767.
-    heights: Arc<[i16]>,
+    heights: Arc<[i16; TILE_CELLS * TILE_CELLS]>,
     scale_m: f64,
     /// max |height| over the texture, m.
     bound_m: f64,
@@ -130,6 +130,10 @@ impl Roughness {
                 max_step = max_step.max((right - h).abs()).max((up - h).abs());
             }
         }
+        let heights: Box<[i16; TILE_CELLS * TILE_CELLS]> = heights
+            .into_boxed_slice()
+            .try_into()
+            .expect("one height per cell of the tile");
         Roughness {
             heights: heights.into(),
             scale_m,
@@ -155,6 +159,7 @@ impl Roughness {
 
     /// Height and (dh/dx, dh/dy) at world (x, y); on a cell edge the
     /// gradient is that of the cell above/right of it.
+    #[inline]
     pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let n = TILE_CELLS;
         let (u, v) = (x / CELL_M, y / CELL_M);

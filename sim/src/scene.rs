@@ -58,6 +58,7 @@ pub struct Crown {
 
 impl Crown {
     /// Height offset and its gradient at (x, y).
+    #[inline]
     pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, Vector2<f64>) {
         let l = self.lateral.dot(&(Vector2::new(x, y) - self.axis_point));
         let w2 = self.width_m * self.width_m;
@@ -93,6 +94,7 @@ impl Ground {
     }
 
     /// Height and gradient in one pass: terrain plus detail.
+    #[inline]
     pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let (h, gx, gy) = self.terrain_height_and_gradient(x, y);
         let (dh, dx, dy) = self.detail_height_and_gradient(x, y);
@@ -101,12 +103,13 @@ impl Ground {
 
     /// The large-scale terrain: plane and undulations (one sin_cos per
     /// undulation).
+    #[inline]
     pub fn terrain_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let mut h = self.base_height_m + self.slope.x * x + self.slope.y * y;
         let (mut gx, mut gy) = (self.slope.x, self.slope.y);
+        let trig = crate::fast_trig::table();
         for u in &self.undulations {
-            let (sin, cos) =
-                crate::fast_trig::sin_cos(u.wave_vector.x * x + u.wave_vector.y * y + u.phase_rad);
+            let (sin, cos) = trig.sin_cos(u.wave_vector.x * x + u.wave_vector.y * y + u.phase_rad);
             h += u.amplitude_m * sin;
             gx += u.amplitude_m * cos * u.wave_vector.x;
             gy += u.amplitude_m * cos * u.wave_vector.y;
@@ -115,6 +118,7 @@ impl Ground {
     }
 
     /// The road's detail on the terrain: crown and roughness texture.
+    #[inline]
     pub fn detail_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let (mut h, mut gx, mut gy) = (0.0, 0.0, 0.0);
         if let Some(c) = &self.crown {

@@ -70,6 +70,12 @@ pub const BVH_EDGE_MARGIN_M: f64 = 1e-3;
 /// of the BVH in its own order, m.
 pub const NEAR_TIE_M: f64 = 1e-3;
 
+/// How far the ground range [`WorldAt::cast_ray`] or
+/// [`WorldAt::cast_ray_next_to`] finds may lie from the ray's exact first
+/// crossing with the ground (a ray steeper than the ground's slopes), m:
+/// far below an f32's resolution at the LiDAR's ranges (4e-6 m at 32 m).
+pub const GROUND_RANGE_TOLERANCE_M: f64 = 1e-7;
+
 /// What the listed statics say about a ray.
 enum ListedHit {
     /// The hit (or none) the BVH finds too.
@@ -430,6 +436,7 @@ impl World {
         under_origin: &GroundSample,
         dir: &Vector3<f64>,
         max_range_m: f64,
+        start_m: f64,
     ) -> Option<ShapeHit> {
         intersect_ground(
             &self.ground,
@@ -438,6 +445,7 @@ impl World {
             under_origin,
             dir,
             max_range_m,
+            start_m,
         )
     }
 
@@ -569,7 +577,8 @@ impl WorldAt<'_> {
         dir_world: &Unit<Vector3<f64>>,
         max_range_m: f64,
     ) -> Option<RayHit> {
-        self.cast(origin_world, dir_world, max_range_m, None)
+        self.cast(origin_world, dir_world, max_range_m, None, f64::NAN)
+            .0
     }
 
     /// [`WorldAt::cast_ray`] for a caller that knows which statics the ray
@@ -592,20 +601,61 @@ impl WorldAt<'_> {
         max_range_m: f64,
         candidates: &[usize],
     ) -> Option<RayHit> {
-        self.cast(origin_world, dir_world, max_range_m, Some(candidates))
+        self.cast(
+            origin_world,
+            dir_world,
+            max_range_m,
+            Some(candidates),
+            f64::NAN,
+        )
+        .0
+    }
+
+    /// [`WorldAt::cast_ray_with_candidates`] for a ray next to one cast
+    /// before (the same beam of the neighbouring column, say):
+    /// `ground_range_m` holds that ray's ground range on entry (NaN if
+    /// none), where the search for this ray's ground crossing starts, and
+    /// this ray's own ground range on return (NaN if none), for the next
+    /// ray. The start changes only the last digits of the ground's range:
+    /// it is found to the same tolerance as by [`WorldAt::cast_ray`]
+    /// ([`GROUND_RANGE_TOLERANCE_M`]), and everything else is the same.
+    ///
+    /// # Panics
+    /// If an index of `candidates` is out of range.
+    pub fn cast_ray_next_to(
+        &self,
+        origin_world: &Point3<f64>,
+        dir_world: &Unit<Vector3<f64>>,
+        max_range_m: f64,
+        candidates: &[usize],
+        ground_range_m: &mut f64,
+    ) -> Option<RayHit> {
+        let (hit, range_m) = self.cast(
+            origin_world,
+            dir_world,
+            max_range_m,
+            Some(candidates),
+            *ground_range_m,
+        );
+        *ground_range_m = range_m;
+        hit
     }
 
     /// Both casts: statics from the BVH, skipped when `candidates` are given
-    /// and none of them is hit.
+    /// and none of them is hit; the ground's search starts at
+    /// `ground_start_m` (NaN: from the tangent plane under the origin).
+    /// With the ground's own range (NaN if none).
     fn cast(
         &self,
         origin_world: &Point3<f64>,
         dir_world: &Unit<Vector3<f64>>,
         max_range_m: f64,
         candidates: Option<&[usize]>,
-    ) -> Option<RayHit> {
+        ground_start_m: f64,
+    ) -> (Option<RayHit>, f64) {
+        let mut ground_range_m = f64::NAN;
         if max_range_m.is_nan() || max_range_m <= 0.0 {
-            return None;
+            return (None, ground_range_m);
         }
         let world = self.world;
         let dir = dir_world.as_ref();
@@ -623,8 +673,9 @@ impl WorldAt<'_> {
         };
         // ground first: cheap, and its range prunes the static BVH
         if let Some((range_m, normal_world)) =
-            world.cast_ground(origin_world, &under_origin, dir, limit)
+            world.cast_ground(origin_world, &under_origin, dir, limit, ground_start_m)
         {
+            ground_range_m = range_m;
             limit = range_m;
             best = Some(RayHit {
                 range_m,
@@ -678,7 +729,7 @@ impl WorldAt<'_> {
                 });
             }
         }
-        best
+        (best, ground_range_m)
     }
 }
 

@@ -210,12 +210,21 @@ impl LidarSimulator {
             .enumerate()
             .map(|(task, (points, labels))| {
                 let mut counts = [0; COLUMNS_PER_TASK];
+                // each beam's ground range in the column before, where the
+                // next column's search starts (a task's first column has none,
+                // so a task's points do not depend on the others')
+                let mut ground_ranges_m = [f64::NAN; NUM_LASERS];
                 let columns = points
                     .chunks_mut(NUM_LASERS)
                     .zip(labels.chunks_mut(NUM_LASERS));
                 for (k, (points, labels)) in columns.enumerate() {
-                    counts[k] =
-                        self.fire_column(&sweep, task * COLUMNS_PER_TASK + k, points, labels);
+                    counts[k] = self.fire_column(
+                        &sweep,
+                        task * COLUMNS_PER_TASK + k,
+                        points,
+                        labels,
+                        &mut ground_ranges_m,
+                    );
                 }
                 counts
             })
@@ -237,13 +246,16 @@ impl LidarSimulator {
 
     /// Casts the 64 beams of one column at its firing time; its returns go,
     /// in beam order, to the front of `points` and `labels` (64 slots each),
-    /// and their number is returned.
+    /// and their number is returned. `ground_ranges_m` holds each beam's
+    /// ground range in the column before (NaN: none), where the beam's
+    /// search starts, and is updated to this column's.
     fn fire_column(
         &self,
         sweep: &Sweep<'_>,
         column: usize,
         points: &mut [LidarPoint],
         labels: &mut [u32],
+        ground_ranges_m: &mut [f64; NUM_LASERS],
     ) -> u8 {
         let mut count = 0;
         let cfg = &self.config;
@@ -331,11 +343,12 @@ impl LidarSimulator {
                     .filter(|(_, lo, hi)| (*lo..=*hi).contains(&slope))
                     .map(|(index, _, _)| *index),
             );
-            let Some(hit) = snapshot.cast_ray_with_candidates(
+            let Some(hit) = snapshot.cast_ray_next_to(
                 &origin_world,
                 &dir_world,
                 cfg.max_range_m,
                 &beam_statics,
+                &mut ground_ranges_m[beam],
             ) else {
                 continue;
             };

@@ -5,7 +5,8 @@ use crate::scene::Ground;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// Rays descending at least this steeply (sin of the depression) trust the
-/// fast path's verdict; shallower ones it leaves unsettled go the safe way.
+/// fast path's crossing beyond the maximum range; shallower ones, and all
+/// the fast path leaves unsettled, go the safe way.
 const FAST_PATH_MIN_DESCENT: f64 = 0.05;
 
 /// Nearest ground hit within `max_range_m` and the upward normal there.
@@ -17,7 +18,10 @@ const FAST_PATH_MIN_DESCENT: f64 = 0.05;
 /// one exact polish on the whole surface. For rays steeper than the
 /// detail's slopes (all but grazing rays beyond ~50 m on a typical road)
 /// this is the first crossing; a grazing ray may see the crossing next to
-/// the terrain's and miss a bump earlier along it.
+/// the terrain's and miss a bump earlier along it. Most rays settle sooner,
+/// by Newton steps on the whole surface; a steep ray's steps start at
+/// `start_m` (a neighbouring ray's range, say; NaN: none) if they settle
+/// from there, else from the tangent plane under the origin.
 pub(super) fn intersect_ground(
     ground: &Ground,
     undulation_bound_m: f64,
@@ -25,6 +29,7 @@ pub(super) fn intersect_ground(
     under_origin: &GroundSample,
     dir: &Vector3<f64>,
     max_range_m: f64,
+    start_m: f64,
 ) -> Option<ShapeHit> {
     if !ground.has_detail() {
         let (s, (_, gx, gy)) =
@@ -41,7 +46,8 @@ pub(super) fn intersect_ground(
         (p.z - h, dir.z - hx * dir.x - hy * dir.y, (hx, hy))
     };
     // fast path: Newton on the whole surface from the tangent plane under
-    // the sensor; every ray steeper than the surface's slopes meets it once
+    // the sensor; every ray steeper than the surface's slopes meets it once,
+    // so a steep ray may start anywhere (from `start_m` if it settles there)
     let (h0, hx0, hy0) = *under_origin;
     let (f0, df0) = (origin.z - h0, dir.z - hx0 * dir.x - hy0 * dir.y);
     if f0 <= 0.0 {
@@ -49,15 +55,19 @@ pub(super) fn intersect_ground(
     }
     if df0 < 0.0 {
         let beyond = max_range_m + margin_m;
-        if let Some((s, (gx, gy))) = safeguarded_newton(whole, -f0 / df0, 1e-9, 0.0, beyond) {
+        let steep = dir.z < -FAST_PATH_MIN_DESCENT;
+        let newton = |start: f64| safeguarded_newton(whole, start, 1e-9, 0.0, beyond);
+        let settled = (steep && start_m > 0.0 && start_m <= beyond)
+            .then(|| newton(start_m))
+            .flatten()
+            .or_else(|| newton(-f0 / df0));
+        if let Some((s, (gx, gy))) = settled {
             if (0.0..=max_range_m).contains(&s) {
                 return Some((s, Unit::new_normalize(Vector3::new(-gx, -gy, 1.0))));
             }
-            if s > max_range_m && dir.z < -FAST_PATH_MIN_DESCENT {
+            if s > max_range_m && steep {
                 return None;
             }
-        } else if dir.z < -FAST_PATH_MIN_DESCENT {
-            return None;
         }
     }
     let (s0, (_, gx0, gy0)) = intersect_terrain(
