@@ -4,18 +4,24 @@
 //!
 //! The detector model is scored too, as an oracle-associated "tracker"
 //! (detections carry their true ids, so its MOTA and MOTP are the ceiling a
-//! tracker fed these detections can reach).
+//! tracker fed these detections can reach), against the same truth as the
+//! tracks (`detector`); every error of the tracks is given its cause
+//! (`tracks`, `tables`).
+mod detector;
+mod tables;
+mod tracks;
+
+use crate::experiments::{ScoredTruth, TrackEvalOptions};
 use crate::metrics::EvalError;
 use crate::metrics::IouKind;
-use crate::metrics::{ClearMotConfig, ClearMotResult, MotFrame, TrackedBox, clear_mot};
-use crate::report::Series2D;
+use crate::metrics::{ClearMotConfig, ClearMotResult, MotLoss, PAPER_IOU_THRESHOLDS, clear_mot};
 use crate::report::{Cell, Table};
+use crate::report::{ColourScale, EgoErrorSeries, Series2D, ego_error_series};
 use crate::report::{Plot, PlotKind, Report, ReportError, Section, write_report};
-use limot_estimator::geometry::OrientedBox;
-use limot_sim::record::points_per_instance;
+use detector::{DetectorFrame, detector_frames};
 use limot_sim::scenario::ScenarioSpec;
-use limot_sim::sensors::Detector;
-use limot_sim::{SimulatedFrame, Simulation, SimulationError};
+use limot_sim::{Simulation, SimulationError};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Why the demo failed.
@@ -45,9 +51,15 @@ pub enum DemoError {
     /// The Foxglove recording could not be written.
     #[error(transparent)]
     Mcap(#[from] crate::io::mcap::McapError),
-    /// The track evaluation lacks its 3D IoU 0.25 score.
-    #[error("the track evaluation has no 3D IoU 0.25 score")]
-    NoTrackScore,
+    /// The estimator skipped detections, so its detection indices no
+    /// longer name the dataset's detections.
+    #[error("the {variant} run skipped {count} invalid detections")]
+    SkippedDetections {
+        /// The variant.
+        variant: &'static str,
+        /// Detections skipped.
+        count: u64,
+    },
 }
 
 impl From<crate::run::RunError> for DemoError {
@@ -67,8 +79,13 @@ impl From<crate::experiments::EvaluateError> for DemoError {
 pub struct EstimatorSummary {
     /// Variant name.
     pub variant: &'static str,
-    /// Confirmed, matched tracks vs the camera-visible truth at 3D IoU 0.25.
-    pub tracks: ClearMotResult,
+    /// Confirmed, matched tracks vs the camera-visible truth at 3D IoU 0.25
+    /// and 0.5 (the thresholds of `DemoSummary::detector`).
+    pub tracks: [ClearMotResult; 2],
+    /// The errors at 3D IoU 0.25 by cause (`loss.tracks` is `tracks[0]`).
+    pub loss: MotLoss,
+    /// Per-pose ego error, as plot series.
+    pub errors: EgoErrorSeries,
     /// Translational ATE (RMSE) after SE(3) alignment (m).
     pub ate_t_m: f64,
     /// Rotational ATE (RMSE) after SE(3) alignment (rad).
@@ -84,9 +101,6 @@ pub struct EstimatorSummary {
     /// The written trajectory (`poses_tum.txt`).
     pub trajectory: PathBuf,
 }
-
-/// Id offset of false-positive detections (they have no ground-truth id).
-const FALSE_POSITIVE_ID_BASE: u64 = 1 << 40;
 
 /// The headline figures of a demo run.
 #[derive(Debug, Clone)]
@@ -105,65 +119,12 @@ pub struct DemoSummary {
     pub parked_agents: usize,
     /// Length of the ego path (m).
     pub ego_path_length_m: f64,
-    /// Detector scored at 3D IoU 0.25 and 0.5.
+    /// Detector scored at 3D IoU 0.25 and 0.5 against the tracks' truth.
     pub detector: [(f64, ClearMotResult); 2],
     /// `lio` then `limot`.
     pub estimators: Vec<EstimatorSummary>,
     /// The Foxglove recording of the `limot` run, when one was asked for.
     pub mcap: Option<crate::io::mcap::McapStats>,
-}
-
-/// Ground truth and detections of one frame as CLEAR-MOT input. Ground truth
-/// is every agent the detector could see (enough LiDAR points, in range),
-/// boxed where the sweep saw it (the same instant as the detection).
-fn mot_frame(sim: &Simulation, frame: &SimulatedFrame) -> MotFrame {
-    let spec = sim.spec();
-    let scene = sim.scene();
-    let points = points_per_instance(&frame.recorded.labels);
-    let gt = scene
-        .agents
-        .iter()
-        .filter(|a| points.get(&a.id).copied().unwrap_or(0) >= spec.detector.min_points)
-        .map(|a| {
-            (
-                a.id,
-                Detector::sighted_box(a, &scene.ego, frame.t_s, &spec.lidar),
-            )
-        })
-        .filter(|(_, d)| d.box_lidar.center.xy().norm() <= spec.detector.max_range_m)
-        .map(|(id, d)| TrackedBox {
-            id: u64::from(id),
-            class: d.class,
-            bbox: OrientedBox::new(
-                d.box_lidar.center,
-                d.box_lidar.size_lwh,
-                d.box_lidar.yaw_rad,
-            ),
-        })
-        .collect();
-    let tracks = frame
-        .recorded
-        .detections
-        .iter()
-        .enumerate()
-        .map(|(k, d)| TrackedBox {
-            id: d.truth_id.map_or(
-                FALSE_POSITIVE_ID_BASE + (frame.index as u64) * 1000 + k as u64,
-                u64::from,
-            ),
-            class: d.detection.class,
-            bbox: OrientedBox::new(
-                d.detection.box_lidar.center,
-                d.detection.box_lidar.size_lwh,
-                d.detection.box_lidar.yaw_rad,
-            ),
-        })
-        .collect();
-    MotFrame {
-        gt,
-        tracks,
-        dont_care: Vec::new(),
-    }
 }
 
 /// Runs the demo into `out` (dataset in `out/dataset`, report in `out/report`) and, with
@@ -181,42 +142,61 @@ pub fn run_demo(
     let sim = Simulation::new(spec)?;
     let total = sim.frame_count();
     let bar = crate::cli::frame_progress_bar(total, progress, "simulate");
-    let mut mot_frames = Vec::with_capacity(total);
+    let mut seen = Vec::with_capacity(total);
     let mut points = 0usize;
     // the demo owns its output: a dataset left by an earlier demo is replaced
     crate::simulate::prepare_output_dir(&out.join("dataset"), true)
         .map_err(|e| DemoError::Output(Box::new(e)))?;
     let dataset_dir = sim.write_dataset(&out.join("dataset"), |frame, _| {
         points += frame.recorded.scan.points.len();
-        mot_frames.push(mot_frame(&sim, frame));
+        seen.push(DetectorFrame::new(sim.scene(), &spec.lidar, frame));
         bar.inc(1);
     })?;
     bar.finish_and_clear();
 
-    let detector = [0.25, 0.5].map(|threshold| {
-        let cfg = ClearMotConfig {
-            iou_kind: IouKind::ThreeD,
-            ..ClearMotConfig::with_threshold(threshold)
-        };
-        clear_mot(&mot_frames, &cfg).map(|r| (threshold, r))
+    // The one truth every row is scored against: the tracks' (camera-visible
+    // boxes, what a KITTI-format result can hold and `limot eval` scores).
+    let truth = ScoredTruth::read(&dataset_dir, &TrackEvalOptions::default())?;
+    let det_frames = detector_frames(&seen, &truth);
+    let configs = PAPER_IOU_THRESHOLDS.map(|threshold| ClearMotConfig {
+        iou_kind: IouKind::ThreeD,
+        ..ClearMotConfig::with_threshold(threshold)
     });
-    let [a, b] = detector;
+    let [a, b] = configs.map(|cfg| clear_mot(&det_frames, &cfg).map(|r| (cfg.iou_threshold, r)));
     let detector = [a?, b?];
+    // truth ids the detector found, per frame, at the loss breakdown's threshold
+    let detected: Vec<BTreeSet<u64>> = detector[0]
+        .1
+        .per_frame
+        .iter()
+        .map(|m| m.iter().map(|m| m.gt_id).collect())
+        .collect();
+    let scoring = Scoring {
+        truth: &truth,
+        seen: &seen,
+        detected: &detected,
+        configs: &configs,
+    };
 
     // The estimator on the dataset just written, scored against its truth.
     let source = crate::io::Source::open(&dataset_dir).map_err(crate::run::RunError::from)?;
     let mut estimators = Vec::new();
-    let mut estimated_xy = Vec::new();
     let mut mcap_stats = None;
     for variant in [
         limot_estimator::Variant::Lio,
         limot_estimator::Variant::Limot,
     ] {
         let recording = mcap.filter(|_| variant == limot_estimator::Variant::Limot);
-        let (summary, xy, stats) =
-            run_variant(&source, &dataset_dir, out, variant, progress, recording)?;
+        let (summary, stats) = run_variant(
+            &source,
+            &dataset_dir,
+            out,
+            variant,
+            progress,
+            recording,
+            &scoring,
+        )?;
         estimators.push(summary);
-        estimated_xy.push(xy);
         mcap_stats = mcap_stats.or(stats);
     }
     let mut estimator_table = Table::new(
@@ -225,8 +205,6 @@ pub fn run_demo(
             "variant",
             "ATE_T [m]",
             "ATE_R [rad]",
-            "MOTA %",
-            "MOTP %",
             "frames",
             "before init",
             "ms / frame",
@@ -240,8 +218,6 @@ pub fn run_demo(
             Cell::from(e.variant),
             Cell::Num(e.ate_t_m),
             Cell::Num(e.ate_r_rad),
-            Cell::Num(e.tracks.mota.unwrap_or(f64::NAN) * 100.0),
-            Cell::Num(e.tracks.motp.unwrap_or(f64::NAN) * 100.0),
             Cell::from(e.frames_estimated),
             Cell::from(e.frames_before_init),
             Cell::Num(e.mean_frame_ms),
@@ -250,10 +226,16 @@ pub fn run_demo(
     }
     estimator_table.set_decimals(1, 3);
     estimator_table.set_decimals(2, 4);
-    estimator_table.set_decimals(3, 1);
-    estimator_table.set_decimals(4, 1);
-    estimator_table.set_decimals(7, 1);
-    estimator_table.set_decimals(8, 1);
+    estimator_table.set_decimals(5, 1);
+    estimator_table.set_decimals(6, 1);
+    let same_truth = tables::same_truth_table(&detector, &estimators)?;
+    let loss = tables::loss_table(&estimators)?;
+    let loss_text = estimators
+        .iter()
+        .map(|e| tables::loss_sentence(&detector[0].1, e))
+        .collect::<Vec<_>>()
+        .join("\n\n");
+    let error_plots = error_plots(&estimators);
 
     let scene = sim.scene();
     let dt = 0.1;
@@ -325,38 +307,6 @@ pub fn run_demo(
         stats.push_row(vec![Cell::from(name), value])?;
     }
     stats.set_decimals(1, 1);
-    let mut det_table = Table::new(
-        "Detector model vs ground truth (oracle association, 3D IoU)",
-        [
-            "IoU thr.",
-            "MOTA %",
-            "MOTP %",
-            "recall %",
-            "precision %",
-            "FP",
-            "FN",
-        ]
-        .map(String::from)
-        .to_vec(),
-    );
-    for (threshold, r) in &detector {
-        let recall = r.matches as f64 / r.gt_count.max(1) as f64 * 100.0;
-        let precision = r.matches as f64 / (r.matches + r.false_positives).max(1) as f64 * 100.0;
-        det_table.push_row(vec![
-            Cell::Num(*threshold),
-            Cell::from(r.mota.map(|m| m * 100.0)),
-            Cell::from(r.motp.map(|m| m * 100.0)),
-            Cell::Num(recall),
-            Cell::Num(precision),
-            Cell::from(r.false_positives),
-            Cell::from(r.false_negatives),
-        ])?;
-    }
-    for column in 1..5 {
-        det_table.set_decimals(column, 1);
-    }
-    det_table.set_decimals(0, 2);
-
     let report = Report {
         title: format!("limot demo: `{}` (seed {})", spec.name, spec.seed),
         sections: vec![
@@ -376,8 +326,11 @@ pub fn run_demo(
                         kind: PlotKind::TrajectoriesXy {
                             series: vec![
                                 Series2D::truth("ego (truth)", ego_xy.clone()),
-                                Series2D::line("ego (lio, aligned)", estimated_xy[0].clone()),
-                                Series2D::line("ego (limot, aligned)", estimated_xy[1].clone()),
+                                Series2D::line("ego (lio, aligned)", xy_of(&estimators[0].errors)),
+                                Series2D::line(
+                                    "ego (limot, aligned)",
+                                    xy_of(&estimators[1].errors),
+                                ),
                             ],
                         },
                     },
@@ -399,29 +352,42 @@ pub fn run_demo(
                 ],
             },
             Section {
-                heading: "Detector model".into(),
-                text: "Detections scored against the boxes of every agent with at least \
-                       `min_points` LiDAR returns within the detector range, at the instant \
-                       the sweep saw it. Detections keep their true ids, so this is the \
-                       ceiling of a tracker fed these detections."
-                    .into(),
-                tables: vec![det_table],
-                plots: vec![],
-            },
-            Section {
                 heading: "Estimator".into(),
                 text: format!(
                     "`limot run {0} --variant lio` (LiDAR-inertial odometry, no object \
                      handling) and `--variant limot` (moving objects' features filtered by \
                      their tracked trajectories, objects optimized jointly with the ego). \
-                     Tracks: confirmed tracks matched in the frame, scored against the \
-                     camera-visible ground truth at 3D IoU 0.25 (all classes). Trajectories: \
-                     `{1}`, `{2}`.",
+                     Trajectories: `{1}`, `{2}`. The straight top view hides centimetres: \
+                     the error over time and the path coloured by it show them.",
                     dataset_dir.display(),
                     estimators[0].trajectory.display(),
                     estimators[1].trajectory.display()
                 ),
                 tables: vec![estimator_table],
+                plots: error_plots,
+            },
+            Section {
+                heading: "Tracking: the detector's ceiling and the tracks, like with like".into(),
+                text: format!(
+                    "Every row is scored against the same truth: the camera-visible boxes \
+                     (within {range} m, hit by a LiDAR point, with a box in the camera \
+                     image), the truth `limot eval tracks` judges the tracks on, since a \
+                     KITTI-format result holds only boxes in the image. The detector keeps \
+                     the true ids (no association errors), its boxes and the truth's are \
+                     taken at the instant the sweep saw each object, and only detections in \
+                     the image count, as for the tracks: its MOTA is the ceiling of a \
+                     tracker fed these detections. Tracks: the confirmed tracks matched to a \
+                     detection in the frame (what `limot run` writes), world frame.\n\n\
+                     Every FN, FP and ID switch of the tracks has one cause below \
+                     (`limot::metrics::mot_loss`): a truth box the detector missed is the \
+                     ceiling's own FN; a found one is lost when no track takes its \
+                     detection, while the track that took it is still tentative (confirmed \
+                     after {init} consecutive matched frames), or when the confirmed track's \
+                     box misses the truth at the IoU.\n\n{loss_text}",
+                    range = crate::experiments::KITTI_LABEL_RANGE_M,
+                    init = limot_estimator::tracking::TrackerConfig::default().init_frames,
+                ),
+                tables: vec![same_truth, loss],
                 plots: vec![],
             },
         ],
@@ -441,13 +407,78 @@ pub fn run_demo(
     })
 }
 
-/// What [`run_variant`] returns: the summary, the aligned ego XY path and
-/// the recording's statistics.
-type VariantRun = (
-    EstimatorSummary,
-    Vec<(f64, f64)>,
-    Option<crate::io::mcap::McapStats>,
-);
+/// What [`run_variant`] returns: the summary and the recording's statistics.
+type VariantRun = (EstimatorSummary, Option<crate::io::mcap::McapStats>);
+
+/// What every variant's tracks are scored with.
+struct Scoring<'a> {
+    /// The truth of every row.
+    truth: &'a ScoredTruth,
+    /// What the detector saw, per frame.
+    seen: &'a [DetectorFrame],
+    /// Truth ids the detector found per frame, at `configs[0]`.
+    detected: &'a [BTreeSet<u64>],
+    /// CLEAR-MOT at 3D IoU 0.25 and 0.5.
+    configs: &'a [ClearMotConfig; 2],
+}
+
+/// The aligned ego path of an estimate.
+fn xy_of(errors: &EgoErrorSeries) -> Vec<(f64, f64)> {
+    errors.path.points.iter().map(|&(x, y, _)| (x, y)).collect()
+}
+
+/// Translation and rotation error over time of every variant, and each
+/// variant's path coloured by its translation error on one shared scale.
+fn error_plots(estimators: &[EstimatorSummary]) -> Vec<Plot> {
+    let max_error_m = estimators
+        .iter()
+        .flat_map(|e| e.errors.path.points.iter().map(|p| p.2))
+        .fold(0.0, f64::max);
+    let scale = ColourScale {
+        lo: 0.0,
+        hi: max_error_m,
+        desc: "error [m]".into(),
+    };
+    let mut plots = vec![
+        Plot {
+            file_name: "ego_translation_error.svg".into(),
+            title: "Ego translation error after SE(3) alignment".into(),
+            kind: PlotKind::ErrorOverTime {
+                y_desc: "translation error [m]".into(),
+                series: estimators
+                    .iter()
+                    .map(|e| e.errors.translation_m.clone())
+                    .collect(),
+            },
+        },
+        Plot {
+            file_name: "ego_rotation_error.svg".into(),
+            title: "Ego rotation error after SE(3) alignment".into(),
+            kind: PlotKind::ErrorOverTime {
+                y_desc: "rotation error [deg]".into(),
+                series: estimators
+                    .iter()
+                    .map(|e| e.errors.rotation_deg.clone())
+                    .collect(),
+            },
+        },
+    ];
+    for e in estimators {
+        plots.push(Plot {
+            file_name: format!("ego_error_path_{}.svg", e.variant),
+            title: format!(
+                "{}: aligned path coloured by translation error (0 to {:.3} m)",
+                e.variant, max_error_m
+            ),
+            kind: PlotKind::ColouredPath {
+                background: vec![],
+                path: e.errors.path.clone(),
+                scale: scale.clone(),
+            },
+        });
+    }
+    plots
+}
 
 /// Runs one variant on the demo dataset into `out/<variant>`, scores its ego
 /// trajectory and tracks and, with `mcap`, records the run there.
@@ -458,6 +489,7 @@ fn run_variant(
     variant: limot_estimator::Variant,
     progress: bool,
     mcap: Option<&crate::io::mcap::McapRequest>,
+    scoring: &Scoring<'_>,
 ) -> Result<VariantRun, DemoError> {
     let run_options = crate::run::RunOptions {
         variant,
@@ -490,34 +522,37 @@ fn run_variant(
         frame_times: None,
     };
     let eval = crate::experiments::evaluate_trajectories(&truth, &estimate, &eval_options)?;
-    let xy = output
-        .estimates
-        .iter()
-        .map(|e| {
-            let p = eval.ate.alignment.transform_pose(&e.t_world_lidar);
-            (p.translation.vector.x, p.translation.vector.y)
-        })
-        .collect();
-    let dataset = limot_sim::record::Dataset::open(dataset_dir)?;
-    let (calib, _) = crate::experiments::dataset_calib(&dataset, 0)?;
-    let results =
-        crate::run::write_dataset_kitti_tracks(&run_dir.join("kitti_results"), &output, &calib)?;
-    let tracks_eval = crate::experiments::evaluate_tracks(
-        dataset_dir,
-        &results,
-        &crate::experiments::TrackEvalOptions::default(),
+    let errors = ego_error_series(variant.name(), &estimate.poses, &eval.ate);
+    if output.invalid_detections > 0 {
+        return Err(DemoError::SkippedDetections {
+            variant: variant.name(),
+            count: output.invalid_detections,
+        });
+    }
+    let results = crate::run::write_dataset_kitti_tracks(
+        &run_dir.join("kitti_results"),
+        &output,
+        &scoring.truth.calib,
     )?;
-    let tracks = tracks_eval
-        .score(IouKind::ThreeD, 0.25)
-        .cloned()
-        .ok_or(DemoError::NoTrackScore)?;
+    let live = tracks::live_tracks(&output, scoring.seen, scoring.truth);
+    let loss = tracks::track_loss(
+        &results,
+        scoring.truth,
+        &live,
+        scoring.detected,
+        &scoring.configs[0],
+    )?;
+    let frames = scoring.truth.tracking_input(&results)?.frames;
+    let strict = clear_mot(&frames, &scoring.configs[1])?;
     let mean_frame_ms = output
         .mean_timings()
         .last()
         .map_or(0.0, |(_, d)| d.as_secs_f64() * 1e3);
     let summary = EstimatorSummary {
         variant: variant.name(),
-        tracks,
+        tracks: [loss.tracks.clone(), strict],
+        loss,
+        errors,
         ate_t_m: eval.ate.ate_t_rmse_m,
         ate_r_rad: eval.ate.ate_r_rmse_rad,
         frames_estimated: output.estimates.len(),
@@ -526,5 +561,5 @@ fn run_variant(
         fps: output.estimates.len() as f64 / output.wall_time.as_secs_f64().max(1e-9),
         trajectory: run_dir.join("poses_tum.txt"),
     };
-    Ok((summary, xy, mcap_stats))
+    Ok((summary, mcap_stats))
 }

@@ -45,11 +45,59 @@ fn demo_simulates_scores_and_writes_a_report() {
         assert!(e.frames_before_init <= 10, "{}", e.frames_before_init);
         assert!(e.ate_t_m < 0.1, "{} ATE_T {} m", e.variant, e.ate_t_m);
         assert!(e.trajectory.is_file());
-        assert!(e.tracks.mota.is_some(), "{}: tracks scored", e.variant);
+        assert!(e.tracks[0].mota.is_some(), "{}: tracks scored", e.variant);
+        // per-pose errors for the plots: one per estimate, the ATE's RMSE
+        let t = &e.errors.translation_m.points;
+        assert_eq!(t.len(), 30);
+        assert_eq!(e.errors.rotation_deg.points.len(), 30);
+        assert_eq!(e.errors.path.points.len(), 30);
+        let rmse = (t.iter().map(|p| p.1 * p.1).sum::<f64>() / t.len() as f64).sqrt();
+        assert!((rmse - e.ate_t_m).abs() < 1e-9, "{rmse} vs {}", e.ate_t_m);
+    }
+    // like with like: the detector and every variant's tracks on the same truth boxes
+    for (k, (threshold, det)) in s.detector.iter().enumerate() {
+        assert!(det.gt_count > 0);
+        for e in &s.estimators {
+            assert_eq!(
+                e.tracks[k].gt_count, det.gt_count,
+                "{} at {threshold}",
+                e.variant
+            );
+        }
+    }
+    // every error of the tracks has one cause; the ceiling's FN are the detector misses
+    let ceiling = &s.detector[0].1;
+    for e in &s.estimators {
+        let l = &e.loss;
+        assert_eq!(l.tracks, e.tracks[0]);
+        assert_eq!(
+            l.fn_causes.total(),
+            l.tracks.false_negatives,
+            "{}",
+            e.variant
+        );
+        assert_eq!(
+            l.fp_causes.total(),
+            l.tracks.false_positives,
+            "{}",
+            e.variant
+        );
+        assert_eq!(
+            l.fn_causes.detector_miss + l.recovered_misses,
+            ceiling.false_negatives
+        );
+        assert_eq!(l.fp_causes.unknown, 0, "every written box is a live track");
+        // a 3 s drive is inside the first tracks' confirmation delay
+        assert!(l.fn_causes.unconfirmed_first > 0, "{:?}", l.fn_causes);
     }
     let readme = fs::read_to_string(&s.report_readme).unwrap();
     for needle in [
         "MOTA %",
+        "truth boxes",
+        "Where the tracks lose against the detector",
+        "ego_translation_error.svg",
+        "ego_rotation_error.svg",
+        "ego_error_path_limot.svg",
         "ATE_T [m]",
         "| limot ",
         "ego_trajectory.svg",
@@ -58,7 +106,15 @@ fn demo_simulates_scores_and_writes_a_report() {
     ] {
         assert!(readme.contains(needle), "report lacks {needle}");
     }
-    for svg in ["ego_trajectory.svg", "ego_speed.svg", "objects.svg"] {
+    for svg in [
+        "ego_trajectory.svg",
+        "ego_speed.svg",
+        "objects.svg",
+        "ego_translation_error.svg",
+        "ego_rotation_error.svg",
+        "ego_error_path_lio.svg",
+        "ego_error_path_limot.svg",
+    ] {
         let text = fs::read_to_string(out.join("report").join(svg)).unwrap();
         assert!(text.starts_with("<svg"), "{svg}");
     }

@@ -10,7 +10,8 @@
 //!
 //! Entry points: [`ate`] / [`ate_with`], [`rpe`], [`iou_3d`] / [`iou_bev`] /
 //! [`iou_image`], [`clear_mot`], [`kitti_2d_clear_mot`] / [`kitti_3d_clear_mot`],
-//! [`ab3dmot_evaluate`] (sAMOTA), [`object_scores`], [`filter_precision_recall`],
+//! [`ab3dmot_evaluate`] (sAMOTA), [`mot_loss`] (a tracker's errors by cause),
+//! [`object_scores`], [`filter_precision_recall`],
 //! [`RealismAccumulator`], [`kendall_tau_b`] and [`TimingAccumulator`].
 mod align;
 mod assignment;
@@ -20,6 +21,7 @@ mod filtering;
 mod interpolate;
 mod iou;
 mod kitti_mot;
+mod mot_loss;
 mod objects;
 mod ranking;
 mod realism;
@@ -42,6 +44,7 @@ pub use kitti_mot::{
     KittiEvalClass, KittiMotFrames, KittiPreprocessConfig, KittiPreprocessStats,
     kitti_2d_clear_mot, kitti_2d_frames, kitti_3d_clear_mot,
 };
+pub use mot_loss::{FnCauses, FpCauses, LiveTrack, MotLoss, TookDetection, mot_loss};
 pub use objects::{ObjectScore, object_scores};
 pub use ranking::{best_items, kendall_tau_b};
 pub use realism::{

@@ -4,19 +4,21 @@
 //! [`write_report`] gathers sections of tables and plots into a directory with a
 //! `README.md`. Everything works on plain data, so the runners in
 //! [`crate::experiments`] only fill the row structs and series.
+mod ego_error;
 mod kitti;
 mod plot;
 mod suite;
 mod table;
 
+pub use ego_error::{EgoErrorSeries, ego_error_series};
 pub use kitti::{
     DIVERGED_ATE_PER_PATH, STATIC_EGO_PATH_M, ab3dmot_table, ego_table as kitti_ego_table,
     kitti_report, object_table as kitti_object_table, tracking_table as kitti_tracking_table,
     twins_section, write_kitti_report,
 };
 pub use plot::{
-    LineKind, Series2D, Style, plot_error_over_time, plot_object_tracks, plot_speed,
-    plot_trajectories_xy,
+    ColourScale, ColouredPath, LineKind, Series2D, Style, plot_coloured_path, plot_error_over_time,
+    plot_object_tracks, plot_speed, plot_trajectories_xy,
 };
 pub use suite::{build_report, ego_table as suite_ego_table, write_suite_report};
 pub use table::{
@@ -142,6 +144,15 @@ pub enum PlotKind {
         /// One series per variant.
         series: Vec<Series2D>,
     },
+    /// A path coloured by a value, top view (`plot_coloured_path`).
+    ColouredPath {
+        /// Drawn first, e.g. the truth.
+        background: Vec<Series2D>,
+        /// The coloured path.
+        path: ColouredPath,
+        /// Value to colour.
+        scale: ColourScale,
+    },
 }
 
 /// One plot of a section, written as `file_name` inside the report directory.
@@ -171,6 +182,11 @@ impl Plot {
             PlotKind::ErrorOverTime { y_desc, series } => {
                 plot_error_over_time(path, &self.title, y_desc, series)
             }
+            PlotKind::ColouredPath {
+                background,
+                path: coloured,
+                scale,
+            } => plot_coloured_path(path, &self.title, background, coloured, scale),
         }
     }
 }

@@ -4,7 +4,10 @@
 //!
 //! Every data series is drawn as one `<polyline>` of stroke width
 //! `SERIES_STROKE_PX` (axes and ticks are 1 px) and its legend marker is a
-//! filled rectangle, so a series is easy to find in the file.
+//! filled rectangle, so a series is easy to find in the file. A path
+//! coloured by a value ([`ColouredPath`]) is drawn segment by segment, each
+//! in the colour of its mean value on a [`ColourScale`], whose colours the
+//! legend lists.
 
 use super::ReportError;
 use plotters::coord::Shift;
@@ -105,6 +108,64 @@ impl Series2D {
     pub fn with_kind(mut self, kind: LineKind) -> Series2D {
         self.style.kind = kind;
         self
+    }
+}
+
+/// A path whose points carry a value drawn as colour: (x, y, value), e.g.
+/// (x_m, y_m, translation error m) of an ego trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColouredPath {
+    /// What the path is (named in the legend's caption).
+    pub label: String,
+    /// The points, in drawing order.
+    pub points: Vec<(f64, f64, f64)>,
+}
+
+/// Maps values in [`lo`, `hi`] to colours (dark blue to yellow, as viridis);
+/// values outside are clamped.
+///
+/// [`lo`]: ColourScale::lo
+/// [`hi`]: ColourScale::hi
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourScale {
+    /// The value drawn darkest.
+    pub lo: f64,
+    /// The value drawn brightest.
+    pub hi: f64,
+    /// The value's name and unit, e.g. "translation error \[m\]".
+    pub desc: String,
+}
+
+/// Viridis at 0, 1/4, 1/2, 3/4 and 1.
+const RAMP: [(u8, u8, u8); 5] = [
+    (68, 1, 84),
+    (59, 82, 139),
+    (33, 145, 140),
+    (94, 201, 98),
+    (253, 231, 37),
+];
+
+/// Legend swatches of a colour scale.
+const SCALE_SWATCHES: usize = 5;
+
+/// Stroke width of a coloured path (wider than a series: its colour is data).
+const COLOURED_STROKE_PX: u32 = 4;
+
+impl ColourScale {
+    /// The colour of `value` (linear between the ramp's colours).
+    pub fn rgb(&self, value: f64) -> (u8, u8, u8) {
+        let span = self.hi - self.lo;
+        let f = if span > 0.0 {
+            ((value - self.lo) / span).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let x = f * (RAMP.len() - 1) as f64;
+        let i = (x.floor() as usize).min(RAMP.len() - 2);
+        let r = x - i as f64;
+        let mix = |a: u8, b: u8| (f64::from(a) + r * (f64::from(b) - f64::from(a))).round() as u8;
+        let (a, b) = (RAMP[i], RAMP[i + 1]);
+        (mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
     }
 }
 
@@ -225,9 +286,27 @@ fn render(
     x_desc: &str,
     y_desc: &str,
     series: &[Series2D],
+    coloured: Option<(&ColouredPath, &ColourScale)>,
     equal_scale: bool,
 ) -> Result<String, ReportError> {
-    let bounds = validate(path, series)?;
+    // the coloured path's positions count for the bounds; its values and
+    // scale are checked apart (they are no coordinates)
+    let mut checked = series.to_vec();
+    if let Some((c, scale)) = coloured {
+        checked.push(Series2D::line(
+            c.label.clone(),
+            c.points.iter().map(|&(x, y, _)| (x, y)).collect(),
+        ));
+        let values = c.points.iter().map(|&(_, _, v)| (v, 0.0));
+        validate(
+            path,
+            &[Series2D::line(
+                format!("{} ({})", c.label, scale.desc),
+                values.chain([(scale.lo, scale.hi)]).collect(),
+            )],
+        )?;
+    }
+    let bounds = validate(path, &checked)?;
     let (x_range, y_range) = if equal_scale {
         let (w, h) = plotting_area_px(path, title)?;
         equal_scale_ranges(bounds, w, h)
@@ -289,6 +368,29 @@ fn render(
                 }
             };
         }
+        if let Some((c, scale)) = coloured {
+            for w in c.points.windows(2) {
+                let (r, g, b) = scale.rgb(0.5 * (w[0].2 + w[1].2));
+                let style = RGBColor(r, g, b).stroke_width(COLOURED_STROKE_PX);
+                chart
+                    .draw_series(LineSeries::new([(w[0].0, w[0].1), (w[1].0, w[1].1)], style))
+                    .map_err(plot_err(path))?;
+            }
+            // the scale as legend swatches: value at each
+            for k in 0..SCALE_SWATCHES {
+                let value =
+                    scale.lo + (scale.hi - scale.lo) * k as f64 / (SCALE_SWATCHES - 1) as f64;
+                let (r, g, b) = scale.rgb(value);
+                let color = RGBColor(r, g, b);
+                chart
+                    .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                    .map_err(plot_err(path))?
+                    .label(format!("{}: {} {value:.3}", c.label, scale.desc))
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 4), (x + 18, y + 4)], color.filled())
+                    });
+            }
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
@@ -309,9 +411,10 @@ fn render_to_file(
     x_desc: &str,
     y_desc: &str,
     series: &[Series2D],
+    coloured: Option<(&ColouredPath, &ColourScale)>,
     equal_scale: bool,
 ) -> Result<(), ReportError> {
-    let svg = render(path, title, x_desc, y_desc, series, equal_scale)?;
+    let svg = render(path, title, x_desc, y_desc, series, coloured, equal_scale)?;
     std::fs::write(path, svg).map_err(|source| ReportError::Io {
         path: PathBuf::from(path),
         source,
@@ -329,7 +432,7 @@ pub fn plot_trajectories_xy(
     title: &str,
     series: &[Series2D],
 ) -> Result<(), ReportError> {
-    render_to_file(path, title, "x [m]", "y [m]", series, true)
+    render_to_file(path, title, "x [m]", "y [m]", series, None, true)
 }
 
 /// Top view of object tracks: truth tracks drawn black unless they carry a
@@ -353,7 +456,7 @@ pub fn plot_object_tracks(
         })
         .chain(est.iter().cloned())
         .collect();
-    render_to_file(path, title, "x [m]", "y [m]", &all, true)
+    render_to_file(path, title, "x [m]", "y [m]", &all, None, true)
 }
 
 /// Speed over time: points are (t_s, speed_mps).
@@ -362,7 +465,7 @@ pub fn plot_object_tracks(
 ///
 /// [`ReportError`] for no series, an empty or non-finite series, or a failed write.
 pub fn plot_speed(path: &Path, title: &str, series: &[Series2D]) -> Result<(), ReportError> {
-    render_to_file(path, title, "t [s]", "speed [m/s]", series, false)
+    render_to_file(path, title, "t [s]", "speed [m/s]", series, None, false)
 }
 
 /// An error over time: points are (t_s, error) with `y_desc` naming the error
@@ -377,7 +480,32 @@ pub fn plot_error_over_time(
     y_desc: &str,
     series: &[Series2D],
 ) -> Result<(), ReportError> {
-    render_to_file(path, title, "t [s]", y_desc, series, false)
+    render_to_file(path, title, "t [s]", y_desc, series, None, false)
+}
+
+/// Top view of a path coloured by its value per point (`scale` maps values
+/// to colours; the legend shows the scale), over `background` series (e.g.
+/// the truth in black); equal axis scale.
+///
+/// # Errors
+///
+/// [`ReportError`] for an empty or non-finite path or series, or a failed write.
+pub fn plot_coloured_path(
+    path: &Path,
+    title: &str,
+    background: &[Series2D],
+    coloured: &ColouredPath,
+    scale: &ColourScale,
+) -> Result<(), ReportError> {
+    render_to_file(
+        path,
+        title,
+        "x [m]",
+        "y [m]",
+        background,
+        Some((coloured, scale)),
+        true,
+    )
 }
 
 #[cfg(test)]
@@ -416,5 +544,53 @@ mod tests {
         assert!(e.to_string().contains("out/x.svg"), "{e}");
         let huge = [Series2D::line("h", vec![(-f64::MAX, 0.0), (f64::MAX, 0.0)])];
         assert!(matches!(validate(p, &huge), Err(ReportError::Plot { .. })));
+    }
+
+    #[test]
+    fn colour_scale_runs_dark_to_bright_and_clamps() {
+        let scale = ColourScale {
+            lo: 0.0,
+            hi: 0.2,
+            desc: "e [m]".into(),
+        };
+        assert_eq!(scale.rgb(0.0), RAMP[0]);
+        assert_eq!(scale.rgb(0.2), RAMP[4]);
+        assert_eq!(scale.rgb(0.1), RAMP[2]);
+        assert_eq!(scale.rgb(-1.0), RAMP[0]);
+        assert_eq!(scale.rgb(9.0), RAMP[4]);
+        // halfway between two ramp colours
+        let (r, g, b) = scale.rgb(0.025);
+        assert_eq!((r, g, b), (64, 42, 112));
+        let flat = ColourScale { hi: 0.0, ..scale };
+        assert_eq!(flat.rgb(5.0), RAMP[0]);
+    }
+
+    #[test]
+    fn a_coloured_path_is_drawn_segment_by_segment_with_its_scale() {
+        let p = Path::new("out/c.svg");
+        let path = ColouredPath {
+            label: "lio".into(),
+            points: vec![(0.0, 0.0, 0.0), (1.0, 0.0, 0.1), (2.0, 0.0, 0.2)],
+        };
+        let scale = ColourScale {
+            lo: 0.0,
+            hi: 0.2,
+            desc: "e [m]".into(),
+        };
+        let truth = [Series2D::truth("truth", vec![(0.0, 0.0), (2.0, 0.0)])];
+        let svg = render(p, "t", "x", "y", &truth, Some((&path, &scale)), true).unwrap();
+        // two coloured segments, in the colours of their mean values
+        for value in [0.05, 0.15] {
+            let (r, g, b) = scale.rgb(value);
+            let stroke = format!("#{r:02X}{g:02X}{b:02X}");
+            assert!(svg.contains(&stroke), "no segment in {stroke}");
+        }
+        assert!(svg.contains("lio: e [m] 0.200"), "scale legend");
+        let bad = ColouredPath {
+            points: vec![(0.0, 0.0, f64::NAN)],
+            ..path
+        };
+        let e = render(p, "t", "x", "y", &truth, Some((&bad, &scale)), true).unwrap_err();
+        assert!(matches!(e, ReportError::NonFinite { .. }), "{e}");
     }
 }

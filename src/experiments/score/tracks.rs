@@ -247,6 +247,113 @@ pub fn dataset_calib(dataset: &Dataset, sequence: u32) -> Result<(Calib, String)
     ))
 }
 
+/// The ground truth a result file is scored against (see the module docs),
+/// frame by frame, with the true ego pose that places a LiDAR-frame box in
+/// the truth's world frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScoredTruth {
+    /// Ground-truth boxes per frame (world frame, after [`GtFilter`]).
+    pub gt: Vec<Vec<TrackedBox>>,
+    /// True `t_world_lidar` at each frame's time.
+    pub t_world_lidar: Vec<Isometry3<f64>>,
+    /// The dataset's calibration.
+    pub calib: Calib,
+    /// Where the calibration came from.
+    pub calib_source: String,
+    /// Ground-truth boxes dropped by the filter.
+    pub gt_filtered_out: usize,
+}
+
+impl ScoredTruth {
+    /// A box of frame `frame`'s LiDAR frame (yaw about LiDAR z) in the
+    /// truth's world frame. `frame` must be below the frame count.
+    pub fn lidar_box_to_world(&self, frame: usize, b: &OrientedBox) -> OrientedBox {
+        lidar_box_to_world(&self.t_world_lidar[frame], b)
+    }
+
+    /// Reads the ground truth of a dataset, filtered by `opts.gt_filter`.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError`] when the dataset cannot be read.
+    pub fn read(dataset_dir: &Path, opts: &TrackEvalOptions) -> Result<ScoredTruth> {
+        let dataset = Dataset::open(dataset_dir)?;
+        let (calib, calib_source) = dataset_calib(&dataset, opts.sequence)?;
+        let times = dataset_frame_times(&dataset)?;
+        let mut ego = dataset.ego_truth()?;
+        ego.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        let ego_path = dataset_dir.join("gt").join("ego.csv");
+        let boxes = dataset.box_truth()?;
+        let mut truth = ScoredTruth {
+            gt: Vec::with_capacity(times.len()),
+            t_world_lidar: Vec::with_capacity(times.len()),
+            calib,
+            calib_source,
+            gt_filtered_out: 0,
+        };
+        for (index, t_s) in times.iter().enumerate() {
+            let t_world_lidar = ego_pose_at(&ego, *t_s, &ego_path)?;
+            let hit: BTreeSet<u32> = match opts.gt_filter {
+                GtFilter::All => BTreeSet::new(),
+                GtFilter::CameraVisible => dataset.frame(index)?.labels.into_iter().collect(),
+            };
+            let mut gt = Vec::new();
+            for b in boxes.get(index).into_iter().flatten() {
+                let keep = match opts.gt_filter {
+                    GtFilter::All => true,
+                    GtFilter::CameraVisible => camera_visible(
+                        &(t_world_lidar.inverse() * b.t_world_box),
+                        b.size_lwh_m,
+                        hit.contains(&b.id),
+                        &truth.calib,
+                    ),
+                };
+                if keep {
+                    gt.push(TrackedBox::from_box_truth(b));
+                } else {
+                    truth.gt_filtered_out += 1;
+                }
+            }
+            truth.gt.push(gt);
+            truth.t_world_lidar.push(t_world_lidar);
+        }
+        Ok(truth)
+    }
+
+    /// The CLEAR-MOT frames of a result file against this truth.
+    ///
+    /// # Errors
+    ///
+    /// [`EvaluateError`] when the results cannot be read.
+    pub fn tracking_input(&self, results: &Path) -> Result<TrackingInput> {
+        let result_boxes = read_results(results, self.gt.len(), &self.calib)?;
+        let frames = self
+            .gt
+            .iter()
+            .enumerate()
+            .map(|(index, gt)| MotFrame {
+                gt: gt.clone(),
+                tracks: result_boxes.per_frame[index]
+                    .iter()
+                    .map(|(id, class, b)| TrackedBox {
+                        id: *id,
+                        class: *class,
+                        bbox: self.lidar_box_to_world(index, b),
+                    })
+                    .collect(),
+                dont_care: Vec::new(),
+            })
+            .collect();
+        Ok(TrackingInput {
+            frames,
+            calib_source: self.calib_source.clone(),
+            skipped_types: result_boxes.skipped_types,
+            dont_care: result_boxes.dont_care,
+            gt_filtered_out: self.gt_filtered_out,
+        })
+    }
+}
+
 /// The CLEAR-MOT frames (world frame) of a dataset and a result file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackingInput {
@@ -272,60 +379,7 @@ pub fn tracking_input(
     results: &Path,
     opts: &TrackEvalOptions,
 ) -> Result<TrackingInput> {
-    let dataset = Dataset::open(dataset_dir)?;
-    let (calib, calib_source) = dataset_calib(&dataset, opts.sequence)?;
-    let times = dataset_frame_times(&dataset)?;
-    let mut ego = dataset.ego_truth()?;
-    ego.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
-    let ego_path = dataset_dir.join("gt").join("ego.csv");
-    let boxes = dataset.box_truth()?;
-    let result_boxes = read_results(results, dataset.frame_count(), &calib)?;
-    let mut frames = Vec::with_capacity(dataset.frame_count());
-    let mut gt_filtered_out = 0;
-    for (index, t_s) in times.iter().enumerate() {
-        let t_world_lidar = ego_pose_at(&ego, *t_s, &ego_path)?;
-        let hit: BTreeSet<u32> = match opts.gt_filter {
-            GtFilter::All => BTreeSet::new(),
-            GtFilter::CameraVisible => dataset.frame(index)?.labels.into_iter().collect(),
-        };
-        let mut gt = Vec::new();
-        for b in boxes.get(index).into_iter().flatten() {
-            let keep = match opts.gt_filter {
-                GtFilter::All => true,
-                GtFilter::CameraVisible => camera_visible(
-                    &(t_world_lidar.inverse() * b.t_world_box),
-                    b.size_lwh_m,
-                    hit.contains(&b.id),
-                    &calib,
-                ),
-            };
-            if keep {
-                gt.push(TrackedBox::from_box_truth(b));
-            } else {
-                gt_filtered_out += 1;
-            }
-        }
-        let tracks = result_boxes.per_frame[index]
-            .iter()
-            .map(|(id, class, b)| TrackedBox {
-                id: *id,
-                class: *class,
-                bbox: lidar_box_to_world(&t_world_lidar, b),
-            })
-            .collect();
-        frames.push(MotFrame {
-            gt,
-            tracks,
-            dont_care: Vec::new(),
-        });
-    }
-    Ok(TrackingInput {
-        frames,
-        calib_source,
-        skipped_types: result_boxes.skipped_types,
-        dont_care: result_boxes.dont_care,
-        gt_filtered_out,
-    })
+    ScoredTruth::read(dataset_dir, opts)?.tracking_input(results)
 }
 
 /// CLEAR-MOT of one IoU kind and threshold, over all classes and per class.
