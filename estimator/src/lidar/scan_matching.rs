@@ -206,7 +206,10 @@ pub enum ScanMatchError {
     },
 }
 
-/// Result of [`match_scan`].
+/// Result of [`match_scan`]. "At the solution" below means at the last
+/// linearisation point: for a converged match the pose before the final
+/// update, which is within the convergence thresholds of `t_world_lidar`;
+/// for an unconverged one `t_world_lidar` itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScanMatchResult {
     /// The matched pose.
@@ -643,7 +646,7 @@ pub fn match_scan(
     };
 
     let mut t = *initial_t_world_lidar;
-    let mut converged = false;
+    let mut converged = None;
     let mut iterations = 0;
     let threshold = config.degeneracy_eigenvalue_threshold;
     for iteration in 0..config.max_iterations {
@@ -658,12 +661,19 @@ pub fn match_scan(
         let rot_deg = lie::xi_phi(&delta).norm().to_degrees();
         let trans_m = lie::xi_rho(&delta).norm();
         if rot_deg < config.convergence_rotation_deg && trans_m < config.convergence_translation_m {
-            converged = true;
+            converged = Some(ne);
             break;
         }
     }
 
-    let ne = matcher.linearize(&t);
+    // A converged match's last update is below the convergence thresholds
+    // (0.05 deg, 0.5 mm by default), so the normal equations it was solved
+    // from describe the solution; only an unconverged match linearises again.
+    let converged_at = converged.is_some();
+    let ne = match converged {
+        Some(ne) => ne,
+        None => matcher.linearize(&t),
+    };
     let found = ne.edge + ne.planar;
     if found < config.min_correspondences {
         return Err(too_few(iterations, &ne));
@@ -681,7 +691,7 @@ pub fn match_scan(
         edge_matches: ne.edge,
         planar_matches: ne.planar,
         iterations,
-        converged,
+        converged: converged_at,
         rms_residual_m: (ne.sum_sq_m2 / found as f64).sqrt(),
     })
 }
