@@ -1,8 +1,11 @@
 //! `limot eval suite` / `limot report` on one short urban sequence (seed 1,
 //! 4 s) with lio, dynafilt and limot; a variant that fails is recorded as
-//! not available without aborting the suite.
+//! not available without aborting the suite. The `joint` ablation on a short
+//! highway sequence.
 
-use limot::experiments::{RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite};
+use limot::experiments::{
+    Ablation, RESULTS_FILE, Shard, SuiteResults, SuiteSpec, merge_shards, run_suite,
+};
 use limot::report::write_suite_report;
 use limot_estimator::Variant;
 use std::fs;
@@ -28,6 +31,7 @@ fn spec(out_dir: PathBuf, duration_s: f64, variants: Vec<Variant>) -> SuiteSpec 
         seeds: vec![1],
         duration_s,
         variants,
+        ablations: Vec::new(),
         out_dir,
         shard: None,
         jobs: None,
@@ -56,6 +60,9 @@ fn results_json_round_trips() {
     // a directory works as well
     let (loaded, _) = SuiteResults::load(out).unwrap();
     assert_eq!(&loaded, results);
+    // without ablations the file keeps the layout written before they existed
+    let text = fs::read_to_string(out.join(RESULTS_FILE)).unwrap();
+    assert!(!text.contains("ablation"), "{text}");
 }
 
 #[test]
@@ -264,7 +271,8 @@ fn shards_merged_give_the_whole_suite_run_in_parallel() {
         families: vec!["urban".into(), "highway".into()],
         seeds: vec![3],
         duration_s: 2.0,
-        variants: vec![Variant::Lio],
+        variants: vec![Variant::Lio, Variant::Limot],
+        ablations: vec![Ablation::Joint],
         out_dir: out,
         shard: shard.map(|s| Shard::parse(s).unwrap()),
         jobs: Some(jobs),
@@ -275,6 +283,13 @@ fn shards_merged_give_the_whole_suite_run_in_parallel() {
     let names: Vec<&str> = whole.sequences.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["urban_s3", "highway_s3"]);
     assert!(whole.sequences.iter().all(|s| s.error.is_none()));
+    assert!(
+        whole
+            .sequences
+            .iter()
+            .all(|s| s.ablation_metrics(Ablation::Joint).is_some()),
+        "the ablation ran on every sequence"
+    );
     for shard in ["2/2", "1/2"] {
         let part = run_suite(&two_sequences(shards_out.clone(), Some(shard), 1), false).unwrap();
         assert_eq!(part.sequences.len(), 1);
@@ -295,7 +310,25 @@ fn shards_merged_give_the_whole_suite_run_in_parallel() {
     assert_eq!(dir, shards_out);
     assert!(merged.shard.is_none());
     assert_eq!(without_timings(merged), without_timings(whole));
-    assert!(shards_out.join("report").join("README.md").is_file());
+    let readme = fs::read_to_string(shards_out.join("report").join("README.md")).unwrap();
+    assert!(
+        readme.contains("| highway_s3 | LIMOT (joint) |"),
+        "{readme}"
+    );
+
+    // A shard run without the ablation is not part of the same suite.
+    let mut other = SuiteResults::load(&file(2)).unwrap().0;
+    other.ablations.clear();
+    for s in &mut other.sequences {
+        s.ablations.clear();
+    }
+    fs::write(
+        file(2),
+        serde_json::to_string_pretty(&other).unwrap() + "\n",
+    )
+    .unwrap();
+    let err = merge_shards(&[file(1), file(2)]).unwrap_err().to_string();
+    assert!(err.contains("ablations differ"), "{err}");
 
     // An incomplete, repeated or whole-suite file list is refused by name.
     for (files, expected) in [
@@ -311,4 +344,94 @@ fn shards_merged_give_the_whole_suite_run_in_parallel() {
     }
     assert!(Shard::parse("0/2").is_err() && Shard::parse("3/2").is_err());
     assert!(Shard::parse("2").is_err() && Shard::parse("a/b").is_err());
+}
+
+/// Ego positions of a TUM trajectory file.
+fn tum_positions(path: &Path) -> Vec<[f64; 3]> {
+    fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [v[1], v[2], v[3]]
+        })
+        .collect()
+}
+
+#[test]
+fn the_joint_ablation_runs_beside_limot_and_moves_the_ego() {
+    // Highway traffic: limot confirms dynamic objects within 4 s, so letting
+    // them inform the ego changes its trajectory (without any the two forms
+    // would be the same graph and the same poses).
+    let out = scratch("ablation");
+    let spec = SuiteSpec {
+        families: vec!["highway".into()],
+        ablations: vec![Ablation::Joint],
+        ..spec(out.clone(), 4.0, vec![Variant::Limot])
+    };
+    let results = run_suite(&spec, false).unwrap();
+    assert_eq!(results.ablations, [Ablation::Joint]);
+    let s = &results.sequences[0];
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.variants.len(), 1, "the ablation is not a variant");
+    let joint = &s.ablations[0];
+    assert_eq!(joint.ablation, Ablation::Joint);
+    assert_eq!(joint.run_dir, Path::new("runs/highway_s1/limot-joint"));
+    let (conditioned, joint_m) = (
+        s.metrics(Variant::Limot).unwrap(),
+        joint
+            .metrics
+            .as_ref()
+            .unwrap_or_else(|| panic!("{:?}", joint.error)),
+    );
+    assert!(
+        joint_m.ego.ate_t_m < 0.5,
+        "joint ATE_T {}",
+        joint_m.ego.ate_t_m
+    );
+    assert_eq!(joint_m.frames_estimated, conditioned.frames_estimated);
+    let a = tum_positions(&out.join(&s.variants[0].run_dir).join("poses_tum.txt"));
+    let b = tum_positions(&out.join(&joint.run_dir).join("poses_tum.txt"));
+    assert_eq!(a.len(), b.len());
+    let largest_m = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    assert!(largest_m > 1e-6, "the joint form did not move the ego");
+    // in results.json and the report, beside limot
+    let (loaded, _) = SuiteResults::load(&out).unwrap();
+    assert_eq!(loaded, results);
+    let readme = write_suite_report(&out.join("report"), &results, &out).unwrap();
+    let text = fs::read_to_string(readme).unwrap();
+    assert!(text.contains("| highway_s1 | LIMOT         |"), "{text}");
+    assert!(text.contains("| highway_s1 | LIMOT (joint) |"), "{text}");
+    assert!(text.contains("--ablation joint"), "{text}");
+}
+
+#[test]
+fn an_ablation_without_its_variant_is_refused_before_any_work() {
+    let out = scratch("ablation-refused");
+    let status = Command::new(env!("CARGO_BIN_EXE_limot"))
+        .args(["eval", "suite", "--families", "urban", "--seeds", "1"])
+        .args([
+            "--duration",
+            "1",
+            "--variants",
+            "lio",
+            "--ablation",
+            "joint",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!status.status.success());
+    let stderr = String::from_utf8_lossy(&status.stderr);
+    assert!(
+        stderr.contains("ablation joint is compared with limot"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "nothing may be written for a bad spec");
 }

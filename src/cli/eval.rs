@@ -125,7 +125,7 @@ pub(super) fn run_eval(what: EvalCommand) -> Result<(), Box<dyn std::error::Erro
 
 /// `limot eval suite`: runs the suite, writes OUT/report and prints the ego table.
 pub(super) fn run_eval_suite(args: SuiteArgs) -> Result<(), Box<dyn std::error::Error>> {
-    use crate::experiments::{KittiTwins, Shard, SuiteSpec, TWIN_FAMILY};
+    use crate::experiments::{Ablation, KittiTwins, Shard, SuiteSpec, TWIN_FAMILY};
     use crate::experiments::{parse_list, parse_sequences, run_suite};
     use limot_estimator::Variant;
     let families = parse_list("families", &args.families, |s| Ok(s.to_string()))?;
@@ -167,15 +167,24 @@ pub(super) fn run_eval_suite(args: SuiteArgs) -> Result<(), Box<dyn std::error::
         variants: parse_list("variants", &args.variants, |s| {
             s.parse::<Variant>().map_err(|e| e.to_string())
         })?,
+        ablations: match &args.ablation {
+            Some(list) => parse_list("ablation", list, str::parse::<Ablation>)?,
+            None => Vec::new(),
+        },
         out_dir: args.out,
         shard: args.shard.as_deref().map(Shard::parse).transpose()?,
         jobs: args.jobs,
         twins,
     };
     let sequences = spec.sequence_families()?.len() * spec.seeds.len();
-    let runs = sequences * spec.variants.len();
+    let runs = sequences * spec.runs_per_sequence();
+    let ablations = if spec.ablations.is_empty() {
+        String::new()
+    } else {
+        format!(" + {} ablation(s)", spec.ablations.len())
+    };
     println!(
-        "limot eval suite: {sequences} sequence(s) x {} variant(s) = {runs} runs of up to {} s into {}",
+        "limot eval suite: {sequences} sequence(s) x ({} variant(s){ablations}) = {runs} runs of up to {} s into {}",
         spec.variants.len(),
         spec.duration_s,
         spec.out_dir.display()

@@ -336,6 +336,12 @@ struct SuiteArgs {
     /// Variants, comma-separated: lio, allfilt, dynafilt, limot.
     #[arg(long, default_value = "lio,allfilt,dynafilt,limot")]
     variants: String,
+    /// Ablations, comma-separated, each one more run per sequence reported
+    /// beside its variant: `joint` = limot with dynamic objects informing the
+    /// ego (the fully joint form; run `limot-joint`), against limot's default
+    /// where they are conditioned on the optimised ego. Needs limot in --variants.
+    #[arg(long, value_name = "LIST")]
+    ablation: Option<String>,
     /// Output directory (datasets in OUT/data are reused when their scenario matches).
     #[arg(long, default_value = "reports/suite")]
     out: PathBuf,

@@ -78,6 +78,10 @@ pub(super) fn print_suite_report(
         "{}",
         crate::report::suite_ego_table(results)?.to_markdown()?
     );
+    if let Some(table) = crate::report::suite_ablation_table(results)? {
+        println!();
+        print!("{}", table.to_markdown()?);
+    }
     for s in &results.sequences {
         if let Some(e) = &s.error {
             println!("{}: not available: {e}", s.name);
@@ -87,6 +91,14 @@ pub(super) fn print_suite_report(
                 "{} / {}: not available: {}",
                 s.name,
                 r.variant.label(),
+                r.error.as_deref().unwrap_or_default()
+            );
+        }
+        for r in s.ablations.iter().filter(|r| r.error.is_some()) {
+            println!(
+                "{} / {}: not available: {}",
+                s.name,
+                r.ablation.label(),
                 r.error.as_deref().unwrap_or_default()
             );
         }

@@ -48,11 +48,11 @@ pub use score::tracks::{
 pub use score::{EvaluateError, dataset_frame_times, is_limot_dataset};
 pub(crate) use suite::variant_name;
 pub use suite::{
-    EgoMetrics, KittiTwins, MOVING_SPEED_MPS, MotMetrics, ObjectMetricsRecord, RESULTS_FILE,
-    RESULTS_FORMAT_VERSION, SequenceResult, Shard, StageSamples, SuiteError, SuiteResults,
-    SuiteSpec, TWIN_FAMILY, VariantMetrics, VariantResult, error_chain, format_sequences,
-    merge_shards, parse_list, parse_sequences, run_suite, sequence_name, twin_family,
-    twin_sequence,
+    Ablation, AblationResult, EgoMetrics, KittiTwins, MOVING_SPEED_MPS, MotMetrics,
+    ObjectMetricsRecord, RESULTS_FILE, RESULTS_FORMAT_VERSION, SequenceResult, Shard, StageSamples,
+    SuiteError, SuiteResults, SuiteSpec, TWIN_FAMILY, VariantMetrics, VariantResult, error_chain,
+    format_sequences, merge_shards, parse_list, parse_sequences, run_suite, sequence_name,
+    twin_family, twin_sequence,
 };
 pub use track_kitti::{
     BoxSource, OutputPolicy, ResultPolicy, ResultWriter, SequenceResults, SequenceScores,

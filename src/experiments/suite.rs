@@ -15,6 +15,7 @@
 //! data/<family>_s<seed>/            the simulated dataset (reused when its scenario.toml and the
 //!                                    simulator's code fingerprint match)
 //! runs/<family>_s<seed>/<variant>/  poses_tum.txt, tracks.csv, ... and kitti_results/0000.txt
+//! runs/<family>_s<seed>/limot-joint/ the same for an ablation (`--ablation joint`)
 //! results.json                      SuiteResults (paths inside are relative to OUT)
 //! results-shard-K-of-N.json         instead, when only shard K of N ran (`--shard K/N`)
 //! ```
@@ -25,6 +26,10 @@
 //! (sequence `i` of the family-major list belongs to shard `i mod N + 1`),
 //! for array jobs on a cluster; [`merge_shards`] joins their results files
 //! into the one a whole run writes.
+//!
+//! An [`Ablation`] runs its variant once more on every sequence with one
+//! setting changed (the fully joint `limot`: `limot-joint`), saved beside the
+//! variants and reported next to the variant it changes.
 //!
 //! A variant whose run or scoring fails is recorded with its error text and
 //! the suite goes on; so does a sequence whose simulation fails. Only a bad
@@ -49,13 +54,15 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
+mod ablation;
 mod results;
 mod twins;
 
+pub use ablation::Ablation;
 pub(crate) use results::variant_name;
 pub use results::{
-    EgoMetrics, MotMetrics, ObjectMetricsRecord, SequenceResult, StageSamples, SuiteResults,
-    VariantMetrics, VariantResult, merge_shards,
+    AblationResult, EgoMetrics, MotMetrics, ObjectMetricsRecord, SequenceResult, StageSamples,
+    SuiteResults, VariantMetrics, VariantResult, merge_shards,
 };
 pub use twins::{
     KittiTwins, TWIN_FAMILY, format_sequences, parse_sequences, twin_family, twin_sequence,
@@ -149,6 +156,9 @@ pub struct SuiteSpec {
     pub duration_s: f64,
     /// Variants run on each sequence.
     pub variants: Vec<Variant>,
+    /// Ablations run on each sequence after the variants (each needs its
+    /// variant among `variants`, the run it is compared with).
+    pub ablations: Vec<Ablation>,
     /// Output directory (OUT).
     pub out_dir: PathBuf,
     /// Run only this shard's sequences (and save them as its own results file).
@@ -204,6 +214,11 @@ impl Shard {
 }
 
 impl SuiteSpec {
+    /// Runs per sequence: one per variant and one per ablation.
+    pub fn runs_per_sequence(&self) -> usize {
+        self.variants.len() + self.ablations.len()
+    }
+
     /// The families one sequence per seed is simulated of: `families` with
     /// `kitti` replaced by one twin family per sequence of `twins`.
     ///
@@ -238,7 +253,7 @@ impl SuiteSpec {
     /// # Errors
     ///
     /// [`SuiteError::Spec`] for an empty or repeated family, seed or variant list, a
-    /// non-positive duration, an invalid shard or zero jobs, `kitti` without
+    /// repeated ablation or one whose variant does not run, a non-positive duration, an invalid shard or zero jobs, `kitti` without
     /// twins or twins without `kitti`.
     pub fn validate(&self) -> Result<()> {
         fn no_repeats<T: Ord + std::fmt::Debug>(what: &str, items: &[T]) -> Result<()> {
@@ -256,6 +271,19 @@ impl SuiteSpec {
         no_repeats("families", &self.families)?;
         no_repeats("seeds", &self.seeds)?;
         no_repeats("variants", &self.variants)?;
+        if !self.ablations.is_empty() {
+            no_repeats("ablations", &self.ablations)?;
+        }
+        if let Some(a) = self
+            .ablations
+            .iter()
+            .find(|a| !self.variants.contains(&a.variant()))
+        {
+            return Err(SuiteError::Spec(format!(
+                "ablation {a} is compared with {}: add it to the variants",
+                a.variant()
+            )));
+        }
         let families = self.sequence_families()?;
         no_repeats("families (with the kitti twins)", &families)?;
         // two scenario files with one stem would share a data directory
@@ -459,11 +487,12 @@ fn object_metrics(tracks: &TracksEvaluation) -> Vec<ObjectMetricsRecord> {
         .collect()
 }
 
-/// Runs one variant into `run_dir` and scores it.
+/// Runs one variant (with `ablation`'s override, if any) into `run_dir` and scores it.
 fn run_variant(
     source: &Source,
     dataset: &Dataset,
     variant: Variant,
+    ablation: Option<Ablation>,
     run_dir: &Path,
     progress: bool,
 ) -> std::result::Result<VariantMetrics, Box<dyn std::error::Error>> {
@@ -477,10 +506,13 @@ fn run_variant(
         ..RunOptions::default()
     };
     // Feature indices are recorded for the filter's precision and recall.
-    let config = EstimatorConfig {
+    let mut config = EstimatorConfig {
         record_feature_indices: variant != Variant::Lio,
         ..EstimatorConfig::default()
     };
+    if let Some(a) = ablation {
+        a.apply(&mut config);
+    }
     let output = run(source, &dataset.dir, &options, Some(config))?;
     write_output(run_dir, &output)?;
     let filtering = evaluate_filtering(dataset, &output)?;
@@ -545,12 +577,13 @@ fn run_sequence(
         moving_objects: Vec::new(),
         error: None,
         variants: Vec::new(),
+        ablations: Vec::new(),
     };
     let scenario = match scenario {
         Ok(scenario) => scenario,
         Err(why) => {
             result.error = Some(why.to_string());
-            bar.inc(spec.variants.len() as u64);
+            bar.inc(spec.runs_per_sequence() as u64);
             return result;
         }
     };
@@ -577,21 +610,27 @@ fn run_sequence(
         Err(e) => {
             result.error = Some(error_chain(e.as_ref()));
             // the variants of this sequence count as done
-            bar.inc(spec.variants.len() as u64);
+            bar.inc(spec.runs_per_sequence() as u64);
             return result;
         }
     };
     result.frames = dataset.frame_count();
     result.path_length_m = Some(path_length_m);
     result.moving_objects = moving;
-    for &variant in &spec.variants {
-        bar.set_message(format!("{name}: {}", variant.name()));
-        let run_rel = Path::new("runs").join(&name).join(variant.name());
+    let runs = spec
+        .variants
+        .iter()
+        .map(|&v| (v, None))
+        .chain(spec.ablations.iter().map(|&a| (a.variant(), Some(a))));
+    for (variant, ablation) in runs {
+        let run_name = ablation.map_or_else(|| variant.name().to_string(), Ablation::run_name);
+        bar.set_message(format!("{name}: {run_name}"));
+        let run_rel = Path::new("runs").join(&name).join(&run_name);
         let run_dir = spec.out_dir.join(&run_rel);
         let outcome = if progress {
-            bar.suspend(|| run_variant(&source, &dataset, variant, &run_dir, progress))
+            bar.suspend(|| run_variant(&source, &dataset, variant, ablation, &run_dir, progress))
         } else {
-            run_variant(&source, &dataset, variant, &run_dir, progress)
+            run_variant(&source, &dataset, variant, ablation, &run_dir, progress)
         };
         let (metrics, error) = match outcome {
             Ok(m) => (Some(m), None),
@@ -608,14 +647,22 @@ fn run_sequence(
                 (_, Some(e)) => format!("not available: {e}"),
                 _ => String::new(),
             };
-            bar.println(format!("{name} {}: {what}", variant.name()));
+            bar.println(format!("{name} {run_name}: {what}"));
         }
-        result.variants.push(VariantResult {
-            variant,
-            run_dir: run_rel,
-            metrics,
-            error,
-        });
+        match ablation {
+            None => result.variants.push(VariantResult {
+                variant,
+                run_dir: run_rel,
+                metrics,
+                error,
+            }),
+            Some(ablation) => result.ablations.push(AblationResult {
+                ablation,
+                run_dir: run_rel,
+                metrics,
+                error,
+            }),
+        }
         bar.inc(1);
     }
     result
@@ -670,7 +717,7 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
         .filter(|(position, _)| spec.shard.is_none_or(|s| s.holds(*position)))
         .map(|(_, sequence)| sequence)
         .collect();
-    let total = mine.len() * spec.variants.len();
+    let total = mine.len() * spec.runs_per_sequence();
     let bar = overall_bar(total, progress);
     bar.set_prefix(match spec.shard {
         Some(s) => format!("shard {}/{}", s.index, s.count),
@@ -706,6 +753,7 @@ pub fn run_suite(spec: &SuiteSpec, progress: bool) -> Result<SuiteResults> {
         seeds: spec.seeds.clone(),
         duration_s: spec.duration_s,
         variants: spec.variants.clone(),
+        ablations: spec.ablations.clone(),
         shard: spec.shard,
         sequences,
     };
@@ -723,6 +771,7 @@ mod tests {
             seeds: vec![1, 2],
             duration_s: 4.0,
             variants: vec![Variant::Lio],
+            ablations: Vec::new(),
             out_dir: PathBuf::from("unused"),
             shard: None,
             jobs: None,
@@ -743,6 +792,16 @@ mod tests {
         let mut s = spec();
         s.duration_s = f64::NAN;
         assert!(s.validate().unwrap_err().to_string().contains("duration"));
+        // an ablation is compared with its variant, which must run
+        let mut s = spec();
+        s.ablations = vec![Ablation::Joint];
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("joint") && e.contains("limot"), "{e}");
+        s.variants.push(Variant::Limot);
+        assert!(s.validate().is_ok());
+        assert_eq!(s.runs_per_sequence(), 3);
+        s.ablations.push(Ablation::Joint);
+        assert!(s.validate().unwrap_err().to_string().contains("ablations"));
     }
 
     #[test]

@@ -20,7 +20,10 @@ pub use plot::{
     ColourScale, ColouredPath, LineKind, Series2D, Style, plot_coloured_path, plot_error_over_time,
     plot_object_tracks, plot_speed, plot_trajectories_xy,
 };
-pub use suite::{build_report, ego_table as suite_ego_table, write_suite_report};
+pub use suite::{
+    ablation_table as suite_ablation_table, build_report, ego_table as suite_ego_table,
+    write_suite_report,
+};
 pub use table::{
     Better, BoldRule, Cell, EgoAte, EgoAteRow, ObjectMetrics, ObjectRow, Table, TimingRow,
     TrackingRow, ego_ate_table, object_table, timing_table, tracking_table,

@@ -8,8 +8,8 @@
 //! re-rendered from the same suite directory is identical. A plot whose files
 //! are gone is left out with a note rather than failing the report.
 
+use crate::experiments::{Ablation, SequenceResult, SuiteError, SuiteResults, VariantMetrics};
 use crate::experiments::{EgoEvalOptions, evaluate_trajectories, load_estimate, load_truth};
-use crate::experiments::{SequenceResult, SuiteError, SuiteResults, VariantMetrics};
 use crate::metrics::Alignment;
 use crate::report::plot::Series2D;
 use crate::report::table::{
@@ -313,6 +313,121 @@ pub fn objects_table(results: &SuiteResults) -> Result<Table> {
     )?)
 }
 
+/// What the ablation section compares.
+const ABLATION_TEXT: &str = "LIMOT is the variant as the suite runs it: dynamic objects are \
+    conditioned on the optimised ego (solved after it, so they cannot move it; static objects \
+    do inform it). LIMOT (joint) is the same system in the fully joint form \
+    (`dynamic_objects_inform_ego = true`): dynamic objects' motion factors are optimised together \
+    with the ego and can pull it. Object columns are at 3D IoU 0.25; the moving objects are those \
+    of the object table; best of each sequence in bold, means only where every sequence has a value.";
+
+/// One run's row of the ablation table: ego ATE_T, ATE_R, MOTA and MOTP at
+/// 3D IoU 0.25, and TP and ATE_T of `objects` (mean over those it has).
+fn ablation_figures(m: Option<&VariantMetrics>, objects: &[u64]) -> [Option<f64>; 6] {
+    let Some(m) = m else {
+        return [None; 6];
+    };
+    let mot = m.mot("3D", 0.25).map(|x| &x.counts);
+    let mean = |values: Vec<f64>| {
+        (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+    };
+    let scored: Vec<_> = m
+        .objects
+        .iter()
+        .filter(|o| objects.contains(&o.gt_id))
+        .collect();
+    [
+        Some(m.ego.ate_t_m),
+        Some(m.ego.ate_r_rad),
+        mot.and_then(|c| c.mota).map(|x| 100.0 * x),
+        mot.and_then(|c| c.motp).map(|x| 100.0 * x),
+        mean(scored.iter().map(|o| o.tp_percent).collect()),
+        mean(scored.iter().filter_map(|o| o.ate_t_m).collect()),
+    ]
+}
+
+/// The ablations beside the variant each changes: per sequence one row for
+/// the variant and one per ablation of it (ego ATE, CLEAR-MOT at 3D IoU
+/// 0.25, TP and ATE_T of the moving objects of the object table), then the
+/// mean rows over the simulated sequences; the better of each sequence in
+/// bold. `None` without ablations.
+///
+/// # Errors
+///
+/// [`SuiteError::Report`] when the table cannot be built.
+pub fn ablation_table(results: &SuiteResults) -> Result<Option<Table>> {
+    if results.ablations.is_empty() {
+        return Ok(None);
+    }
+    let header = [
+        "Seq",
+        "Run",
+        "ATE_T [m]",
+        "ATE_R [rad]",
+        "MOTA [%] (3D 0.25)",
+        "MOTP [%] (3D 0.25)",
+        "moving objects TP [%]",
+        "moving objects ATE_T [m]",
+    ]
+    .map(String::from)
+    .to_vec();
+    let mut table = Table::new("Ablation: conditioned vs fully joint", header);
+    table.set_decimals(3, 4);
+    for column in 4..7 {
+        table.set_decimals(column, 1);
+    }
+    // the compared runs: each ablated variant, then its ablations
+    let mut runs: Vec<(String, Option<Ablation>, Variant)> = Vec::new();
+    for &a in &results.ablations {
+        let v = a.variant();
+        if !runs.iter().any(|(_, ab, rv)| ab.is_none() && *rv == v) {
+            runs.push((v.label().to_string(), None, v));
+        }
+        runs.push((a.label(), Some(a), v));
+    }
+    let mut per_run: Vec<Vec<[Option<f64>; 6]>> = vec![Vec::new(); runs.len()];
+    for s in simulated(results) {
+        let objects: Vec<u64> = longest_moving_objects(s)
+            .into_iter()
+            .take(OBJECTS_PER_SEQUENCE)
+            .collect();
+        for (i, (label, ablation, variant)) in runs.iter().enumerate() {
+            let m = match ablation {
+                None => s.metrics(*variant),
+                Some(a) => s.ablation_metrics(*a),
+            };
+            let figures = ablation_figures(m, &objects);
+            per_run[i].push(figures);
+            let mut row = vec![Cell::from(s.name.as_str()), Cell::from(label.as_str())];
+            row.extend(figures.map(Cell::from));
+            table.push_row(row)?;
+        }
+    }
+    for (i, (label, _, _)) in runs.iter().enumerate() {
+        let mut row = vec![Cell::from("mean"), Cell::from(label.as_str())];
+        row.extend((0..6).map(|k| {
+            let column: Vec<Option<f64>> = per_run[i].iter().map(|f| f[k]).collect();
+            Cell::from(mean_of_all(&column))
+        }));
+        table.push_row(row)?;
+    }
+    table.bold = [
+        (2, Better::Lower),
+        (3, Better::Lower),
+        (4, Better::Higher),
+        (5, Better::Higher),
+        (6, Better::Higher),
+        (7, Better::Lower),
+    ]
+    .map(|(column, better)| BoldRule::BestInColumn {
+        column,
+        better,
+        group_by: vec![0],
+    })
+    .to_vec();
+    Ok(Some(table))
+}
+
 /// Paper Table "tab_time_consume" for one variant: per-stage mean / p95 ms
 /// and FPS, pooled over every frame of every sequence.
 ///
@@ -344,6 +459,16 @@ pub fn timing_table_of(results: &SuiteResults, variant: Variant) -> Result<Optio
     )?))
 }
 
+/// Every run of a sequence, the variants', then the ablations', with its label.
+fn runs_of(s: &SequenceResult) -> impl Iterator<Item = (String, &Option<VariantMetrics>)> {
+    let variants = s
+        .variants
+        .iter()
+        .map(|r| (r.variant.label().to_string(), &r.metrics));
+    let ablations = s.ablations.iter().map(|r| (r.ablation.label(), &r.metrics));
+    variants.chain(ablations)
+}
+
 /// Seq | Variant | frames | before init | ATE max | RPE | wall FPS | status.
 ///
 /// # Errors
@@ -368,13 +493,13 @@ pub fn runs_table(results: &SuiteResults) -> Result<Table> {
     table.set_decimals(7, 4);
     table.set_decimals(8, 1);
     for s in &results.sequences {
-        for r in &s.variants {
+        for (label, metrics) in runs_of(s) {
             let mut row = vec![
                 Cell::from(s.name.as_str()),
-                Cell::from(r.variant.label()),
+                Cell::from(label),
                 Cell::from(s.frames),
             ];
-            match &r.metrics {
+            match metrics {
                 Some(m) => row.extend([
                     Cell::from(m.frames_estimated),
                     Cell::from(m.frames_before_init),
@@ -433,13 +558,14 @@ fn failures(results: &SuiteResults) -> Vec<String> {
         if let Some(e) = &s.error {
             out.push(format!("- {}: not available: {e}", s.name));
         }
-        for r in &s.variants {
-            if let Some(e) = &r.error {
-                out.push(format!(
-                    "- {} / {}: not available: {e}",
-                    s.name,
-                    r.variant.label()
-                ));
+        let variants = s
+            .variants
+            .iter()
+            .map(|r| (r.variant.label().to_string(), &r.error));
+        let ablations = s.ablations.iter().map(|r| (r.ablation.label(), &r.error));
+        for (label, error) in variants.chain(ablations) {
+            if let Some(e) = error {
+                out.push(format!("- {} / {label}: not available: {e}", s.name));
             }
         }
     }
@@ -467,9 +593,18 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
         }
         options
     });
+    let ablation_names: Vec<&str> = results.ablations.iter().map(|a| a.name()).collect();
+    let (ablations_text, ablation_option) = if ablation_names.is_empty() {
+        (String::new(), String::new())
+    } else {
+        (
+            format!("; ablations {}", ablation_names.join(", ")),
+            format!(" --ablation {}", ablation_names.join(",")),
+        )
+    };
     let mut overview = format!(
-        "Families {}, seeds {}, {} s each at most; variants {}. Regenerate with \
-         `limot eval suite --families {}{twin_options} --seeds {} --duration {} --variants {}`.",
+        "Families {}, seeds {}, {} s each at most; variants {}{ablations_text}. Regenerate with \
+         `limot eval suite --families {}{twin_options} --seeds {} --duration {} --variants {}{ablation_option}`.",
         families.join(", "),
         seeds.join(", "),
         results.duration_s,
@@ -539,6 +674,14 @@ pub fn build_report(results: &SuiteResults, suite_dir: &Path) -> Result<Report> 
             plots: Vec::new(),
         },
     ]);
+    if let Some(table) = ablation_table(results)? {
+        sections.push(Section {
+            heading: "Ablation: conditioned vs fully joint".into(),
+            text: ABLATION_TEXT.into(),
+            tables: vec![table],
+            plots: Vec::new(),
+        });
+    }
     let mut timing = Vec::new();
     for &v in &results.variants {
         if let Some(t) = timing_table_of(results, v)? {

@@ -81,12 +81,12 @@ pub fn without_timings(
     mut results: limot::experiments::SuiteResults,
 ) -> limot::experiments::SuiteResults {
     for s in &mut results.sequences {
-        for v in &mut s.variants {
-            if let Some(m) = &mut v.metrics {
-                m.wall_time_s = 0.0;
-                m.fps = 0.0;
-                m.timings.clear();
-            }
+        let variants = s.variants.iter_mut().map(|v| &mut v.metrics);
+        let ablations = s.ablations.iter_mut().map(|a| &mut a.metrics);
+        for m in variants.chain(ablations).flatten() {
+            m.wall_time_s = 0.0;
+            m.fps = 0.0;
+            m.timings.clear();
         }
     }
     results

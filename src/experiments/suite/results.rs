@@ -2,7 +2,8 @@
 //! (`results.json`, [`SuiteResults`]), and the join of a sharded run's files.
 
 use super::{
-    KittiTwins, RESULTS_FILE, RESULTS_FORMAT_VERSION, Result, Shard, SuiteError, sequence_name,
+    Ablation, KittiTwins, RESULTS_FILE, RESULTS_FORMAT_VERSION, Result, Shard, SuiteError,
+    sequence_name,
 };
 use crate::experiments::FilterEvaluation;
 use crate::metrics::{MotSummary, TimingAccumulator};
@@ -177,6 +178,19 @@ pub struct VariantResult {
     pub error: Option<String>,
 }
 
+/// One ablation run on one sequence ([`Ablation`]): its figures, or why there are none.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AblationResult {
+    /// The ablation.
+    pub ablation: Ablation,
+    /// Output directory, relative to the suite directory (`runs/<seq>/limot-joint`).
+    pub run_dir: PathBuf,
+    /// Its figures; `None` when the run or its scoring failed.
+    pub metrics: Option<VariantMetrics>,
+    /// Set when the run or its scoring failed.
+    pub error: Option<String>,
+}
+
 /// One simulated sequence and every variant run on it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SequenceResult {
@@ -200,6 +214,10 @@ pub struct SequenceResult {
     pub error: Option<String>,
     /// One entry per variant.
     pub variants: Vec<VariantResult>,
+    /// One entry per ablation (absent when none ran, as in results written
+    /// before ablations existed).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ablations: Vec<AblationResult>,
 }
 
 impl SequenceResult {
@@ -211,6 +229,14 @@ impl SequenceResult {
     /// The figures of variant `v`, if it ran and was scored.
     pub fn metrics(&self, v: Variant) -> Option<&VariantMetrics> {
         self.variant(v).and_then(|r| r.metrics.as_ref())
+    }
+
+    /// The figures of ablation `a`, if it ran and was scored.
+    pub fn ablation_metrics(&self, a: Ablation) -> Option<&VariantMetrics> {
+        self.ablations
+            .iter()
+            .find(|r| r.ablation == a)
+            .and_then(|r| r.metrics.as_ref())
     }
 }
 
@@ -231,6 +257,9 @@ pub struct SuiteResults {
     #[serde(with = "variant_name::list")]
     /// Variants run.
     pub variants: Vec<Variant>,
+    /// Ablations run beside their variants (absent when none ran).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ablations: Vec<Ablation>,
     /// Set when only this shard's sequences are here.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
@@ -311,7 +340,7 @@ impl SuiteResults {
 }
 
 /// Joins the results files of every shard of one suite (all `N` of them,
-/// each once, same families, seeds, duration and variants, in one
+/// each once, same families, seeds, duration, variants and ablations, in one
 /// directory, which the run paths inside are relative to) into the results
 /// of the whole suite, sequences in the order a whole run gives them.
 ///
@@ -353,17 +382,23 @@ pub fn merge_shards(files: &[PathBuf]) -> Result<(SuiteResults, PathBuf)> {
                 shard.index
             )));
         }
-        if (&r.families, &r.twins, &r.seeds, r.duration_s, &r.variants)
-            != (
-                &first.families,
-                &first.twins,
-                &first.seeds,
-                first.duration_s,
-                &first.variants,
-            )
-        {
+        if (
+            &r.families,
+            &r.twins,
+            &r.seeds,
+            r.duration_s,
+            &r.variants,
+            &r.ablations,
+        ) != (
+            &first.families,
+            &first.twins,
+            &first.seeds,
+            first.duration_s,
+            &first.variants,
+            &first.ablations,
+        ) {
             return Err(spec_err(format!(
-                "{}: families, twins, seeds, duration or variants differ from {}",
+                "{}: families, twins, seeds, duration, variants or ablations differ from {}",
                 file.display(),
                 first_file.display()
             )));

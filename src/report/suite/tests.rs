@@ -103,6 +103,7 @@ fn sequence(name: &str, variants: Vec<VariantResult>) -> SequenceResult {
         moving_objects: vec![1, 2, 3],
         error: None,
         variants,
+        ablations: Vec::new(),
     }
 }
 
@@ -114,6 +115,7 @@ fn results() -> SuiteResults {
         seeds: vec![1, 2],
         duration_s: 4.0,
         variants: vec![Variant::Lio, Variant::Dynafilt, Variant::Limot],
+        ablations: Vec::new(),
         shard: None,
         sequences: vec![
             sequence(
@@ -325,4 +327,67 @@ fn thinning_keeps_first_and_last_and_bounds_the_count() {
     assert!(t.len() <= 100, "{}", t.len());
     assert_eq!((t[0], *t.last().unwrap()), (0, 1000));
     assert_eq!(thin(&pts[..5], 100), pts[..5].to_vec());
+}
+
+/// `results()` with limot scored and the `joint` ablation beside it (failed on s2).
+fn results_with_ablation() -> SuiteResults {
+    let mut r = results();
+    r.ablations = vec![Ablation::Joint];
+    for (i, s) in r.sequences.iter_mut().enumerate() {
+        s.variants[2] = ok(Variant::Limot, metrics(0.2 + 0.1 * i as f64, 0.8, &[10.0]));
+        s.ablations.push(crate::experiments::AblationResult {
+            ablation: Ablation::Joint,
+            run_dir: PathBuf::from("runs/x/limot-joint"),
+            metrics: (i == 0).then(|| metrics(0.25, 0.8, &[10.0])),
+            error: (i == 1).then(|| "diverged".to_string()),
+        });
+    }
+    r
+}
+
+#[test]
+fn ablation_rows_sit_beside_their_variant() {
+    assert!(ablation_table(&results()).unwrap().is_none(), "no ablation");
+    let r = results_with_ablation();
+    let t = ablation_table(&r).unwrap().unwrap();
+    let runs: Vec<Cell> = t.rows.iter().map(|row| row[1].clone()).collect();
+    let (limot, joint) = (Cell::from("LIMOT"), Cell::from("LIMOT (joint)"));
+    assert_eq!(
+        runs,
+        [&limot, &joint, &limot, &joint, &limot, &joint].map(Clone::clone)
+    );
+    assert_eq!(cell(&t, 0, "ATE_T [m]"), Cell::Num(0.2));
+    assert_eq!(cell(&t, 1, "ATE_T [m]"), Cell::Num(0.25));
+    assert_eq!(cell(&t, 3, "ATE_T [m]"), Cell::Missing, "failed on s2");
+    // means: limot over both sequences, joint has none (one failed)
+    assert_eq!(cell(&t, 4, "Seq"), Cell::from("mean"));
+    let Cell::Num(mean) = cell(&t, 4, "ATE_T [m]") else {
+        panic!("no mean")
+    };
+    assert!((mean - 0.25).abs() < 1e-12, "{mean}");
+    assert_eq!(cell(&t, 5, "ATE_T [m]"), Cell::Missing);
+    // moving objects 1..3 of the table: TP (50 + 0 + 90) / 3, ATE (0.3 + 0.2) / 2
+    let Cell::Num(tp) = cell(&t, 0, "moving objects TP [%]") else {
+        panic!()
+    };
+    assert!((tp - 140.0 / 3.0).abs() < 1e-9, "{tp}");
+    assert_eq!(cell(&t, 0, "moving objects ATE_T [m]"), Cell::Num(0.25));
+    let md = t.to_markdown().unwrap();
+    assert!(md.contains("**0.200**"), "limot better on s1:\n{md}");
+
+    let report = build_report(&r, Path::new("/nonexistent/limot-suite")).unwrap();
+    let section = report
+        .sections
+        .iter()
+        .find(|s| s.heading.starts_with("Ablation"))
+        .unwrap();
+    assert!(section.text.contains("dynamic_objects_inform_ego = true"));
+    assert!(report.sections[0].text.contains("--ablation joint"));
+    let runs = runs_table(&r).unwrap();
+    assert_eq!(runs.rows.len(), 8, "3 variants + 1 ablation per sequence");
+    assert!(
+        failures(&r)
+            .iter()
+            .any(|f| f == "- urban_s2 / LIMOT (joint): not available: diverged")
+    );
 }
