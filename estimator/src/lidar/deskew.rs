@@ -231,11 +231,17 @@ impl SegmentTransform {
         if self.angle_rad == 0.0 {
             return (self.a, self.b + self.c * alpha);
         }
-        // Rodrigues: R = cI + s[k]× + (1−c)kkᵀ
+        let r = self.rotation_at(alpha);
+        (self.a * r, self.b + self.c * alpha)
+    }
+
+    /// `Exp(α·θ·axis)` by Rodrigues: `R = cI + s[k]× + (1−c)kkᵀ`.
+    #[inline]
+    fn rotation_at(&self, alpha: f64) -> Matrix3<f64> {
         let (s, c) = sin_cos(alpha * self.angle_rad);
         let k = &self.axis;
         let omc = 1.0 - c;
-        let r = Matrix3::new(
+        Matrix3::new(
             c + omc * k.x * k.x,
             omc * k.x * k.y - s * k.z,
             omc * k.x * k.z + s * k.y,
@@ -245,8 +251,7 @@ impl SegmentTransform {
             omc * k.z * k.x - s * k.y,
             omc * k.z * k.y + s * k.x,
             c + omc * k.z * k.z,
-        );
-        (self.a * r, self.b + self.c * alpha)
+        )
     }
 
     /// `T_ref⁻¹·T(t)·p` for a single point (vector form of Rodrigues, cheaper
@@ -270,24 +275,8 @@ impl SegmentTransform {
         steps: usize,
         out: &mut Vec<(Matrix3<f64>, Matrix3<f64>)>,
     ) {
-        let rotation_at = |j: usize| {
-            let alpha = alpha_lo + alpha_span * (j as f64 / steps as f64);
-            let (s, c) = sin_cos(alpha * self.angle_rad);
-            let k = &self.axis;
-            let omc = 1.0 - c;
-            self.a
-                * Matrix3::new(
-                    c + omc * k.x * k.x,
-                    omc * k.x * k.y - s * k.z,
-                    omc * k.x * k.z + s * k.y,
-                    omc * k.y * k.x + s * k.z,
-                    c + omc * k.y * k.y,
-                    omc * k.y * k.z - s * k.x,
-                    omc * k.z * k.x - s * k.y,
-                    omc * k.z * k.y + s * k.x,
-                    c + omc * k.z * k.z,
-                )
-        };
+        let rotation_at =
+            |j: usize| self.a * self.rotation_at(alpha_lo + alpha_span * (j as f64 / steps as f64));
         let mut next = rotation_at(0);
         for j in 0..steps {
             let current = next;
