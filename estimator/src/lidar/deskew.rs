@@ -275,12 +275,12 @@ impl SegmentTransform {
         steps: usize,
         out: &mut Vec<(Matrix3<f64>, Matrix3<f64>)>,
     ) {
-        let rotation_at =
+        let rotation_at_step =
             |j: usize| self.a * self.rotation_at(alpha_lo + alpha_span * (j as f64 / steps as f64));
-        let mut next = rotation_at(0);
+        let mut next = rotation_at_step(0);
         for j in 0..steps {
             let current = next;
-            next = rotation_at(j + 1);
+            next = rotation_at_step(j + 1);
             out.push((current, next - current));
         }
     }
@@ -301,16 +301,22 @@ pub const DESKEW_RELATIVE_TOLERANCE: f64 = MAX_STEP_RAD * MAX_STEP_RAD / 8.0;
 /// (fast spins: the table would cost more than it saves).
 const MAX_STEPS: usize = 1024;
 
-/// One segment's table: `steps` steps of α from `alpha_lo`, from
-/// `entries[first]`; `steps == 0`: not built yet; `usize::MAX` (with NaN
-/// steps per α): exact rotation only.
+/// One segment's rotation table.
 #[derive(Debug, Default, Clone, Copy)]
-struct SegmentSteps {
-    first: usize,
-    steps: usize,
-    alpha_lo: f64,
-    /// `steps / alpha_span`.
-    steps_per_alpha: f64,
+enum SegmentSteps {
+    /// Not built yet (no point with its own time has reached the segment).
+    #[default]
+    Unbuilt,
+    /// The segment turns too fast: every point gets the exact rotation.
+    Exact,
+    /// `steps` steps of α from `alpha_lo`, from `entries[first]`.
+    Table {
+        first: usize,
+        steps: usize,
+        alpha_lo: f64,
+        /// `steps / alpha_span`.
+        steps_per_alpha: f64,
+    },
 }
 
 /// For sweeps whose points each have their own time (KITTI, rosbag clouds):
@@ -351,18 +357,14 @@ impl RotationSteps {
             let steps = (needed as usize).max(1);
             let first = self.entries.len();
             segment.push_steps(lo, hi - lo, steps, &mut self.entries);
-            SegmentSteps {
+            SegmentSteps::Table {
                 first,
                 steps,
                 alpha_lo: lo,
                 steps_per_alpha: steps as f64 / (hi - lo),
             }
         } else {
-            SegmentSteps {
-                steps: usize::MAX,
-                steps_per_alpha: f64::NAN,
-                ..SegmentSteps::default()
-            }
+            SegmentSteps::Exact
         };
     }
 
@@ -381,20 +383,27 @@ impl RotationSteps {
         if segment.angle_rad == 0.0 {
             return segment.apply(t_s, p);
         }
-        if self.segments[k].steps == 0 {
+        if matches!(self.segments[k], SegmentSteps::Unbuilt) {
             self.build(k, self.segments.len(), segment);
         }
-        let table = self.segments[k];
+        let SegmentSteps::Table {
+            first,
+            steps,
+            alpha_lo,
+            steps_per_alpha,
+        } = self.segments[k]
+        else {
+            return segment.apply(t_s, p);
+        };
         let alpha = segment.alpha(t_s);
-        let u = (alpha - table.alpha_lo) * table.steps_per_alpha;
-        // also false for the exact-only mark (NaN steps per α)
-        if !(u >= 0.0 && u < table.steps as f64) {
+        let u = (alpha - alpha_lo) * steps_per_alpha;
+        if !(u >= 0.0 && u < steps as f64) {
             return segment.apply(t_s, p);
         }
         // 0 <= u < steps <= MAX_STEPS: a u32 conversion is exact and cheap
-        let j = (u as u32 as usize).min(table.steps - 1);
+        let j = (u as u32 as usize).min(steps - 1);
         let f = u - j as f64;
-        let (rotation, difference) = &self.entries[table.first + j];
+        let (rotation, difference) = &self.entries[first + j];
         (rotation + difference * f) * p + segment.b + segment.c * alpha
     }
 }
@@ -666,6 +675,25 @@ mod tests {
         assert!((out[0] - Vector3::new(1.0, 2.0, 3.0)).norm() < 1e-12);
     }
 
+    /// Every `out[i]` is within `1e-12 + relative_tolerance · |p|` of the
+    /// definition `pose_at(t_ref)⁻¹·pose_at(t)·p` of `scan.points[i]`.
+    fn assert_matches_definition(
+        scan: &LidarScan,
+        motion: &SweepMotion,
+        t_ref: f64,
+        out: &[Vector3<f64>],
+        relative_tolerance: f64,
+    ) {
+        assert_eq!(out.len(), scan.points.len());
+        let inv_ref = motion.pose_at(t_ref).inverse();
+        for (p, q) in scan.points.iter().zip(out) {
+            let t = scan.t_s + p.time_offset_s as f64;
+            let expected = inv_ref * motion.pose_at(t) * nalgebra::Point3::from(p.position());
+            let bound = 1e-12 + relative_tolerance * p.position().norm();
+            assert!((expected.coords - q).norm() < bound, "{t}");
+        }
+    }
+
     /// The fast path equals the definition `pose_at(t_ref)⁻¹·pose_at(t)·p`
     /// (to the rotation table's bound), also for unordered times and times
     /// outside the samples.
@@ -697,14 +725,8 @@ mod tests {
         for t_ref in [10.0, 10.05, 10.1] {
             deskew(&scan, &m, t_ref, &mut out);
             assert_eq!(out.len(), scan.points.len());
-            let inv_ref = m.pose_at(t_ref).inverse();
-            for (p, q) in scan.points.iter().zip(&out) {
-                let t = scan.t_s + p.time_offset_s as f64;
-                let expected = inv_ref * m.pose_at(t) * nalgebra::Point3::from(p.position());
-                // single-time points go through the rotation table
-                let bound = 1e-12 + DESKEW_RELATIVE_TOLERANCE * p.position().norm();
-                assert!((expected.coords - q).norm() < bound, "{t}");
-            }
+            // single-time points go through the rotation table
+            assert_matches_definition(&scan, &m, t_ref, &out, DESKEW_RELATIVE_TOLERANCE);
         }
     }
 
@@ -750,13 +772,7 @@ mod tests {
         for t_ref in [5.0, 5.05, 5.1] {
             deskewer.deskew(&scan, &m, t_ref, &mut out);
             assert!(deskewer.steps.entries.len() >= 10 * 45, "the table is used");
-            let inv_ref = m.pose_at(t_ref).inverse();
-            for (p, q) in scan.points.iter().zip(&out) {
-                let t = scan.t_s + p.time_offset_s as f64;
-                let expected = inv_ref * m.pose_at(t) * nalgebra::Point3::from(p.position());
-                let bound = 1e-12 + DESKEW_RELATIVE_TOLERANCE * p.position().norm();
-                assert!((expected.coords - q).norm() < bound, "{t}");
-            }
+            assert_matches_definition(&scan, &m, t_ref, &out, DESKEW_RELATIVE_TOLERANCE);
         }
         // 20 rad/s: 0.2 rad per segment is beyond MAX_STEPS steps, exact
         let fast = SweepMotion::constant_velocity(
@@ -768,10 +784,6 @@ mod tests {
         .unwrap();
         deskewer.deskew(&scan, &fast, 5.0, &mut out);
         assert!(deskewer.steps.entries.is_empty());
-        for (p, q) in scan.points.iter().zip(&out) {
-            let t = scan.t_s + p.time_offset_s as f64;
-            let expected = fast.pose_at(t) * nalgebra::Point3::from(p.position());
-            assert!((expected.coords - q).norm() < 1e-12, "{t}");
-        }
+        assert_matches_definition(&scan, &fast, 5.0, &out, 0.0);
     }
 }
