@@ -646,7 +646,7 @@ pub fn match_scan(
     };
 
     let mut t = *initial_t_world_lidar;
-    let mut converged = None;
+    let mut converged_equations = None;
     let mut iterations = 0;
     let threshold = config.degeneracy_eigenvalue_threshold;
     for iteration in 0..config.max_iterations {
@@ -661,7 +661,7 @@ pub fn match_scan(
         let rot_deg = lie::xi_phi(&delta).norm().to_degrees();
         let trans_m = lie::xi_rho(&delta).norm();
         if rot_deg < config.convergence_rotation_deg && trans_m < config.convergence_translation_m {
-            converged = Some(ne);
+            converged_equations = Some(ne);
             break;
         }
     }
@@ -669,8 +669,8 @@ pub fn match_scan(
     // A converged match's last update is below the convergence thresholds
     // (0.05 deg, 0.5 mm by default), so the normal equations it was solved
     // from describe the solution; only an unconverged match linearises again.
-    let converged_at = converged.is_some();
-    let ne = match converged {
+    let converged = converged_equations.is_some();
+    let ne = match converged_equations {
         Some(ne) => ne,
         None => matcher.linearize(&t),
     };
@@ -691,7 +691,7 @@ pub fn match_scan(
         edge_matches: ne.edge,
         planar_matches: ne.planar,
         iterations,
-        converged: converged_at,
+        converged,
         rms_residual_m: (ne.sum_sq_m2 / found as f64).sqrt(),
     })
 }
