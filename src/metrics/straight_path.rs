@@ -7,7 +7,8 @@
 //! times the first, the roll about the path is taken from the orientations
 //! instead: `θ = mean_i ⟨Log(R_true,i · (R·R_est,i)ᵀ), a⟩` about the aligned
 //! path direction `a`, and the translation is re-solved. When all positions
-//! coincide (a static trajectory), the whole rotation is the chordal mean of
+//! coincide or spread by less than 10 cm rms ([`STATIC_SCATTER_M2`]: a
+//! standing ego), the whole rotation is the chordal mean of
 //! `R_true,i · R_est,iᵀ`. Both are exact for a rigidly moved copy of the truth;
 //! evo keeps the arbitrary roll in these cases.
 
@@ -20,8 +21,12 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
 /// and the alignment's roll about it is taken from the orientations.
 pub const STRAIGHT_PATH_RATIO: f64 = 1e-4;
 
-/// Total position scatter (m²) below which the positions count as one point.
-const STATIC_SCATTER_M2: f64 = 1e-12;
+/// Largest position scatter eigenvalue (m², the variance along the path)
+/// below which the trajectory counts as standing still: positions that
+/// spread by less than 10 cm rms (a standing ego's estimate jitters by
+/// millimetres) leave the rotation to their noise, so it comes from the
+/// orientations.
+pub const STATIC_SCATTER_M2: f64 = 0.01;
 
 /// Whether the Umeyama rotation was completed from orientations (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

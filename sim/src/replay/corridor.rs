@@ -64,6 +64,10 @@ const HARMONIC_SPACING_M: f64 = 12.0;
 const MAX_HARMONICS: usize = 24;
 /// How far the corridor continues beyond the drive's ends, m.
 const EXTENSION_M: f64 = 60.0;
+/// Ridge on the ground's slopes, m²: a drive whose positions spread by
+/// much less than sqrt of this (10 cm) along an axis gets a level ground
+/// along it; a drive of metres keeps its fitted slope to 1e-5.
+const SLOPE_RIDGE_M2: f64 = 0.01;
 /// Clearance between a static object and any agent box, m.
 const AGENT_CLEARANCE_M: f64 = 0.5;
 
@@ -177,9 +181,13 @@ pub(super) fn fit_ground(
         }
         b[r] = p.z;
     }
-    // a little ridge on the sinusoids keeps an ill-posed fit (a short or
-    // static drive) tame
+    // A little ridge keeps an ill-posed fit tame: on the sinusoids, and on
+    // the slopes for a drive that spans centimetres (a standing ego, whose
+    // positions jitter by millimetres, would otherwise get any slope at all).
     let mut normal = a.transpose() * &a;
+    for k in 1..3 {
+        normal[(k, k)] += SLOPE_RIDGE_M2 * road.len() as f64;
+    }
     for k in 3..unknowns {
         normal[(k, k)] += 1e-3 * road.len() as f64;
     }
