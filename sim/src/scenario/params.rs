@@ -199,7 +199,9 @@ pub struct HighwayParams {
     pub sign_spacing_m: f64,
     /// The ego's lane changes, in time order: each is requested at `t_s` and
     /// starts at the first moment after it (and after the previous change has
-    /// ended) when the traffic model finds the gap in the target lane safe;
+    /// ended) when the traffic model finds the gap in the target lane safe,
+    /// the ego and the target lane's traffic making room meanwhile (braking
+    /// at most comfortably; see [`crate::traffic::LaneChange::cooperative`]);
     /// `to_lane` (0 = rightmost) is one lane left or right of where the
     /// previous change left the ego. Requests the run ends before are not
     /// executed. Empty = the ego keeps its lane.
