@@ -1,5 +1,6 @@
 //! The `lio` variant end to end on simulated urban drives without moving
-//! objects (noise-free and default noise), and LiDAR-only on real KITTI scans.
+//! objects (noise-free and default noise), `lio` and `limot` through the
+//! default highway's ego lane change, and LiDAR-only on real KITTI scans.
 
 mod common;
 
@@ -7,6 +8,7 @@ use common::ate;
 use limot::io::Source;
 use limot::run::{RunOptions, run, write_output};
 use limot::simulate::resolve_scenario;
+use limot_estimator::Variant;
 use limot_sim::scenario::ScenarioSpec;
 use std::path::PathBuf;
 
@@ -174,4 +176,31 @@ fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
         z_drift.abs() < 0.05 + 0.02 * path,
         "z drift {z_drift} over {path} m"
     );
+}
+
+#[test]
+fn lio_and_limot_keep_their_highway_bounds_through_the_ego_lane_change() {
+    let mut spec = resolve_scenario("highway").unwrap();
+    // the first change (to the left lane, requested at 8 s, about 4 s long)
+    // lies inside the run
+    spec.duration_s = 16.0;
+    let change = &spec.highway_params().ego_lane_changes[0];
+    assert!(change.t_s < 9.0 && change.to_lane != spec.ego.lane);
+    let dir = simulate(&spec, "highway-lane-change");
+    let source = Source::open(&dir).unwrap();
+    for variant in [Variant::Lio, Variant::Limot] {
+        let options = RunOptions {
+            variant,
+            ..RunOptions::default()
+        };
+        let output = run(&source, &dir, &options, None).unwrap();
+        let (ate_t, ate_r) = ate(&dir, &output);
+        eprintln!(
+            "{}: ATE_T {ate_t:.3} m, ATE_R {ate_r:.4} rad",
+            variant.name()
+        );
+        assert!(ate_t < 0.5, "{}: ATE_T {ate_t} m", variant.name());
+        assert!(ate_r < 0.01, "{}: ATE_R {ate_r} rad", variant.name());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

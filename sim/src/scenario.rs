@@ -36,8 +36,8 @@ pub(crate) use validate::{
     urban_spawn_length_m,
 };
 use validate::{
-    positive_finite, validate_ego, validate_ground, validate_highway, validate_kitti,
-    validate_lidar, validate_urban,
+    positive_finite, validate_ego, validate_ego_lane_changes, validate_ground, validate_highway,
+    validate_kitti, validate_lidar, validate_urban,
 };
 
 /// A complete scenario description, the contents of one scenario file.
@@ -205,6 +205,8 @@ impl ScenarioSpec {
                     overpass_spacing_m: 0.0,
                     gantry_spacing_m: 0.0,
                     sign_spacing_m: 0.0,
+                    // the ego keeps its lane among the pacing traffic
+                    ego_lane_changes: Vec::new(),
                     ..HighwayParams::default()
                 }),
                 ..base(Family::Highway, 1)
@@ -412,6 +414,7 @@ impl ScenarioSpec {
                         format!("must be below highway.lanes = {}", h.lanes),
                     ));
                 }
+                validate_ego_lane_changes(&h.ego_lane_changes, self.ego.lane, h.lanes)?;
             }
             Family::Urban => {
                 if self.highway.is_some() {
@@ -515,18 +518,31 @@ fn field_at(table: &toml::de::DeTable<'_>, offset: usize, prefix: &str) -> Optio
 }
 
 /// The line of a dotted field in the source (or of its nearest enclosing
-/// table present in the file when the field itself is absent).
+/// table present in the file when the field itself is absent); a segment
+/// `name[i]` is element i of the array `name` (an inline table's keys are
+/// found on the element's line or below).
 fn line_of_field(text: &str, field: &str) -> Option<usize> {
     let doc = toml::de::DeTable::parse(text).ok()?;
     let mut table = Some(doc.get_ref());
     let mut line = None;
     for segment in field.split('.') {
-        let Some((key, value)) = table.and_then(|t| t.iter().find(|(k, _)| k.get_ref() == segment))
+        // `name[i]`: element i of the array `name`
+        let (name, index) = match segment.split_once('[') {
+            Some((name, rest)) => (name, rest.trim_end_matches(']').parse::<usize>().ok()),
+            None => (segment, None),
+        };
+        let Some((key, value)) = table.and_then(|t| t.iter().find(|(k, _)| k.get_ref() == name))
         else {
             break;
         };
         line = Some(line_column(text, key.span().start).0);
-        table = value.get_ref().as_table();
+        let element = index.and_then(|i| value.get_ref().as_array()?.get(i));
+        if let Some(element) = element {
+            line = Some(line_column(text, element.span().start).0);
+            table = element.get_ref().as_table();
+        } else {
+            table = value.get_ref().as_table();
+        }
     }
     line
 }

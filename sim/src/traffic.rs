@@ -20,7 +20,10 @@
 //! - Lane changes are requested at a time and executed at the first 100 Hz
 //!   update where a MOBIL-style safety criterion holds (new leader and new
 //!   follower keep at least their minimum gap and neither would have to brake
-//!   harder than the driver's `safe_decel_mps2`); otherwise retried.
+//!   harder than the driver's `safe_decel_mps2`); otherwise retried. While a
+//!   cooperative request is due, the requester also follows the target
+//!   lane's vehicles ahead of it and those behind it follow the requester
+//!   (braking at most comfortably), so that a gap opens.
 //! - Deterministic: no randomness; vehicles are updated in spec order.
 //!
 //! Only same-lane and lane-changing conflicts are resolved; crossing lanes at
@@ -325,6 +328,69 @@ impl Sim<'_> {
         best
     }
 
+    /// The cooperative lane change `i` has due at `t_s`, if any: requested,
+    /// departed, the previous transition over and not yet started.
+    fn due_cooperative_change(&self, i: usize, t_s: f64) -> Option<&LaneChange> {
+        let (spec_i, v) = (&self.spec.vehicles[i], &self.vehicles[i]);
+        let request = spec_i.lane_changes.get(v.next_change)?;
+        let in_transition = v.transition.is_some_and(|tr| t_s < tr.t0_s + tr.duration_s);
+        (request.cooperative
+            && t_s >= request.t_s
+            && t_s >= spec_i.depart_s
+            && !in_transition
+            && request.to_lane != v.lane)
+            .then_some(request)
+    }
+
+    /// Acceleration limit of `i` from cooperative lane changes, braking at
+    /// most at its comfortable deceleration: IDM behind the target lane's
+    /// vehicles ahead of `i` while `i`'s own change is due, and behind every
+    /// vehicle ahead of `i` whose due change targets `i`'s lane.
+    fn cooperative_accel(&self, i: usize, t_s: f64) -> Option<f64> {
+        let spec_i = &self.spec.vehicles[i];
+        let v_i = self.vehicles[i].speed_mps;
+        let ci = self.vehicles[i].centre();
+        let follow = |me: &LaneFrame, fj: &LaneFrame| {
+            let gap = fj.s_m - me.s_m - me.lon_half_m - fj.lon_half_m;
+            idm_accel(
+                &spec_i.driver,
+                spec_i.desired_speed_mps,
+                v_i,
+                Some((gap, v_i - fj.speed_along_mps)),
+            )
+            .max(-spec_i.driver.comfortable_decel_mps2)
+        };
+        let near =
+            |j: usize| j != i && (self.vehicles[j].centre() - ci).norm() <= INTERACTION_RANGE_M;
+        let mut limit: Option<f64> = None;
+        let mut lower = |a: f64| limit = Some(limit.map_or(a, |l| l.min(a)));
+        if let Some(request) = self.due_cooperative_change(i, t_s)
+            && let Some(me) = self.frames[i][request.to_lane]
+        {
+            for j in (0..self.vehicles.len()).filter(|&j| near(j)) {
+                if self.vehicles[j].lane == request.to_lane
+                    && let Some(fj) = self.frames[j][request.to_lane]
+                    && fj.s_m > me.s_m
+                {
+                    lower(follow(&me, &fj));
+                }
+            }
+        }
+        let lane_i = self.vehicles[i].lane;
+        let me = self.own_frame(i);
+        for j in (0..self.vehicles.len()).filter(|&j| near(j)) {
+            if self
+                .due_cooperative_change(j, t_s)
+                .is_some_and(|r| r.to_lane == lane_i)
+                && let Some(fj) = self.frames[j][lane_i]
+                && fj.s_m > me.s_m
+            {
+                lower(follow(&me, &fj));
+            }
+        }
+        limit
+    }
+
     /// Tries the pending lane change of `i`; true if it starts now.
     fn try_lane_change(&mut self, i: usize, t_s: f64) -> bool {
         let spec_i = &self.spec.vehicles[i];
@@ -577,7 +643,8 @@ fn simulate(spec: &TrafficSpec, record_every: usize) -> Result<Vec<PlanarTrack>,
                 let cmd = if t_s < vs.depart_s {
                     0.0
                 } else {
-                    idm_accel(&vs.driver, vs.desired_speed_mps, v, leader)
+                    let own = idm_accel(&vs.driver, vs.desired_speed_mps, v, leader);
+                    sim.cooperative_accel(i, t_s).map_or(own, |c| own.min(c))
                 };
                 sim.vehicles[i].accel_cmd_mps2 = cmd;
                 if k == 0 && t_s >= vs.depart_s {

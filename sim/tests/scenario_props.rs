@@ -178,6 +178,48 @@ fn bad_files_name_file_line_and_field() {
         let want = format!("{}:{}", path.display(), line_of(&text, key));
         assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
     }
+    // the ego's lane changes: each entry's own line and field
+    let highway = std::fs::read_to_string(scenario_file("highway")).unwrap();
+    for (tag, from, to, field) in [
+        (
+            "ego_change_skips_a_lane",
+            "{ t_s = 24.0, to_lane = 1 }",
+            "{ t_s = 24.0, to_lane = 0 }",
+            "highway.ego_lane_changes[1].to_lane",
+        ),
+        (
+            "ego_change_off_the_road",
+            "{ t_s = 8.0, to_lane = 2 }",
+            "{ t_s = 8.0, to_lane = 4 }",
+            "highway.ego_lane_changes[0].to_lane",
+        ),
+        (
+            "ego_changes_out_of_order",
+            "{ t_s = 24.0, to_lane = 1 }",
+            "{ t_s = 4.0, to_lane = 1 }",
+            "highway.ego_lane_changes[1].t_s",
+        ),
+        (
+            "ego_change_at_nan",
+            "{ t_s = 8.0, to_lane = 2 }",
+            "{ t_s = nan, to_lane = 2 }",
+            "highway.ego_lane_changes[0].t_s",
+        ),
+        (
+            "ego_change_unknown_key",
+            "{ t_s = 8.0, to_lane = 2 }",
+            "{ t_s = 8.0, to_lane = 2, speed_mps = 3.0 }",
+            "highway.ego_lane_changes",
+        ),
+    ] {
+        assert!(highway.contains(from), "{from}");
+        let text = highway.replace(from, to);
+        let line = text.lines().position(|l| l.contains(to)).unwrap() + 1;
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{line}", path.display());
+        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+    }
     // a table of the other family
     let text = format!(
         "{}\n[urban]\nlanes_per_direction = 1\n",
@@ -239,10 +281,19 @@ fn check_common(spec: &ScenarioSpec, scene: &Scene) {
             "LiDAR {above} m above ground"
         );
     }
-    // gentle ground
+    // gentle terrain (the road's roughness and crown, whose local grade
+    // under one wheel path says nothing about the terrain, are
+    // ground_props' business)
     for t in sample_times(scene, 5.0) {
         let p = scene.ego.trajectory.pose_at(t).translation.vector;
-        assert!(scene.ground.gradient(p.x, p.y).norm() < 0.07);
+        let (_, gx, gy) = scene.ground.terrain_height_and_gradient(p.x, p.y);
+        let grade = gx.hypot(gy);
+        assert!(
+            grade < 0.07,
+            "{} seed {}: grade {grade} under the ego at {t} s, {p:?}",
+            spec.name,
+            spec.seed
+        );
     }
     // statics rest on the ground (bottoms at or a little below it) or are
     // mounted on something (rail beams, balconies, decks, signs, seats)
@@ -310,6 +361,49 @@ fn check_highway(spec: &ScenarioSpec, scene: &Scene) {
         assert!(v > 5.0, "vehicle {} at {v} m/s at the end", agent.id);
     }
     assert!(ego_speed_at(scene, scene.duration_s - 0.5) > 5.0);
+    let (lateral, yaw_rate) = ego_lateral_accel_and_yaw_rate(scene);
+    assert!(
+        lateral <= EGO_LATERAL_ACCEL_MAX_MPS2,
+        "{}: ego lateral acceleration {lateral} m/s^2",
+        spec.name
+    );
+    assert!(
+        yaw_rate <= EGO_YAW_RATE_MAX_RADPS,
+        "{}: ego yaw rate {yaw_rate} rad/s",
+        spec.name
+    );
+}
+
+/// Vehicle limits of a car on the highway: lateral acceleration a comfortable
+/// driver keeps below (a lane change at 25 m/s needs about 1.5 m/s^2, a
+/// 800 m curve 0.8 m/s^2) and the yaw rate that goes with it at speed.
+const EGO_LATERAL_ACCEL_MAX_MPS2: f64 = 3.0;
+const EGO_YAW_RATE_MAX_RADPS: f64 = 0.15;
+
+/// Largest |lateral acceleration| (horizontal, across the direction of
+/// travel) and |yaw rate| of the ego's LiDAR, sampled every 0.05 s while it
+/// moves faster than 1 m/s.
+fn ego_lateral_accel_and_yaw_rate(scene: &Scene) -> (f64, f64) {
+    let mut worst = (0.0f64, 0.0f64);
+    for t in sample_times(scene, 0.05) {
+        let state = scene.ego.trajectory.state_at(t);
+        let (v, a) = (state.velocity_world_mps, state.accel_world_mps2);
+        let speed = v.xy().norm();
+        if speed < 1.0 {
+            continue;
+        }
+        let lateral = (v.x * a.y - v.y * a.x).abs() / speed;
+        let yaw_rate = (state.t_world_body.rotation * state.angular_velocity_body_radps).z;
+        worst = (worst.0.max(lateral), worst.1.max(yaw_rate.abs()));
+    }
+    worst
+}
+
+/// Lateral offset (+ = left) of lane `lane` of a highway from the centre
+/// line, which runs along +x through the origin on the initial straight.
+fn highway_lane_y_m(spec: &ScenarioSpec, lane: usize) -> f64 {
+    let h = spec.highway.clone().unwrap_or_default();
+    (lane as f64 + 0.5 - 0.5 * h.lanes as f64) * h.lane_width_m
 }
 
 fn check_urban(spec: &ScenarioSpec, scene: &Scene) {
@@ -522,6 +616,45 @@ fn urban_without_cross_traffic_has_no_cross_cars() {
     assert!(cross_cars(&scene).is_empty());
 }
 
+/// The ego's lateral position on the initial straight over time: it is in
+/// its lane at the first request, in the target lane some time after it,
+/// and back in its own lane when the run ends.
+fn check_ego_overtakes(spec: &ScenarioSpec, scene: &Scene) {
+    let h = spec.highway.clone().unwrap_or_default();
+    let y_at = |t: f64| {
+        let p = scene.ego.trajectory.pose_at(t).translation.vector;
+        assert!(
+            p.x < h.straight_length_m,
+            "t = {t} s: off the straight at x = {}",
+            p.x
+        );
+        p.y
+    };
+    let [first, second] = h.ego_lane_changes.as_slice() else {
+        panic!("two ego lane changes wanted: {:?}", h.ego_lane_changes)
+    };
+    let own = highway_lane_y_m(spec, spec.ego.lane);
+    let target = highway_lane_y_m(spec, first.to_lane);
+    assert_eq!(second.to_lane, spec.ego.lane);
+    assert!((y_at(first.t_s) - own).abs() < 0.3, "seed {}", spec.seed);
+    let times = sample_times(scene, 0.1);
+    let in_target = times
+        .iter()
+        .filter(|&&t| t >= first.t_s)
+        .any(|&t| (y_at(t) - target).abs() < 0.3);
+    assert!(
+        in_target,
+        "seed {}: never in lane {}",
+        spec.seed, first.to_lane
+    );
+    assert!(
+        (y_at(spec.duration_s) - own).abs() < 0.3,
+        "seed {}: not back in lane {} at the end",
+        spec.seed,
+        spec.ego.lane
+    );
+}
+
 #[test]
 fn default_highway_is_valid() {
     let spec = ScenarioSpec::builtin("highway").unwrap();
@@ -530,6 +663,8 @@ fn default_highway_is_valid() {
     check_highway(&spec, &scene);
     // the ego reaches highway speed
     assert!(ego_speed_at(&scene, spec.duration_s - 1.0) > 20.0);
+    let (lateral, yaw_rate) = ego_lateral_accel_and_yaw_rate(&scene);
+    eprintln!("ego: lateral acceleration up to {lateral:.2} m/s^2, yaw rate {yaw_rate:.3} rad/s");
 }
 
 proptest! {
@@ -539,15 +674,21 @@ proptest! {
     fn highway_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, vehicles in 20usize..=32) {
         let mut spec = ScenarioSpec::builtin("highway").unwrap();
         spec.seed = seed;
-        spec.duration_s = 20.0;
+        spec.duration_s = 25.0;
         let h = spec.highway.as_mut().unwrap();
         h.lanes = lanes;
         h.vehicles = vehicles;
         spec.ego.lane = lanes / 2;
+        // overtake on the left and return, both within the run
+        for (change, to_lane) in h.ego_lane_changes.iter_mut().zip([lanes / 2 + 1, lanes / 2]) {
+            change.to_lane = to_lane;
+        }
+        h.ego_lane_changes[1].t_s = 12.0;
         spec.validate().unwrap();
         let scene = spec.build().unwrap();
         check_common(&spec, &scene);
         check_highway(&spec, &scene);
+        check_ego_overtakes(&spec, &scene);
         prop_assert_eq!(spec.family, Family::Highway);
     }
 

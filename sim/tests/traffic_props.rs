@@ -23,7 +23,7 @@ struct Draft {
     desired_mps: f64,
     depart_s: f64,
     /// (time, +1 = left / -1 = right)
-    changes: Vec<(f64, i8)>,
+    changes: Vec<(f64, i8, bool)>,
 }
 
 fn draft() -> impl Strategy<Value = Draft> {
@@ -33,7 +33,14 @@ fn draft() -> impl Strategy<Value = Draft> {
         0.0f64..1.0,
         3.0f64..32.0,
         prop_oneof![Just(0.0), 0.0f64..5.0],
-        prop::collection::vec((0.0f64..16.0, prop_oneof![Just(1i8), Just(-1i8)]), 0..3),
+        prop::collection::vec(
+            (
+                0.0f64..16.0,
+                prop_oneof![Just(1i8), Just(-1i8)],
+                any::<bool>(),
+            ),
+            0..3,
+        ),
     )
         .prop_map(
             |(lane, class, speed_frac, desired_mps, depart_s, changes)| Draft {
@@ -118,9 +125,10 @@ fn build_spec(n_lanes: usize, curvature_1pm: f64, drafts: &[Draft], red: bool) -
         let lane_changes = d
             .changes
             .iter()
-            .map(|&(t_s, dir)| LaneChange {
+            .map(|&(t_s, dir, cooperative)| LaneChange {
                 t_s,
                 to_lane: (lane as i64 + dir as i64).clamp(0, n_lanes as i64 - 1) as usize,
+                cooperative,
             })
             .collect();
         vehicles.push(VehicleSpec {

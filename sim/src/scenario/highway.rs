@@ -1,7 +1,9 @@
 //! Highway generator: one carriageway of 3-5 lanes, a long straight followed
 //! by gentle alternating curves, guard rails on both sides, sparse light
 //! poles and signs, and 20-50 cars and trucks at highway speeds with lane
-//! changes. The long straight with parallel rails is the LiDAR-degenerate case.
+//! changes. The ego changes lanes too, at the requested times once the
+//! target lane's gap is safe (the traffic model's own lane-change logic).
+//! The long straight with parallel rails is the LiDAR-degenerate case.
 
 use super::common::{
     beside, cuboid_between, draw_body, ego_vehicle, generate_ground, run_traffic, uniform,
@@ -50,6 +52,23 @@ const LANE_CHANGE_SPACING_S: f64 = 8.0;
 
 /// The whole highway scene for a validated spec.
 pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, ScenarioError> {
+    let (ground, statics, traffic) = layout(spec, rng)?;
+    let (agents, ego) = run_traffic(spec, &ground, &|_, _| 0.0, &traffic)?;
+    Ok(Scene {
+        duration_s: spec.duration_s,
+        ground,
+        statics,
+        agents,
+        ego,
+    })
+}
+
+/// The road and everything on it before the traffic runs: ground, statics,
+/// and the traffic spec (lanes, vehicles with their lane changes, the ego last).
+fn layout(
+    spec: &ScenarioSpec,
+    rng: &mut ChaCha8Rng,
+) -> Result<(crate::scene::Ground, Vec<StaticObject>, TrafficSpec), ScenarioError> {
     let h = spec.highway_params();
     // the main street and the highway's initial straight run along +x through the origin
     let ground = generate_ground(rng, &spec.ground, spec.seed, (Point2::origin(), 0.0));
@@ -81,26 +100,24 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
 
     let mut vehicles = place_vehicles(&h, spec.ego.lane, ego_s, rng);
     add_lane_changes(&h, spec.duration_s, &mut vehicles, rng);
-    vehicles.push(ego_vehicle(
-        &spec.ego,
-        spec.ego.lane,
-        ego_s,
-        spec.ego_speed_mps(),
-    ));
+    let mut ego = ego_vehicle(&spec.ego, spec.ego.lane, ego_s, spec.ego_speed_mps());
+    // traffic makes room for the ego's changes (the route must happen)
+    ego.lane_changes = h
+        .ego_lane_changes
+        .iter()
+        .map(|change| LaneChange {
+            cooperative: true,
+            ..change.clone()
+        })
+        .collect();
+    vehicles.push(ego);
     let traffic = TrafficSpec {
         lanes,
         vehicles,
         stop_lines: Vec::new(),
         duration_s: spec.duration_s,
     };
-    let (agents, ego) = run_traffic(spec, &ground, &|_, _| 0.0, &traffic)?;
-    Ok(Scene {
-        duration_s: spec.duration_s,
-        ground,
-        statics,
-        agents,
-        ego,
-    })
+    Ok((ground, statics, traffic))
 }
 
 /// Pieces of the carriageway centre line: the initial straight, then curves
@@ -356,7 +373,11 @@ fn add_lane_changes(
             } else {
                 lane - 1
             };
-            vehicle.lane_changes.push(LaneChange { t_s: t, to_lane });
+            vehicle.lane_changes.push(LaneChange {
+                t_s: t,
+                to_lane,
+                cooperative: false,
+            });
             lane = to_lane;
             last_t = t;
         }
@@ -427,6 +448,54 @@ mod tests {
                 last = c.t_s;
             }
         }
+    }
+
+    /// (time, from lane, to lane) of every lane switch of the ego's track.
+    fn ego_lane_switches(spec: &ScenarioSpec) -> Vec<(f64, usize, usize)> {
+        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+        let (_, _, traffic) = layout(spec, &mut rng).unwrap();
+        let tracks = crate::traffic::simulate_traffic(&traffic).unwrap();
+        let ego = tracks.last().unwrap();
+        assert_eq!(ego.id, super::super::common::EGO_TRAFFIC_ID);
+        ego.samples
+            .windows(2)
+            .enumerate()
+            .filter(|(_, w)| w[0].lane != w[1].lane)
+            .map(|(k, w)| (ego.t0_s + (k + 1) as f64 * ego.dt_s, w[0].lane, w[1].lane))
+            .collect()
+    }
+
+    #[test]
+    fn the_default_ego_overtakes_and_returns_within_seconds_of_each_request() {
+        for seed in 1..=6 {
+            let mut spec = ScenarioSpec::builtin("highway").unwrap();
+            spec.seed = seed;
+            spec.duration_s = 40.0;
+            let switches = ego_lane_switches(&spec);
+            let requests = &spec.highway_params().ego_lane_changes;
+            assert_eq!(switches.len(), requests.len(), "seed {seed}: {switches:?}");
+            let mut lane = spec.ego.lane;
+            for (&(t_s, from, to), request) in switches.iter().zip(requests) {
+                assert_eq!((from, to), (lane, request.to_lane), "seed {seed}");
+                // traffic makes room within a few seconds of the request
+                assert!(
+                    (request.t_s..request.t_s + 5.0).contains(&t_s),
+                    "seed {seed}: change to lane {to} at {t_s} s, requested at {} s",
+                    request.t_s
+                );
+                lane = to;
+            }
+        }
+    }
+
+    #[test]
+    fn without_requests_or_before_them_the_ego_keeps_its_lane() {
+        let mut spec = ScenarioSpec::builtin("highway").unwrap();
+        spec.duration_s = 7.5;
+        assert!(ego_lane_switches(&spec).is_empty());
+        spec.duration_s = 20.0;
+        spec.highway.as_mut().unwrap().ego_lane_changes.clear();
+        assert!(ego_lane_switches(&spec).is_empty());
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The scenario spec's tables: family, ego, ground, `[highway]` and `[urban]`
 //! parameters, with their defaults.
 
+use crate::traffic::LaneChange;
 use serde::{Deserialize, Serialize};
 
 /// Scenario family: which generator builds the scene.
@@ -196,6 +197,15 @@ pub struct HighwayParams {
     pub gantry_spacing_m: f64,
     /// Mean distance between roadside sign boards, m; 0 = none.
     pub sign_spacing_m: f64,
+    /// The ego's lane changes, in time order: each is requested at `t_s` and
+    /// starts at the first moment after it (and after the previous change has
+    /// ended) when the traffic model finds the gap in the target lane safe,
+    /// the ego and the target lane's traffic making room meanwhile (braking
+    /// at most comfortably; see [`crate::traffic::LaneChange::cooperative`]);
+    /// `to_lane` (0 = rightmost) is one lane left or right of where the
+    /// previous change left the ego. Requests the run ends before are not
+    /// executed. Empty = the ego keeps its lane.
+    pub ego_lane_changes: Vec<LaneChange>,
 }
 
 impl Default for HighwayParams {
@@ -225,6 +235,19 @@ impl Default for HighwayParams {
             overpass_spacing_m: 800.0,
             gantry_spacing_m: 1000.0,
             sign_spacing_m: 200.0,
+            // overtake on the left, then back to the ego's lane
+            ego_lane_changes: vec![
+                LaneChange {
+                    t_s: 8.0,
+                    to_lane: 2,
+                    cooperative: false,
+                },
+                LaneChange {
+                    t_s: 24.0,
+                    to_lane: 1,
+                    cooperative: false,
+                },
+            ],
         }
     }
 }

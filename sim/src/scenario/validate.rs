@@ -2,9 +2,11 @@
 //! rely on (capacities, spacings, signal timing).
 
 use super::{
-    EgoSpec, GroundParams, HighwayParams, KittiParams, ScenarioError, UrbanParams, invalid,
+    EgoSpec, GroundParams, HighwayParams, KittiParams, MAX_DURATION_S, ScenarioError, UrbanParams,
+    invalid,
 };
 use crate::sensors::LidarConfig;
+use crate::traffic::LaneChange;
 
 pub(super) fn positive_finite(field: &str, value: f64) -> Result<(), ScenarioError> {
     if value.is_finite() && value > 0.0 {
@@ -236,6 +238,54 @@ pub(super) fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
                 h.spawn_behind_m + h.spawn_ahead_m
             ),
         ));
+    }
+    Ok(())
+}
+
+/// Checks the ego's lane changes against the road: times finite, in
+/// [0, MAX_DURATION_S] and in order (a request after the end of a shortened
+/// run is valid and not executed), each target an existing lane next to the
+/// lane the previous change (or `ego_lane`) left the ego in. Fields are named
+/// `highway.ego_lane_changes[i].t_s` / `.to_lane`.
+pub(super) fn validate_ego_lane_changes(
+    changes: &[LaneChange],
+    ego_lane: usize,
+    lanes: usize,
+) -> Result<(), ScenarioError> {
+    let mut lane = ego_lane;
+    let mut last_t_s = 0.0;
+    for (i, change) in changes.iter().enumerate() {
+        let field = |name: &str| format!("highway.ego_lane_changes[{i}].{name}");
+        in_range(&field("t_s"), change.t_s, 0.0, MAX_DURATION_S)?;
+        if change.t_s < last_t_s {
+            return Err(invalid(
+                field("t_s"),
+                format!(
+                    "= {}: before the previous change's {last_t_s} s (list them in time order)",
+                    change.t_s
+                ),
+            ));
+        }
+        if change.to_lane >= lanes {
+            return Err(invalid(
+                field("to_lane"),
+                format!(
+                    "= {}: must be below highway.lanes = {lanes}",
+                    change.to_lane
+                ),
+            ));
+        }
+        if change.to_lane.abs_diff(lane) != 1 {
+            return Err(invalid(
+                field("to_lane"),
+                format!(
+                    "= {}: must be next to lane {lane}, where the ego is before this change",
+                    change.to_lane
+                ),
+            ));
+        }
+        lane = change.to_lane;
+        last_t_s = change.t_s;
     }
     Ok(())
 }

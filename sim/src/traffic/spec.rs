@@ -4,14 +4,24 @@
 use super::LanePath;
 use limot_estimator::input::ObjectClass;
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 
 /// A lane change request; executed at the first moment after `t_s` when it is safe.
-#[derive(Debug, Clone, PartialEq)]
+/// In a scenario file (`highway.ego_lane_changes`) it is an inline table
+/// `{ t_s = 8.0, to_lane = 2 }`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LaneChange {
     /// Earliest time of the change, s.
     pub t_s: f64,
     /// Index of the target lane in `TrafficSpec::lanes`.
     pub to_lane: usize,
+    /// Traffic makes room once the request is due: the requester follows the
+    /// target lane's vehicles ahead of it and those behind it follow the
+    /// requester, each braking at most at its comfortable deceleration, until
+    /// the gap is safe. Not a scenario-file field (generators set it).
+    #[serde(skip)]
+    pub cooperative: bool,
 }
 
 /// One road user. `start_speed_mps` applies when `depart_s <= 0`; a vehicle with

@@ -277,6 +277,7 @@ fn lane_change_executes_when_free_and_waits_when_blocked() {
     changer.lane_changes.push(LaneChange {
         t_s: 2.0,
         to_lane: 1,
+        cooperative: false,
     });
     let free = spec(lanes.clone(), vec![changer.clone()], 15.0);
     let tracks = simulate_traffic(&free).unwrap();
@@ -307,6 +308,46 @@ fn lane_change_executes_when_free_and_waits_when_blocked() {
     assert!((tracks[0].samples.last().unwrap().y - 3.5).abs() < 0.05);
     let scene = scene_of(&blocked, &tracks);
     assert_eq!(first_overlap(&scene, 0.01), None);
+}
+
+#[test]
+fn a_cooperative_change_gets_room_beside_a_pacing_car_and_a_plain_one_waits() {
+    // a car in the target lane paces the changer, a little behind it: a
+    // plain request waits for ever, a cooperative one makes it drop back
+    let lanes = vec![straight(2000.0, 0.0), straight(2000.0, 3.5)];
+    let pacer = car(2, 1, 48.0, 20.0, 20.0);
+    let with = |cooperative| {
+        let mut changer = car(1, 0, 50.0, 20.0, 20.0);
+        changer.lane_changes.push(LaneChange {
+            t_s: 2.0,
+            to_lane: 1,
+            cooperative,
+        });
+        let traffic = spec(lanes.clone(), vec![changer, pacer.clone()], 30.0);
+        let tracks = simulate_traffic(&traffic).unwrap();
+        let first = tracks[0].samples.iter().position(|p| p.lane == 1);
+        (traffic, tracks, first)
+    };
+    let (_, _, first) = with(false);
+    assert_eq!(first, None, "the plain change found no gap");
+    let (traffic, tracks, first) = with(true);
+    let first = first.expect("the cooperative change happens");
+    eprintln!("cooperative change started at {:.2} s", first as f64 * 0.01);
+    assert!((200..1000).contains(&first), "started at sample {first}");
+    // the pacer made room, braking at most comfortably, and nobody overlaps
+    let (a, b) = (&tracks[0].samples[first], &tracks[1].samples[first]);
+    assert!(a.x - b.x - 4.5 > DriverParams::car().min_gap_m);
+    let hardest = tracks[1]
+        .samples
+        .iter()
+        .map(|p| p.accel_mps2)
+        .fold(0.0, f64::min);
+    assert!(
+        hardest >= -DriverParams::car().comfortable_decel_mps2 - 0.05,
+        "{hardest}"
+    );
+    assert!((tracks[0].samples.last().unwrap().y - 3.5).abs() < 0.05);
+    assert_eq!(first_overlap(&scene_of(&traffic, &tracks), 0.01), None);
 }
 
 #[test]
