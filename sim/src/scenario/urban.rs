@@ -17,8 +17,8 @@
 //! ego's side of the main street keep their red `TURN_CLEARANCE_S` longer
 //! than the main street. That cross street's traffic is simulated together
 //! with the main street's, so the ego follows the cross street's cars and
-//! they follow it, and the cross street is lined with buildings, poles and
-//! trees (`side_street`).
+//! they follow it, and the cross street is lined with buildings, parked
+//! cars, poles and trees (`side_street`).
 //!
 //! Cross-section (the ego drives along +x on the right, y < 0 side; the
 //! street is mirror-symmetric about y = 0):
@@ -270,12 +270,6 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     };
     let detail = streetscape(&layout, &ground, &statics, spec.seed);
     statics.extend(detail);
-    if let Some(turn) = &street.turn {
-        let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
-        let far_y = -(ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
-        let c = street.crossings[turn.crossing];
-        statics.extend(side_street(&street, &ground, c, far_y, spec.seed));
-    }
 
     let mut vehicles = moving_agents(&street, spec.ego.lane, rng);
     let ego_lane = spec.ego.lane;
@@ -325,13 +319,26 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents.extend(simulate_agents(spec, &ground, traffic)?);
     }
     let first_parked_id = next_id;
-    agents.extend(parked_cars(
-        &street,
-        &ground,
-        first_parked_id,
-        spec.duration_s,
-        rng,
-    ));
+    let parked = parked_cars(&street, &ground, first_parked_id, spec.duration_s, rng);
+    let first_side_id = first_parked_id + parked.len() as u32;
+    agents.extend(parked);
+    if let Some(turn) = &street.turn {
+        let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
+        let far_y = -(ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
+        let c = street.crossings[turn.crossing];
+        let first_id = first_side_id;
+        let side = side_street(
+            &street,
+            &ground,
+            c,
+            far_y,
+            first_id,
+            spec.duration_s,
+            spec.seed,
+        );
+        statics.extend(side.statics);
+        agents.extend(side.parked);
+    }
     Ok(Scene {
         duration_s: spec.duration_s,
         ground,

@@ -1,7 +1,7 @@
-//! Statics along the cross street the ego turns into: rows of buildings
-//! behind its sidewalks (beyond the main street's corner buildings, whose
-//! side walls line its first stretch), light poles and trees on its
-//! sidewalks next to the carriageway. Each building lot is built with the
+//! What lines the cross street the ego turns into: rows of buildings behind
+//! its sidewalks in blocks (beyond the main street's corner buildings, whose
+//! side walls line its first stretch), cars parked half on the sidewalk along
+//! both kerbs, light poles and trees at the back of the sidewalks. Each building lot is built with the
 //! probability `building_fraction`, as on the main street.
 //!
 //! The cross street at x = c runs along y; its carriageway is two lanes
@@ -9,30 +9,47 @@
 //! width. Everything is drawn from the seed's own ChaCha stream, so the rest
 //! of the scene is the one the straight route has.
 
+use super::statics::building;
 use super::{
     BUILDING_DEPTH_M, BUILDING_GAP_M, BUILDING_HEIGHT_M, BUILDING_LENGTH_M, BUILDING_SETBACK_M,
-    BUILDING_SINK_M, CORNER_CLEARANCE_M, CROWN_RADIUS_M, FURNITURE_FROM_KERB_M, POLE_HEIGHT_M,
-    POLE_RADIUS_M, Street, TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
+    CORNER_CLEARANCE_M, CROWN_RADIUS_M, PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, Street,
+    TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
-use crate::scenario::common::{tree, uniform, upright_static};
-use crate::scene::{Ground, Shape, StaticKind, StaticObject};
-use nalgebra::{Point2, Vector3};
+use crate::scenario::common::{draw_body, parked_agent, tree, uniform, upright_static};
+use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
+use limot_estimator::input::ObjectClass;
+use nalgebra::Point2;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+/// Parked cars' centres stand this far outside the carriageway edge, m.
+const PARKED_FROM_KERB_M: f64 = 1.1;
+/// Poles and trees stand this far inside the cross street's edge, m.
+const FURNITURE_FROM_EDGE_M: f64 = 0.9;
+
+/// What lines the side street.
+pub(super) struct SideStreet {
+    /// Buildings, poles, trees.
+    pub(super) statics: Vec<StaticObject>,
+    /// Parked cars, ids from the `first_id` given.
+    pub(super) parked: Vec<Agent>,
+}
 
 /// ChaCha stream (of the scenario seed) of the side street's statics.
 const SIDE_STREET_STREAM: u64 = 0x0053_4944_4545; // "SIDEE" in ASCII
 
-/// Statics along the cross street at x = `crossing_x_m`, on the ego's side of
-/// the main street (y < 0), from the main street's building zone to
-/// `far_y_m` (< 0).
+/// What lines the cross street at x = `crossing_x_m` on the ego's side of
+/// the main street (y < 0), from the main street's sidewalk to `far_y_m` (< 0).
 pub(super) fn side_street(
     street: &Street,
     ground: &Ground,
     crossing_x_m: f64,
     far_y_m: f64,
+    first_id: u32,
+    duration_s: f64,
     seed: u64,
-) -> Vec<StaticObject> {
+) -> SideStreet {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(SIDE_STREET_STREAM);
     let u = &street.u;
@@ -43,11 +60,22 @@ pub(super) fn side_street(
     let at =
         |side: f64, from_axis_m: f64, y: f64| Point2::new(crossing_x_m + side * from_axis_m, y);
     let mut out = Vec::new();
+    let mut parked = Vec::new();
     for side in [-1.0, 1.0] {
-        // buildings, lot by lot away from the main street
+        // buildings, lot by lot away from the main street, in blocks of the
+        // main street's block lengths with an open gap as wide as a cross
+        // street between them (their end walls face along the street)
+        let block = |rng: &mut ChaCha8Rng| uniform(rng, u.block_length_min_m, u.block_length_max_m);
         let mut y = -(main_buildings_end + 1.0);
+        let mut block_end = y - block(&mut rng);
         while y - BUILDING_LENGTH_M.0 >= far_y_m {
-            let length = uniform(&mut rng, BUILDING_LENGTH_M.0, BUILDING_LENGTH_M.1);
+            if y - BUILDING_LENGTH_M.0 < block_end {
+                y = block_end - u.cross_street_width_m;
+                block_end = y - block(&mut rng);
+                continue;
+            }
+            let length =
+                uniform(&mut rng, BUILDING_LENGTH_M.0, BUILDING_LENGTH_M.1).min(y - block_end);
             let depth = uniform(&mut rng, BUILDING_DEPTH_M.0, BUILDING_DEPTH_M.1);
             let height = uniform(&mut rng, BUILDING_HEIGHT_M.0, BUILDING_HEIGHT_M.1);
             let setback = uniform(&mut rng, BUILDING_SETBACK_M.0, BUILDING_SETBACK_M.1);
@@ -58,34 +86,36 @@ pub(super) fn side_street(
                 y -= length + gap;
                 continue;
             }
-            let near = half + setback;
-            let centre = at(side, near + 0.5 * depth, y - 0.5 * length);
-            let lowest = [y, y - length]
-                .iter()
-                .flat_map(|&cy| [near, near + depth].map(|d| at(side, d, cy)))
-                .map(|p| ground.height(p.x, p.y))
-                .fold(f64::INFINITY, f64::min);
-            let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
-            out.push(upright_static(
-                ground,
-                StaticKind::Building,
-                Shape::Cuboid {
-                    half_extents_m: Vector3::new(
-                        0.5 * depth,
-                        0.5 * length,
-                        0.5 * (height + BUILDING_SINK_M),
-                    ),
-                },
-                centre,
-                base,
-                0.0,
-            ));
+            let centre = at(side, half + setback + 0.5 * depth, y - 0.5 * length);
+            out.push(building(ground, centre, 0.5 * depth, 0.5 * length, height));
             y -= length + gap;
         }
-        // poles, then trees clear of them, next to the carriageway; they
-        // start past the main street's sidewalk and its pedestrians' lines
-        let from_axis = u.lane_width_m + FURNITURE_FROM_KERB_M;
+        // parked cars facing the traffic on their side (right-hand: -y at
+        // x < c), past the main street's sidewalk and its pedestrians' lines
         let start = -(back_of_main_sidewalk + CORNER_CLEARANCE_M);
+        let yaw = -side * 0.5 * PI;
+        let mut y = start;
+        while y - PARKING_PLACE_M >= far_y_m {
+            let (y0, y1) = (y - PARKING_PLACE_M, y);
+            y = y0;
+            if !rng.random_bool(u.parking_occupancy) {
+                continue;
+            }
+            let (size, _) = draw_body(&mut rng, ObjectClass::Car);
+            let slack = 0.5 * (PARKING_PLACE_M - size.x - 0.6).max(0.0);
+            let cy = 0.5 * (y0 + y1) + uniform(&mut rng, -slack, slack);
+            parked.push(parked_agent(
+                ground,
+                first_id + parked.len() as u32,
+                ObjectClass::Car,
+                size,
+                at(side, u.lane_width_m + PARKED_FROM_KERB_M, cy),
+                yaw,
+                duration_s,
+            ));
+        }
+        // poles, then trees clear of them, at the back of the sidewalk
+        let from_axis = half - FURNITURE_FROM_EDGE_M;
         let mut pole_ys = Vec::new();
         let mut y = start - uniform(&mut rng, 0.0, u.pole_spacing_m);
         while y > far_y_m {
@@ -121,7 +151,10 @@ pub(super) fn side_street(
             y -= u.tree_spacing_m * uniform(&mut rng, 0.7, 1.3);
         }
     }
-    out
+    SideStreet {
+        statics: out,
+        parked,
+    }
 }
 
 #[cfg(test)]
@@ -143,9 +176,10 @@ mod tests {
             let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
             let c = street.crossings[street.ego_crossing];
             let far = -400.0;
-            let statics = side_street(&street, &ground, c, far, seed);
+            let side = side_street(&street, &ground, c, far, 1000, 60.0, seed);
+            let statics = &side.statics;
             let mut building_ys = Vec::new();
-            for s in &statics {
+            for s in statics {
                 let p = s.t_world_object.translation.vector;
                 let (half_x, half_y) = match s.shape {
                     Shape::Cuboid { half_extents_m } => {
@@ -188,8 +222,27 @@ mod tests {
                     .count()
             };
             assert!(side_count(1.0) >= 8 && side_count(-1.0) >= 8);
-            // same seed, same statics
-            assert_eq!(statics, side_street(&street, &ground, c, far, seed));
+            // parked cars on both sides, off the carriageway, ids in order
+            let ids: Vec<u32> = side.parked.iter().map(|a| a.id).collect();
+            assert_eq!(ids, (1000..1000 + ids.len() as u32).collect::<Vec<_>>());
+            for sign in [-1.0, 1.0] {
+                let on_side: Vec<_> = side
+                    .parked
+                    .iter()
+                    .map(|a| a.trajectory.pose_at(0.0).translation.vector)
+                    .filter(|p| (p.x - c) * sign > 0.0)
+                    .collect();
+                assert!(on_side.len() >= 20, "{} parked cars", on_side.len());
+                for p in on_side {
+                    let inner = (p.x - c).abs() - 0.5 * 1.95;
+                    assert!(inner >= u.lane_width_m, "{p:?} on the carriageway");
+                    assert!(p.y <= -(street.kerb_m() + u.sidewalk_width_m), "{p:?}");
+                }
+            }
+            // same seed, same street
+            let again = side_street(&street, &ground, c, far, 1000, 60.0, seed);
+            assert_eq!(side.statics, again.statics);
+            assert_eq!(side.parked, again.parked);
         }
     }
 }
