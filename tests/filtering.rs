@@ -15,8 +15,12 @@ use std::path::Path;
 
 #[test]
 fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
+    // the straight main-street route (inner lane) the figures below were
+    // measured on
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = 30.0;
+    spec.urban.as_mut().unwrap().ego_turns_right = false;
+    spec.ego.lane = 1;
     let dir = std::env::temp_dir().join(format!("limot-filtering-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     Simulation::new(&spec)

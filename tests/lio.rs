@@ -12,7 +12,18 @@ use limot_estimator::Variant;
 use limot_sim::scenario::ScenarioSpec;
 use std::path::PathBuf;
 
+/// The urban streets without moving agents, the ego driving straight along
+/// the main street (its inner lane).
 fn static_urban(duration_s: f64, noise_free: bool) -> ScenarioSpec {
+    let mut spec = static_urban_route(duration_s, noise_free);
+    spec.urban.as_mut().unwrap().ego_turns_right = false;
+    spec.ego.lane = 1;
+    spec
+}
+
+/// The urban streets without moving agents on the default route: the ego
+/// turns right at its first light and follows the cross street.
+fn static_urban_route(duration_s: f64, noise_free: bool) -> ScenarioSpec {
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = duration_s;
     let urban = spec.urban.as_mut().unwrap();
@@ -134,6 +145,28 @@ fn default_noise_static_urban_meets_the_accuracy_targets() {
         "moving start ATE {ate_t} m {ate_r} rad"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The default route's right turn (8 m radius, 30 deg/s) and the cross
+/// street after it, noise-free and with the default noise: lio keeps its
+/// rotation as on the straight route; its translation error grows on the
+/// cross street, which constrains motion along it less than the main street.
+#[test]
+fn static_urban_right_turn_is_tracked() {
+    for noise_free in [true, false] {
+        let spec = static_urban_route(60.0, noise_free);
+        assert!(spec.urban_params().ego_turns_right);
+        let dir = simulate(&spec, &format!("turn-{noise_free}"));
+        let source = Source::open(&dir).unwrap();
+        let output = run(&source, &dir, &RunOptions::default(), None).unwrap();
+        let (ate_t, ate_r) = ate(&dir, &output);
+        eprintln!("right turn, noise-free {noise_free}: ATE_T {ate_t:.4} m, ATE_R {ate_r:.5} rad");
+        assert!(output.frames_before_init <= 10);
+        assert!(ate_r < 0.01, "noise-free {noise_free}: ATE_R {ate_r} rad");
+        let bound_m = if noise_free { 0.3 } else { 1.0 };
+        assert!(ate_t < bound_m, "noise-free {noise_free}: ATE_T {ate_t} m");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
 
 #[test]

@@ -2,7 +2,9 @@
 //! - congested highway (32 vehicles, many trucks pacing the ego): moving
 //!   vehicles corrupt `lio`, trajectory-based filtering (`dynafilt`) fixes it;
 //! - a street whose main structure is parked cars: dropping every detected box
-//!   (`allfilt`) throws the map away, `dynafilt` keeps the parked cars.
+//!   (`allfilt`) throws the map away, `dynafilt` keeps the parked cars;
+//! - the default urban route with its right turn: `lio` and `limot` both
+//!   track it.
 
 mod common;
 
@@ -58,5 +60,18 @@ fn allfilt_loses_the_map_where_parked_cars_are_the_structure() {
         allfilt > 3.0 * dynafilt,
         "allfilt {allfilt:.3} m not clearly worse than dynafilt {dynafilt:.3} m"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn lio_and_limot_track_the_turning_urban_route() {
+    let mut spec = resolve_scenario("urban").unwrap();
+    spec.duration_s = 40.0;
+    assert!(spec.urban_params().ego_turns_right);
+    let dir = simulate(&spec, "variants-urban-turn");
+    let lio = ate_of(&dir, Variant::Lio);
+    let limot = ate_of(&dir, Variant::Limot);
+    assert!(lio < 0.5, "lio ATE_T {lio:.3} m");
+    assert!(limot < 0.5, "limot ATE_T {limot:.3} m");
     let _ = std::fs::remove_dir_all(&dir);
 }

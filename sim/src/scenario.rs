@@ -171,9 +171,14 @@ impl ScenarioSpec {
                 highway: Some(HighwayParams::default()),
                 ..base(Family::Highway, 1)
             }),
+            // the ego turns right at its first crossing, from the kerb lane
             "urban" => Some(ScenarioSpec {
                 ground: urban_ground(),
                 urban: Some(UrbanParams::default()),
+                ego: EgoSpec {
+                    lane: 0,
+                    ..EgoSpec::default()
+                },
                 ..base(Family::Urban, 2)
             }),
             // Congested highway: the ego drives at 12 m/s among cars and many
@@ -222,6 +227,7 @@ impl ScenarioSpec {
                     parking_occupancy: 1.0,
                     tree_spacing_m: 60.0,
                     pole_spacing_m: 60.0,
+                    ego_turns_right: false,
                     ..UrbanParams::default()
                 }),
                 ground: urban_ground(),
@@ -428,6 +434,17 @@ impl ScenarioSpec {
                         format!(
                             "must be below urban.lanes_per_direction = {}",
                             u.lanes_per_direction
+                        ),
+                    ));
+                }
+                if u.ego_turns_right && self.ego.lane != 0 {
+                    return Err(invalid(
+                        "ego.lane",
+                        format!(
+                            "= {}: the ego turns right (urban.ego_turns_right, true by \
+                             default) from the kerb lane: set ego.lane = 0, or \
+                             urban.ego_turns_right = false for the straight route",
+                            self.ego.lane
                         ),
                     ));
                 }

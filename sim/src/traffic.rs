@@ -17,6 +17,9 @@
 //!   (decision latched for the red phase); the end of a lane is a standing
 //!   leader too, so **vehicles stop before a lane ends** (generators make
 //!   lanes long enough if they do not want that).
+//! - Curves: a driver with a lateral-acceleration limit lowers its desired
+//!   speed before and through its lane's curves (`DriverParams::
+//!   curve_lateral_accel_mps2`); the others drive curves at their desired speed.
 //! - Lane changes are requested at a time and executed at the first 100 Hz
 //!   update where a MOBIL-style safety criterion holds (new leader and new
 //!   follower keep at least their minimum gap and neither would have to brake
@@ -61,6 +64,9 @@ const CORRIDOR_MARGIN_M: f64 = 0.3;
 const STOP_TIME_S: f64 = 0.15;
 /// Lanes farther than this from a body are not considered near it.
 const FRAME_RADIUS_M: f64 = 20.0;
+/// Drivers who limit their speed in curves brake for them at this share of
+/// their comfortable deceleration.
+const CURVE_DECEL_SHARE: f64 = 0.5;
 /// Other bodies farther than this (centre distance) are ignored by the planner.
 const INTERACTION_RANGE_M: f64 = 250.0;
 
@@ -291,6 +297,24 @@ impl Sim<'_> {
                 &self.spec.vehicles[i],
             )
         })
+    }
+
+    /// Desired speed of `i` where it is: its IDM desired speed, lowered
+    /// before and through curves of its reference lane if its driver limits
+    /// the lateral acceleration there (braking at half the comfortable
+    /// deceleration, looking as far ahead as it needs to stop that way).
+    fn curve_limited_speed_mps(&self, i: usize) -> f64 {
+        let vs = &self.spec.vehicles[i];
+        let Some(lateral_accel) = vs.driver.curve_lateral_accel_mps2 else {
+            return vs.desired_speed_mps;
+        };
+        let decel = CURVE_DECEL_SHARE * vs.driver.comfortable_decel_mps2;
+        let v = self.vehicles[i].speed_mps.max(vs.desired_speed_mps);
+        let horizon = v * v / (2.0 * decel) + vs.size_lwh_m.x;
+        let me = self.own_frame(i);
+        let lane = &self.spec.lanes[self.vehicles[i].lane];
+        let limit = lane.curve_speed_limit_mps(me.s_m, horizon, lateral_accel, decel);
+        vs.desired_speed_mps.min(limit)
     }
 
     /// (gap, closing speed) to the nearest relevant obstacle ahead of `i`.
@@ -643,7 +667,8 @@ fn simulate(spec: &TrafficSpec, record_every: usize) -> Result<Vec<PlanarTrack>,
                 let cmd = if t_s < vs.depart_s {
                     0.0
                 } else {
-                    let own = idm_accel(&vs.driver, vs.desired_speed_mps, v, leader);
+                    let desired = sim.curve_limited_speed_mps(i);
+                    let own = idm_accel(&vs.driver, desired, v, leader);
                     sim.cooperative_accel(i, t_s).map_or(own, |c| own.min(c))
                 };
                 sim.vehicles[i].accel_cmd_mps2 = cmd;

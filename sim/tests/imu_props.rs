@@ -158,6 +158,11 @@ fn dead_reckoning_error(ego: &Ego, duration_s: f64) -> (f64, f64) {
 }
 
 fn dead_reckoning_error_at(ego: &Ego, duration_s: f64, rate_hz: f64) -> (f64, f64) {
+    dead_reckoning_error_over(ego, 0.0, duration_s, rate_hz)
+}
+
+/// [`dead_reckoning_error`] from the true state at `t0_s` to `t1_s`.
+fn dead_reckoning_error_over(ego: &Ego, t0_s: f64, t1_s: f64, rate_hz: f64) -> (f64, f64) {
     let sim = ImuSimulator::new(
         ImuConfig {
             rate_hz,
@@ -167,15 +172,15 @@ fn dead_reckoning_error_at(ego: &Ego, duration_s: f64, rate_hz: f64) -> (f64, f6
     )
     .unwrap();
     let gravity = sim.config().gravity_mps2;
-    let stream = sim.simulate(ego, 0.0, duration_s).unwrap();
+    let stream = sim.simulate(ego, t0_s, t1_s).unwrap();
     assert_eq!(
         stream.samples.len(),
-        (duration_s * rate_hz).round() as usize + 1
+        ((t1_s - t0_s) * rate_hz).round() as usize + 1
     );
-    let pose0 = ImuSimulator::t_world_imu(ego, 0.0);
+    let pose0 = ImuSimulator::t_world_imu(ego, t0_s);
     let mut state = NavState {
         q_world_imu: *pose0.rotation.quaternion(),
-        v_world: ImuSimulator::velocity_world_imu(ego, 0.0),
+        v_world: ImuSimulator::velocity_world_imu(ego, t0_s),
         p_world: pose0.translation.vector,
     };
     let (mut worst_pos, mut worst_rot) = (0.0f64, 0.0f64);
@@ -430,4 +435,44 @@ fn noise_free_imu_dead_reckons_the_highway_lane_change() {
         let scene = spec.build().unwrap();
         assert_dead_reckons(&scene.ego, spec.duration_s, &format!("highway seed {seed}"));
     }
+}
+
+/// The ego's right turn of the default urban scenario (a quarter circle of
+/// 8 m at a few m/s, yaw rates near 30 deg/s): its noise-free IMU dead-reckons
+/// from before the turn until well after it onto its own pose.
+#[test]
+fn noise_free_imu_dead_reckons_the_urban_right_turn() {
+    let spec = limot_sim::scenario::ScenarioSpec::builtin("urban").unwrap();
+    assert!(spec.urban_params().ego_turns_right);
+    let scene = spec.build().unwrap();
+    let ego = &scene.ego;
+    // the moment of the fastest rotation
+    let yaw_rate = |t: f64| {
+        ego.trajectory
+            .state_at(t)
+            .angular_velocity_body_radps
+            .z
+            .abs()
+    };
+    let times = (0..=(spec.duration_s * 10.0) as usize).map(|k| k as f64 * 0.1);
+    let t_turn = times
+        .max_by(|&a, &b| yaw_rate(a).total_cmp(&yaw_rate(b)))
+        .unwrap();
+    assert!(
+        yaw_rate(t_turn) > 0.3,
+        "no turn: peak yaw rate {}",
+        yaw_rate(t_turn)
+    );
+    let (t0, t1) = (
+        (t_turn - 5.0).max(0.0),
+        (t_turn + 10.0).min(spec.duration_s),
+    );
+    let (pos_err, rot_err) = dead_reckoning_error_over(ego, t0, t1, 100.0);
+    println!("turn at {t_turn} s: position error {pos_err} m, rotation error {rot_err} rad");
+    assert!(pos_err < 0.01, "position error {pos_err} m");
+    assert!(
+        rot_err < 0.1f64.to_radians(),
+        "rotation error {} deg",
+        rot_err.to_degrees()
+    );
 }

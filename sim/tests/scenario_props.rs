@@ -220,6 +220,31 @@ fn bad_files_name_file_line_and_field() {
         let want = format!("{}:{line}", path.display());
         assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
     }
+    // a turning ego from any lane but the kerb lane, a route that is not a bool
+    let urban = std::fs::read_to_string(scenario_file("urban")).unwrap();
+    for (tag, from, to, key, field) in [
+        (
+            "urban_turn_from_lane_1",
+            "lane = 0 ",
+            "lane = 1 ",
+            "lane",
+            "ego.lane",
+        ),
+        (
+            "urban_turn_not_bool",
+            "ego_turns_right = true",
+            "ego_turns_right = 1",
+            "ego_turns_right",
+            "urban.ego_turns_right",
+        ),
+    ] {
+        assert!(urban.contains(from), "{tag}");
+        let text = urban.replace(from, to);
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{}", path.display(), line_of(&text, key));
+        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+    }
     // a table of the other family
     let text = format!(
         "{}\n[urban]\nlanes_per_direction = 1\n",
@@ -693,12 +718,15 @@ proptest! {
     }
 
     #[test]
-    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2) {
+    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2, turns in any::<bool>()) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
         spec.seed = seed;
         spec.duration_s = 30.0;
-        spec.urban.as_mut().unwrap().lanes_per_direction = lanes;
-        spec.ego.lane = lanes - 1;
+        let urban = spec.urban.as_mut().unwrap();
+        urban.lanes_per_direction = lanes;
+        urban.ego_turns_right = turns;
+        // a turn starts from the kerb lane; straight on, the inner lane
+        spec.ego.lane = if turns { 0 } else { lanes - 1 };
         let scene = spec.build().unwrap();
         check_common(&spec, &scene);
         check_urban(&spec, &scene);

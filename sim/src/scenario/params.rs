@@ -310,6 +310,11 @@ pub struct UrbanParams {
     /// Street furniture on the sidewalks: traffic signs, bollards, bins,
     /// benches and bus shelters (the sidewalks and their kerbs are always there).
     pub street_furniture: bool,
+    /// The ego's route: true = it turns right at its first traffic light
+    /// (where it always waits at red) into the cross street, on the main
+    /// street's green, and follows that street; false = it drives straight
+    /// along the main street.
+    pub ego_turns_right: bool,
 }
 
 impl Default for UrbanParams {
@@ -340,6 +345,7 @@ impl Default for UrbanParams {
             pole_spacing_m: 30.0,
             building_fraction: 1.0,
             street_furniture: true,
+            ego_turns_right: true,
         }
     }
 }

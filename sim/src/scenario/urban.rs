@@ -9,6 +9,17 @@
 //! between the phases); pedestrians along the main street wait while the
 //! cross street has green.
 //!
+//! The ego's route (`urban.ego_turns_right`) either follows the main street
+//! or turns right at its first traffic light: from the kerb lane, on the main
+//! street's green, through an arc of `TURN_RADIUS_M` into the cross street's
+//! lane away from the main street, which it then follows to its end. The
+//! turn is protected: at that light the pedestrians and cyclists on the
+//! ego's side of the main street keep their red `TURN_CLEARANCE_S` longer
+//! than the main street. That cross street's traffic is simulated together
+//! with the main street's, so the ego follows the cross street's cars and
+//! they follow it, and the cross street is lined with buildings, parked
+//! cars, poles and trees (`side_street`).
+//!
 //! Cross-section (the ego drives along +x on the right, y < 0 side; the
 //! street is mirror-symmetric about y = 0):
 //!
@@ -37,9 +48,11 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
+mod side_street;
 mod signals;
 mod statics;
 
+use side_street::side_street;
 use signals::{SignalPlan, earliest_travel_time_s, signals};
 use statics::{building_lot_rng, buildings, furniture, parked_cars};
 
@@ -116,6 +129,15 @@ const CROSS_ARRIVAL_BEFORE_RED_S: f64 = 2.0;
 /// street within the all-red (`URBAN_ALL_RED_S`) plus the main street's
 /// start-up time, m/s.
 const CROSS_SPEED_MAX_MPS: f64 = 12.0;
+/// Radius of the ego's right turn (its lane's centre line), m: a tight
+/// corner, taken at about sqrt(TURN_LATERAL_ACCEL_MPS2 * radius).
+const TURN_RADIUS_M: f64 = 8.0;
+/// The ego keeps speed^2 * curvature near this in its turn, m/s^2.
+const TURN_LATERAL_ACCEL_MPS2: f64 = 2.0;
+/// At the ego's turn, pedestrians and cyclists on its side of the main street
+/// stay red this long after the main street's green starts, so the ego
+/// (first at the light) has turned past their paths before they move, s.
+const TURN_CLEARANCE_S: f64 = 12.0;
 /// Longest body of a pedestrian (`draw_body`), m.
 const PEDESTRIAN_LENGTH_MAX_M: f64 = 0.6;
 
@@ -147,6 +169,16 @@ fn cross_forward(i: usize) -> bool {
     i == 0
 }
 
+/// The ego's right turn: where, and the lane it drives.
+struct EgoTurn {
+    /// Index into `Street::crossings`.
+    crossing: usize,
+    /// The kerb lane (lane 0) from the street's start up to the turn, an arc
+    /// of `TURN_RADIUS_M` to the right, then the cross street's -y lane to its
+    /// end.
+    path: LanePath,
+}
+
 /// The street layout shared by all placement steps.
 struct Street {
     u: UrbanParams,
@@ -167,6 +199,8 @@ struct Street {
     lanes: Vec<Lane>,
     /// The cross streets with traffic, by increasing crossing index.
     cross_streets: Vec<CrossStreet>,
+    /// The ego's right turn, None if it drives straight.
+    turn: Option<EgoTurn>,
 }
 
 impl Street {
@@ -244,17 +278,36 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     // cross streets are simulated apart from the main street (and from each
     // other): their signals keep them from meeting, and a joint simulation
     // would cost every vehicle a projection onto every cross lane
+    // except the one the ego turns into: its traffic meets the ego
+    let mut lanes: Vec<LanePath> = street.lanes.iter().map(|l| l.path.clone()).collect();
+    let mut stop_lines = stop_lines;
     let mut next_id = vehicles.len() as u32 + 1;
     let mut cross_specs = Vec::new();
     for cross in &street.cross_streets {
         let plan = &plans[cross.crossing];
         let traffic = cross_traffic(&street, cross, plan, next_id, spec.duration_s, rng);
         next_id += traffic.vehicles.len() as u32;
-        cross_specs.push(traffic);
+        if street.turn.as_ref().map(|t| t.crossing) == Some(cross.crossing) {
+            join_traffic(&mut lanes, &mut vehicles, &mut stop_lines, traffic);
+        } else {
+            cross_specs.push(traffic);
+        }
     }
-    vehicles.push(ego_vehicle(&spec.ego, ego_lane, ego_s, ego_speed));
+    let ego = match &street.turn {
+        None => ego_vehicle(&spec.ego, ego_lane, ego_s, ego_speed),
+        Some(turn) => {
+            let route_lane = lanes.len();
+            lanes.push(turn.path.clone());
+            stop_lines.extend(route_stop_lines(&street, turn, &plans, route_lane));
+            protect_turn(&street, turn, &plans[turn.crossing], &mut stop_lines);
+            let mut ego = ego_vehicle(&spec.ego, route_lane, ego_s, ego_speed);
+            ego.driver.curve_lateral_accel_mps2 = Some(TURN_LATERAL_ACCEL_MPS2);
+            ego
+        }
+    };
+    vehicles.push(ego);
     let traffic = TrafficSpec {
-        lanes: street.lanes.iter().map(|l| l.path.clone()).collect(),
+        lanes,
         vehicles,
         stop_lines,
         duration_s: spec.duration_s,
@@ -266,13 +319,26 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents.extend(simulate_agents(spec, &ground, traffic)?);
     }
     let first_parked_id = next_id;
-    agents.extend(parked_cars(
-        &street,
-        &ground,
-        first_parked_id,
-        spec.duration_s,
-        rng,
-    ));
+    let parked = parked_cars(&street, &ground, first_parked_id, spec.duration_s, rng);
+    let first_side_id = first_parked_id + parked.len() as u32;
+    agents.extend(parked);
+    if let Some(turn) = &street.turn {
+        let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
+        let far_y = -(ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
+        let c = street.crossings[turn.crossing];
+        let first_id = first_side_id;
+        let side = side_street(
+            &street,
+            &ground,
+            c,
+            far_y,
+            first_id,
+            spec.duration_s,
+            spec.seed,
+        );
+        statics.extend(side.statics);
+        agents.extend(side.parked);
+    }
     Ok(Scene {
         duration_s: spec.duration_s,
         ground,
@@ -280,6 +346,92 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents,
         ego,
     })
+}
+
+/// Adds `other`'s lanes, vehicles and stop lines to the joint traffic
+/// (lane indices shifted behind the lanes already there).
+fn join_traffic(
+    lanes: &mut Vec<LanePath>,
+    vehicles: &mut Vec<VehicleSpec>,
+    stop_lines: &mut Vec<StopLine>,
+    other: TrafficSpec,
+) {
+    let shift = lanes.len();
+    lanes.extend(other.lanes);
+    vehicles.extend(other.vehicles.into_iter().map(|v| VehicleSpec {
+        lane: v.lane + shift,
+        ..v
+    }));
+    stop_lines.extend(other.stop_lines.into_iter().map(|l| StopLine {
+        lane: l.lane + shift,
+        ..l
+    }));
+}
+
+/// Stop lines on the ego's route lane (index `route_lane`): the main street's
+/// before every crossing up to the one it turns at, with their main-street
+/// red, so it turns on the main street's green.
+fn route_stop_lines(
+    street: &Street,
+    turn: &EgoTurn,
+    plans: &[SignalPlan],
+    route_lane: usize,
+) -> Vec<StopLine> {
+    let half = 0.5 * street.u.cross_street_width_m;
+    street.crossings[..=turn.crossing]
+        .iter()
+        .zip(plans)
+        .filter_map(|(&c, plan)| {
+            let s = street.s_of(true, c - half - STOP_LINE_SETBACK_M);
+            (s > 0.0 && !plan.main_red.is_empty()).then(|| StopLine {
+                lane: route_lane,
+                s_m: s,
+                red_intervals_s: plan.main_red.clone(),
+            })
+        })
+        .collect()
+}
+
+/// The protected turn: at the crossing the ego turns at, the stop lines of
+/// the bike lane and the walk lines on the ego's side (y < 0) stay red until
+/// `TURN_CLEARANCE_S` after each main-street red (the walk lines get one
+/// there even without cross traffic).
+fn protect_turn(
+    street: &Street,
+    turn: &EgoTurn,
+    plan: &SignalPlan,
+    stop_lines: &mut Vec<StopLine>,
+) {
+    let u = &street.u;
+    let c = street.crossings[turn.crossing];
+    let half = 0.5 * u.cross_street_width_m;
+    let extend = |red: &[(f64, f64)]| -> Vec<(f64, f64)> {
+        red.iter()
+            .map(|&(a, b)| (a, b + TURN_CLEARANCE_S))
+            .collect()
+    };
+    for (index, lane) in street.lanes.iter().enumerate() {
+        let ego_side = lane.path.point_at(0.0).y < 0.0;
+        let sign = if lane.forward { -1.0 } else { 1.0 };
+        let (line_x, red) = match lane.kind {
+            LaneKind::Bike if ego_side => (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red),
+            LaneKind::Walk if ego_side => (
+                c + sign * (u.lane_width_m + WALK_STOP_SETBACK_M),
+                &plan.walk_red,
+            ),
+            _ => continue,
+        };
+        let s = street.s_of(lane.forward, line_x);
+        if red.is_empty() || s <= 0.0 || s >= lane.path.length_m() {
+            continue;
+        }
+        stop_lines.retain(|l| !(l.lane == index && (l.s_m - s).abs() < 1e-6));
+        stop_lines.push(StopLine {
+            lane: index,
+            s_m: s,
+            red_intervals_s: extend(red),
+        });
+    }
 }
 
 /// Simulates traffic without the ego and lifts it onto the ground.
@@ -407,10 +559,11 @@ fn layout(
     let cross_piece = [PathPiece::Straight {
         length_m: 2.0 * cross_half_length,
     }];
+    let turn_crossing = u.ego_turns_right.then_some(ego_crossing);
     let mut cross_streets = Vec::new();
     if u.cross_cars_per_intersection > 0 {
         for (k, &c) in crossings.iter().enumerate() {
-            if !(view_lo..=view_hi).contains(&c) {
+            if !(view_lo..=view_hi).contains(&c) && turn_crossing != Some(k) {
                 continue;
             }
             let north = Point2::new(c + 0.5 * w, -cross_half_length);
@@ -424,6 +577,32 @@ fn layout(
             });
         }
     }
+    // the route turns from the kerb lane into the cross street's -y lane
+    // (x = c - w / 2), which it follows to the cross street's end
+    let turn = match turn_crossing {
+        None => None,
+        Some(k) => {
+            let kerb_lane_y = -(n as f64 - 0.5) * w;
+            let turn_x = crossings[k] - 0.5 * w - TURN_RADIUS_M;
+            let pieces = [
+                PathPiece::Straight {
+                    length_m: turn_x - x_min,
+                },
+                PathPiece::Arc {
+                    length_m: 0.5 * PI * TURN_RADIUS_M,
+                    curvature_1pm: -1.0 / TURN_RADIUS_M,
+                },
+                PathPiece::Straight {
+                    length_m: cross_half_length + kerb_lane_y - TURN_RADIUS_M,
+                },
+            ];
+            let start = Point2::new(x_min, kerb_lane_y);
+            Some(EgoTurn {
+                crossing: k,
+                path: LanePath::from_pieces(start, 0.0, &pieces, 0.0)?,
+            })
+        }
+    };
     Ok(Street {
         u: u.clone(),
         x_min,
@@ -435,6 +614,7 @@ fn layout(
         cross_half_length_m: cross_half_length,
         lanes,
         cross_streets,
+        turn,
     })
 }
 

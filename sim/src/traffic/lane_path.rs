@@ -247,6 +247,34 @@ impl LanePath {
         *self.s_m.last().unwrap_or(&0.0)
     }
 
+    /// Highest speed at arc length `s_m` from which a vehicle braking at
+    /// `decel_mps2` keeps speed^2 * |curvature| <= `lateral_accel_mps2` on every
+    /// segment in [s_m, s_m + horizon_m] (the curvature of a segment is its
+    /// heading change over its length); infinite if that stretch is straight.
+    pub(crate) fn curve_speed_limit_mps(
+        &self,
+        s_m: f64,
+        horizon_m: f64,
+        lateral_accel_mps2: f64,
+        decel_mps2: f64,
+    ) -> f64 {
+        let s = s_m.clamp(0.0, self.length_m());
+        let mut limit = f64::INFINITY;
+        for i in self.segment_of(s)..self.s_m.len() - 1 {
+            if self.s_m[i] > s + horizon_m {
+                break;
+            }
+            let ds = self.s_m[i + 1] - self.s_m[i];
+            let curvature = ((self.heading_rad[i + 1] - self.heading_rad[i]) / ds).abs();
+            if curvature > 1e-9 {
+                let v_curve_sq = lateral_accel_mps2 / curvature;
+                let ahead_m = (self.s_m[i] - s).max(0.0);
+                limit = limit.min((v_curve_sq + 2.0 * decel_mps2 * ahead_m).sqrt());
+            }
+        }
+        limit
+    }
+
     /// Index of the segment containing arc length `s` (clamped).
     fn segment_of(&self, s_m: f64) -> usize {
         let n = self.s_m.len();
@@ -474,6 +502,37 @@ fn segment_distance2(a: &Point2<f64>, b: &Point2<f64>, p: &Point2<f64>) -> (f64,
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn curve_speed_limit_reaches_the_arc_speed_by_braking() {
+        let (radius, a_lat, decel) = (8.0, 2.0, 1.25);
+        let pieces = [
+            PathPiece::Straight { length_m: 50.0 },
+            PathPiece::Arc {
+                length_m: 0.5 * std::f64::consts::PI * radius,
+                curvature_1pm: -1.0 / radius,
+            },
+            PathPiece::Straight { length_m: 50.0 },
+        ];
+        let lane = LanePath::from_pieces(Point2::origin(), 0.0, &pieces, 0.0).unwrap();
+        let v_arc = (a_lat * radius).sqrt();
+        // in the arc: the arc speed (the curvature of its segments is 1 / radius)
+        let inside = lane.curve_speed_limit_mps(55.0, 30.0, a_lat, decel);
+        assert!((inside - v_arc).abs() < 1e-6 * v_arc, "{inside} vs {v_arc}");
+        // 20 m before it: what braking at `decel` brings down to it
+        let before = lane.curve_speed_limit_mps(30.0, 30.0, a_lat, decel);
+        let want = (v_arc * v_arc + 2.0 * decel * 20.0).sqrt();
+        assert!((before - want).abs() < 0.05, "{before} vs {want}");
+        // arc beyond the horizon, or behind: no limit
+        assert_eq!(
+            lane.curve_speed_limit_mps(0.0, 40.0, a_lat, decel),
+            f64::INFINITY
+        );
+        assert_eq!(
+            lane.curve_speed_limit_mps(75.0, 20.0, a_lat, decel),
+            f64::INFINITY
+        );
+    }
 
     #[test]
     fn straight_and_arc_lengths_are_exact() {

@@ -78,6 +78,11 @@ pub struct DriverParams {
     pub min_lookahead_m: f64,
     /// Steering angle limit, rad (< 1.5).
     pub max_steer_rad: f64,
+    /// Some(a): the driver slows before and through the curves of its lane so
+    /// that speed^2 * |curvature| stays near a (m/s^2), braking at half its
+    /// comfortable deceleration; None: it drives curves at its desired speed
+    /// (lanes whose curves are gentle at every speed it reaches).
+    pub curve_lateral_accel_mps2: Option<f64>,
 }
 
 impl DriverParams {
@@ -96,6 +101,7 @@ impl DriverParams {
             lookahead_time_s: 0.9,
             min_lookahead_m: 5.0,
             max_steer_rad: 0.6,
+            curve_lateral_accel_mps2: None,
         }
     }
 
@@ -114,6 +120,7 @@ impl DriverParams {
             lookahead_time_s: 1.1,
             min_lookahead_m: 8.0,
             max_steer_rad: 0.55,
+            curve_lateral_accel_mps2: None,
         }
     }
 
@@ -132,6 +139,7 @@ impl DriverParams {
             lookahead_time_s: 0.9,
             min_lookahead_m: 2.5,
             max_steer_rad: 0.8,
+            curve_lateral_accel_mps2: None,
         }
     }
 
@@ -150,6 +158,7 @@ impl DriverParams {
             lookahead_time_s: 1.2,
             min_lookahead_m: 1.2,
             max_steer_rad: 1.0,
+            curve_lateral_accel_mps2: None,
         }
     }
 
@@ -168,7 +177,10 @@ impl DriverParams {
             ("driver.min_lookahead_m", self.min_lookahead_m),
             ("driver.max_steer_rad", self.max_steer_rad),
         ];
-        for (field, value) in fields {
+        let curve = self
+            .curve_lateral_accel_mps2
+            .map(|a| ("driver.curve_lateral_accel_mps2", a));
+        for (field, value) in fields.into_iter().chain(curve) {
             if !(value.is_finite() && value > 0.0) {
                 return Err(vehicle_error(
                     id,

@@ -10,7 +10,7 @@ use super::{
 use crate::scenario::common::{draw_body, parked_agent, tree, uniform, upright_static};
 use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
 use limot_estimator::input::ObjectClass;
-use nalgebra::Vector3;
+use nalgebra::{Point2, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -100,32 +100,40 @@ pub(super) fn buildings(
                 }
                 let near = back_of_sidewalk + setback;
                 let centre = street.at(x + 0.5 * length, side, near + 0.5 * depth);
-                // base below the lowest corner of the footprint
-                let lowest = [x, x + length]
-                    .iter()
-                    .flat_map(|&cx| [near, near + depth].map(|d| street.at(cx, side, d)))
-                    .map(|p| ground.height(p.x, p.y))
-                    .fold(f64::INFINITY, f64::min);
-                let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
-                out.push(upright_static(
-                    ground,
-                    StaticKind::Building,
-                    Shape::Cuboid {
-                        half_extents_m: Vector3::new(
-                            0.5 * length,
-                            0.5 * depth,
-                            0.5 * (height + BUILDING_SINK_M),
-                        ),
-                    },
-                    centre,
-                    base,
-                    0.0,
-                ));
+                out.push(building(ground, centre, 0.5 * length, 0.5 * depth, height));
                 x += length + gap;
             }
         }
     }
     out
+}
+
+/// A building: an axis-aligned box of `height_m` over the footprint
+/// `centre` +- (`half_x_m`, `half_y_m`), its base below the lowest corner of
+/// the footprint by `BUILDING_SINK_M`.
+pub(super) fn building(
+    ground: &Ground,
+    centre: Point2<f64>,
+    half_x_m: f64,
+    half_y_m: f64,
+    height_m: f64,
+) -> StaticObject {
+    let lowest = [-half_x_m, half_x_m]
+        .iter()
+        .flat_map(|&dx| [-half_y_m, half_y_m].map(|dy| (centre.x + dx, centre.y + dy)))
+        .map(|(x, y)| ground.height(x, y))
+        .fold(f64::INFINITY, f64::min);
+    let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
+    upright_static(
+        ground,
+        StaticKind::Building,
+        Shape::Cuboid {
+            half_extents_m: Vector3::new(half_x_m, half_y_m, 0.5 * (height_m + BUILDING_SINK_M)),
+        },
+        centre,
+        base,
+        0.0,
+    )
 }
 
 /// Signal poles at every corner, light poles at a regular spacing and trees
