@@ -114,6 +114,22 @@ pub(crate) fn upright_static(
     }
 }
 
+/// A pole (a vertical cylinder of `radius_m`) standing `height_m` above the
+/// ground at `xy`, its foot set 0.2 m into the ground.
+pub(crate) fn pole(ground: &Ground, xy: Point2<f64>, radius_m: f64, height_m: f64) -> StaticObject {
+    upright_static(
+        ground,
+        StaticKind::Pole,
+        Shape::Cylinder {
+            radius_m,
+            half_height_m: 0.5 * height_m,
+        },
+        xy,
+        -0.2,
+        0.0,
+    )
+}
+
 /// A cuboid of length `|p1 - p0|` from p0 to p1 spanning heights
 /// `bottom_m..top_m` above the ground, pitched to follow the ground between
 /// its ends (guard rails).

@@ -6,7 +6,7 @@
 //! The long straight with parallel rails is the LiDAR-degenerate case.
 
 use super::common::{
-    beside, cuboid_between, draw_body, ego_vehicle, generate_ground, run_traffic, uniform,
+    beside, cuboid_between, draw_body, ego_vehicle, generate_ground, pole, run_traffic, uniform,
     upright_static,
 };
 use super::roadside::{CrossSection, roadside};
@@ -218,32 +218,17 @@ fn poles_and_signs(
     let mut out = Vec::new();
     for k in 0..count {
         let s = k as f64 * h.pole_spacing_m;
-        out.push(upright_static(
+        out.push(pole(
             ground,
-            StaticKind::Pole,
-            Shape::Cylinder {
-                radius_m: POLE_RADIUS_M,
-                half_height_m: 0.5 * POLE_HEIGHT_M,
-            },
             beside(reference, s, offset),
-            -0.2,
-            0.0,
+            POLE_RADIUS_M,
+            POLE_HEIGHT_M,
         ));
         let s_sign = s + 0.5 * h.pole_spacing_m;
         if s_sign < reference.length_m() && rng.random_bool(1.0 / SIGN_EVERY_POLES) {
             let at = beside(reference, s_sign, offset);
             let yaw = reference.heading_at(s_sign);
-            out.push(upright_static(
-                ground,
-                StaticKind::Pole,
-                Shape::Cylinder {
-                    radius_m: POLE_RADIUS_M,
-                    half_height_m: 2.0,
-                },
-                at,
-                -0.2,
-                0.0,
-            ));
+            out.push(pole(ground, at, POLE_RADIUS_M, 4.0));
             // board 3 m wide, 2 m tall, facing the traffic, bottom at 3.5 m
             out.push(upright_static(
                 ground,

@@ -15,8 +15,8 @@ use super::{
     CORNER_CLEARANCE_M, CROWN_RADIUS_M, PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, Street,
     TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
-use crate::scenario::common::{draw_body, parked_agent, tree, uniform, upright_static};
-use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
+use crate::scenario::common::{draw_body, parked_agent, pole, tree, uniform};
+use crate::scene::{Agent, Ground, StaticObject};
 use limot_estimator::input::ObjectClass;
 use nalgebra::Point2;
 use rand::{RngExt, SeedableRng};
@@ -120,16 +120,11 @@ pub(super) fn side_street(
         let mut y = start - uniform(&mut rng, 0.0, u.pole_spacing_m);
         while y > far_y_m {
             pole_ys.push(y);
-            out.push(upright_static(
+            out.push(pole(
                 ground,
-                StaticKind::Pole,
-                Shape::Cylinder {
-                    radius_m: POLE_RADIUS_M,
-                    half_height_m: 0.5 * POLE_HEIGHT_M,
-                },
                 at(side, from_axis, y),
-                -0.2,
-                0.0,
+                POLE_RADIUS_M,
+                POLE_HEIGHT_M,
             ));
             y -= u.pole_spacing_m;
         }
@@ -163,6 +158,7 @@ mod tests {
     use crate::scenario::ScenarioSpec;
     use crate::scenario::common::generate_ground;
     use crate::scenario::urban::layout;
+    use crate::scene::Shape;
 
     /// Footprints stay off the carriageway and out of the main street's
     /// building zone, and the street is lined along its whole length.

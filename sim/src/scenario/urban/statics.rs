@@ -7,7 +7,7 @@ use super::{
     PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M, Street,
     TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
-use crate::scenario::common::{draw_body, parked_agent, tree, uniform, upright_static};
+use crate::scenario::common::{draw_body, parked_agent, pole, tree, uniform, upright_static};
 use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
@@ -146,10 +146,6 @@ pub(super) fn furniture(
     let u = &street.u;
     let from_axis = street.kerb_m() + FURNITURE_FROM_KERB_M;
     let half = 0.5 * u.cross_street_width_m;
-    let pole = |height_m: f64| Shape::Cylinder {
-        radius_m: POLE_RADIUS_M,
-        half_height_m: 0.5 * height_m,
-    };
     let mut out = Vec::new();
     for side in [-1.0, 1.0] {
         let mut pole_xs = Vec::new();
@@ -158,14 +154,7 @@ pub(super) fn furniture(
                 if (street.view_lo..=street.view_hi).contains(&x) {
                     pole_xs.push(x);
                     let at = street.at(x, side, from_axis);
-                    out.push(upright_static(
-                        ground,
-                        StaticKind::Pole,
-                        pole(SIGNAL_POLE_HEIGHT_M),
-                        at,
-                        -0.2,
-                        0.0,
-                    ));
+                    out.push(pole(ground, at, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M));
                 }
             }
         }
@@ -174,14 +163,7 @@ pub(super) fn furniture(
             if !street.near_crossing(x, x, CORNER_CLEARANCE_M) {
                 pole_xs.push(x);
                 let at = street.at(x, side, from_axis);
-                out.push(upright_static(
-                    ground,
-                    StaticKind::Pole,
-                    pole(POLE_HEIGHT_M),
-                    at,
-                    -0.2,
-                    0.0,
-                ));
+                out.push(pole(ground, at, POLE_RADIUS_M, POLE_HEIGHT_M));
             }
             x += u.pole_spacing_m;
         }
