@@ -55,7 +55,7 @@ pub use rpe::{RpeDelta, RpeResult, rpe};
 pub use samota::{
     Ab3dmotCounts, Ab3dmotEvalConfig, Ab3dmotResult, Ab3dmotSequence, ab3dmot_evaluate,
 };
-pub use straight_path::{AlignmentFix, STRAIGHT_PATH_RATIO, complete_alignment};
+pub use straight_path::{AlignmentFix, STATIC_SCATTER_M2, STRAIGHT_PATH_RATIO, complete_alignment};
 pub use timing::{TimingAccumulator, TimingStats};
 
 /// Why a metric could not be computed from its inputs.

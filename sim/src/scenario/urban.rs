@@ -326,13 +326,12 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
         let far_y = -(ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
         let c = street.crossings[turn.crossing];
-        let first_id = first_side_id;
         let side = side_street(
             &street,
             &ground,
             c,
             far_y,
-            first_id,
+            first_side_id,
             spec.duration_s,
             spec.seed,
         );
