@@ -5,12 +5,14 @@
 //! seeded from the scenario seed's own ChaCha stream, so the street's
 //! layout, buildings and traffic stay what they are.
 //!
-//! The street runs along x; `side` -1 is y < 0 (the ego's side), +1 the
-//! other; lateral distances are |y|.
+//! Everything is laid out in the street's own frame (`StreetLayout::
+//! t_world_street`): the street runs along its x; `side` -1 is y < 0 (on the
+//! main street the ego's side), +1 the other; lateral distances are |y|.
+//! Heights come from the world's ground under each object.
 
 use super::common::{box_on_ground, uniform, upright_static};
 use crate::scene::{Ground, Shape, StaticKind, StaticObject};
-use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry2, Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -57,9 +59,68 @@ pub(crate) struct StreetLayout<'a> {
     /// Whether the sidewalks carry furniture (signs, bollards, bins,
     /// benches, shelters).
     pub furniture: bool,
+    /// The street's frame in the world: origin on its axis, x along it.
+    pub t_world_street: Isometry2<f64>,
 }
 
 impl StreetLayout<'_> {
+    /// World point of the street-frame point `p`.
+    fn world(&self, p: Point2<f64>) -> Point2<f64> {
+        self.t_world_street * p
+    }
+
+    /// World yaw of a street-frame yaw.
+    fn world_yaw(&self, yaw_rad: f64) -> f64 {
+        self.t_world_street.rotation.angle() + yaw_rad
+    }
+
+    /// Street-frame point of the world point `p`.
+    fn local(&self, p: Point2<f64>) -> Point2<f64> {
+        self.t_world_street.inverse_transform_point(&p)
+    }
+
+    /// The untextured ground height under the street-frame point (x, y).
+    fn ground_height_m(&self, ground: &Ground, x: f64, y: f64) -> f64 {
+        let p = self.world(Point2::new(x, y));
+        ground.untextured_height(p.x, p.y)
+    }
+
+    /// `upright_static` at the street-frame point `xy`, yaw in the street frame.
+    fn upright(
+        &self,
+        ground: &Ground,
+        kind: StaticKind,
+        shape: Shape,
+        xy: Point2<f64>,
+        base_height_m: f64,
+        yaw_rad: f64,
+    ) -> StaticObject {
+        upright_static(
+            ground,
+            kind,
+            shape,
+            self.world(xy),
+            base_height_m,
+            self.world_yaw(yaw_rad),
+        )
+    }
+
+    /// A box aligned with the street centred at the street-frame point
+    /// `centre` (its z is the world's).
+    fn boxed(&self, kind: StaticKind, centre: Vector3<f64>, size: Vector3<f64>) -> StaticObject {
+        let xy = self.world(Point2::new(centre.x, centre.y));
+        StaticObject {
+            kind,
+            shape: Shape::Cuboid {
+                half_extents_m: size * 0.5,
+            },
+            t_world_object: Isometry3::from_parts(
+                Translation3::new(xy.x, xy.y, centre.z),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, self.world_yaw(0.0)),
+            ),
+        }
+    }
+
     /// The stretches of sidewalk between cross streets inside the view
     /// (for slabs: less the aprons).
     fn blocks(&self) -> Vec<(f64, f64)> {
@@ -79,11 +140,12 @@ impl StreetLayout<'_> {
             .collect()
     }
 
-    /// How far a walker is raised at (x, y): the kerb height (and a sole's
-    /// clearance) on a sidewalk, falling to 0 over a dropped kerb before a
-    /// cross street.
+    /// How far a walker is raised at the world point (x, y): the kerb
+    /// height (and a sole's clearance) on a sidewalk, falling to 0 over a
+    /// dropped kerb before a cross street.
     pub fn raised_m(&self, x: f64, y: f64) -> f64 {
-        let lateral = y.abs();
+        let p = self.local(Point2::new(x, y));
+        let (x, lateral) = (p.x, p.y.abs());
         if lateral < self.kerb_m || lateral > self.kerb_m + self.sidewalk_width_m {
             return 0.0;
         }
@@ -111,10 +173,23 @@ pub(crate) fn streetscape(
     if street.furniture {
         furniture(street, ground, statics, &mut rng, &mut out);
     }
+    out.extend(building_detail(street, ground, statics, seed));
+    out
+}
+
+/// The facade detail and front gardens of the buildings among `statics`
+/// that face the street (see [`facade`], [`front_garden`]).
+pub(crate) fn building_detail(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    statics: &[StaticObject],
+    seed: u64,
+) -> Vec<StaticObject> {
+    let mut out = Vec::new();
     for building in statics.iter().filter(|s| s.kind == StaticKind::Building) {
         // each building's detail from its own stream (keyed by where it
         // stands): a building's absence changes nothing else
-        let mut own = building_rng(seed, building);
+        let mut own = building_rng(street, seed, building);
         facade(street, building, ground, &mut own, &mut out);
         front_garden(street, ground, building, &mut own, &mut out);
     }
@@ -122,9 +197,12 @@ pub(crate) fn streetscape(
 }
 
 /// The stream of one building's detail: the scenario seed mixed with the
-/// bits of the building's position, on the streetscape's stream number.
-fn building_rng(seed: u64, building: &StaticObject) -> ChaCha8Rng {
-    let c = building.t_world_object.translation.vector;
+/// bits of the building's position in the street's frame, on the
+/// streetscape's stream number.
+fn building_rng(street: &StreetLayout<'_>, seed: u64, building: &StaticObject) -> ChaCha8Rng {
+    let c = street.local(Point2::from(
+        building.t_world_object.translation.vector.xy(),
+    ));
     let mut key = seed;
     for v in [c.x, c.y] {
         key = (key ^ v.to_bits())
@@ -151,8 +229,8 @@ fn sidewalks(street: &StreetLayout<'_>, ground: &Ground) -> Vec<StaticObject> {
                 out.push(box_on_ground(
                     ground,
                     StaticKind::Kerb,
-                    Point2::new(x, y),
-                    0.0,
+                    street.world(Point2::new(x, y)),
+                    street.world_yaw(0.0),
                     Vector3::new(
                         0.5 * length,
                         0.5 * street.sidewalk_width_m,
@@ -166,21 +244,8 @@ fn sidewalks(street: &StreetLayout<'_>, ground: &Ground) -> Vec<StaticObject> {
     out
 }
 
-/// An axis-aligned (yaw 0) box centred at `centre` (world).
-fn boxed(kind: StaticKind, centre: Vector3<f64>, size: Vector3<f64>) -> StaticObject {
-    StaticObject {
-        kind,
-        shape: Shape::Cuboid {
-            half_extents_m: size * 0.5,
-        },
-        t_world_object: Isometry3::from_parts(
-            Translation3::from(centre),
-            UnitQuaternion::identity(),
-        ),
-    }
-}
-
-/// The street face of an axis-aligned building.
+/// The street face of a building aligned with the street, in the street's
+/// frame.
 struct StreetFace {
     x0: f64,
     x1: f64,
@@ -191,18 +256,31 @@ struct StreetFace {
     top_z: f64,
 }
 
-fn street_face(building: &StaticObject) -> Option<StreetFace> {
+/// None for a building that is not a box or not aligned with the street
+/// (its sides along or across it, within a millidegree).
+fn street_face(street: &StreetLayout<'_>, building: &StaticObject) -> Option<StreetFace> {
     let Shape::Cuboid { half_extents_m: h } = building.shape else {
         return None;
     };
-    let c = building.t_world_object.translation.vector;
+    let pose = &building.t_world_object;
+    let (_, _, yaw) = pose.rotation.euler_angles();
+    let relative = yaw - street.world_yaw(0.0);
+    let (along, across) = if relative.sin().abs() < 1e-5 {
+        (h.x, h.y)
+    } else if relative.cos().abs() < 1e-5 {
+        (h.y, h.x)
+    } else {
+        return None;
+    };
+    let w = pose.translation.vector;
+    let c = street.local(Point2::new(w.x, w.y));
     let out_y = -c.y.signum();
     Some(StreetFace {
-        x0: c.x - h.x,
-        x1: c.x + h.x,
-        y: c.y + out_y * h.y,
+        x0: c.x - along,
+        x1: c.x + along,
+        y: c.y + out_y * across,
         out_y,
-        top_z: c.z + h.z,
+        top_z: w.z + h.z,
     })
 }
 
@@ -223,13 +301,13 @@ fn facade(
         out_y,
         top_z,
         ..
-    }) = street_face(building)
+    }) = street_face(street, building)
     else {
         return;
     };
     // storeys count from the ground at the face's middle; what stands on
     // the ground (pilasters, the door's step) starts from the ground under it
-    let ground_at = |x: f64| ground.untextured_height(x, face_y);
+    let ground_at = |x: f64| street.ground_height_m(ground, x, face_y);
     // nothing reaches over the sidewalk
     let setback = face_y.abs() - (street.kerb_m + street.sidewalk_width_m);
     let reach = |depth: f64| depth.min(setback - 0.1).max(0.05);
@@ -247,7 +325,7 @@ fn facade(
     // a box of `depth` from `from` to `from + depth` out of the face, centred at (x, z)
     let mut protrude_from =
         |kind, from: f64, x: f64, z: f64, (width, depth, height): (f64, f64, f64)| {
-            out.push(boxed(
+            out.push(street.boxed(
                 kind,
                 Vector3::new(x, face_y + out_y * (from + 0.5 * depth), z),
                 Vector3::new(width, depth, height),
@@ -346,7 +424,7 @@ fn front_garden(
 ) {
     let Some(StreetFace {
         x0, x1, y: face_y, ..
-    }) = street_face(building)
+    }) = street_face(street, building)
     else {
         return;
     };
@@ -370,7 +448,7 @@ fn front_garden(
         }
         let mid = Point2::new(0.5 * (a + b), y);
         if hedge {
-            out.push(upright_static(
+            out.push(street.upright(
                 ground,
                 StaticKind::Shrub,
                 Shape::Cuboid {
@@ -385,7 +463,7 @@ fn front_garden(
             let posts = ((b - a) / 2.0).ceil() as usize;
             for k in 0..=posts {
                 let x = a + (b - a) * k as f64 / posts as f64;
-                out.push(upright_static(
+                out.push(street.upright(
                     ground,
                     StaticKind::Fence,
                     Shape::Cuboid {
@@ -397,7 +475,7 @@ fn front_garden(
                 ));
             }
             for rail_z in [0.35, height - 0.1] {
-                out.push(upright_static(
+                out.push(street.upright(
                     ground,
                     StaticKind::Fence,
                     Shape::Cuboid {
@@ -427,7 +505,7 @@ fn furniture(
         let occupied: Vec<f64> = statics
             .iter()
             .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
-            .map(|s| s.t_world_object.translation.vector)
+            .map(|s| street.local(Point2::from(s.t_world_object.translation.vector.xy())))
             .filter(|p| p.y * side > 0.0)
             .map(|p| p.x)
             .collect();
@@ -446,13 +524,20 @@ fn furniture(
                 (x0 + 3.0, std::f64::consts::PI)
             };
             if (street.view.0..street.view.1).contains(&sign_x) && clear(sign_x, 0.4) {
-                traffic_sign(ground, Point2::new(sign_x, line), facing, raised, out);
+                traffic_sign(
+                    street,
+                    ground,
+                    Point2::new(sign_x, line),
+                    facing,
+                    raised,
+                    out,
+                );
             }
             for corner in [x0 + 0.6, x1 - 0.6] {
                 // clear of the walkers' lines (1.8 m and 3 m from the kerb)
                 for k in 0..2 {
                     let y = side * (street.kerb_m + 0.3 + 0.8 * k as f64);
-                    out.push(upright_static(
+                    out.push(street.upright(
                         ground,
                         StaticKind::Pole,
                         Shape::Cylinder {
@@ -468,7 +553,7 @@ fn furniture(
             let mut x = x0 + uniform(rng, 5.0, BIN_SPACING_M);
             while x < x1 - 5.0 {
                 if clear(x, 0.3) {
-                    out.push(upright_static(
+                    out.push(street.upright(
                         ground,
                         StaticKind::Wall,
                         Shape::Cylinder {
@@ -485,7 +570,7 @@ fn furniture(
             let mut x = x0 + uniform(rng, 5.0, BENCH_SPACING_M);
             while x < x1 - 5.0 {
                 if clear(x, 1.0) {
-                    bench(ground, Point2::new(x, line), side, raised, out);
+                    bench(street, ground, Point2::new(x, line), side, raised, out);
                 }
                 x += BENCH_SPACING_M * uniform(rng, 0.6, 1.4);
             }
@@ -502,10 +587,11 @@ fn furniture(
         let free = statics
             .iter()
             .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
-            .map(|s| s.t_world_object.translation.vector)
+            .map(|s| street.local(Point2::from(s.t_world_object.translation.vector.xy())))
             .all(|p| p.y * side < 0.0 || (p.x - x).abs() > 2.5);
         if !near_crossing && free {
             shelter(
+                street,
                 ground,
                 Point2::new(x, side * (street.kerb_m + 0.75)),
                 side,
@@ -520,13 +606,14 @@ fn furniture(
 
 /// A sign board on a thin pole, the board's face towards `facing_rad`.
 fn traffic_sign(
+    street: &StreetLayout<'_>,
     ground: &Ground,
     at: Point2<f64>,
     facing_rad: f64,
     raised: f64,
     out: &mut Vec<StaticObject>,
 ) {
-    out.push(upright_static(
+    out.push(street.upright(
         ground,
         StaticKind::Pole,
         Shape::Cylinder {
@@ -537,7 +624,7 @@ fn traffic_sign(
         raised - 0.1,
         0.0,
     ));
-    out.push(upright_static(
+    out.push(street.upright(
         ground,
         StaticKind::Sign,
         Shape::Cuboid {
@@ -550,38 +637,38 @@ fn traffic_sign(
 }
 
 /// A bench along the street: seat and back rest, facing the street.
-fn bench(ground: &Ground, at: Point2<f64>, side: f64, raised: f64, out: &mut Vec<StaticObject>) {
+fn bench(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    at: Point2<f64>,
+    side: f64,
+    raised: f64,
+    out: &mut Vec<StaticObject>,
+) {
     let seat = Shape::Cuboid {
         half_extents_m: Vector3::new(0.9, 0.25, 0.05),
     };
-    out.push(upright_static(
-        ground,
-        StaticKind::Fence,
-        seat,
-        at,
-        raised + 0.4,
-        0.0,
-    ));
+    out.push(street.upright(ground, StaticKind::Fence, seat, at, raised + 0.4, 0.0));
     let back = Shape::Cuboid {
         half_extents_m: Vector3::new(0.9, 0.03, 0.25),
     };
     let behind = at + nalgebra::Vector2::new(0.0, side * 0.25);
-    out.push(upright_static(
-        ground,
-        StaticKind::Fence,
-        back,
-        behind,
-        raised + 0.5,
-        0.0,
-    ));
+    out.push(street.upright(ground, StaticKind::Fence, back, behind, raised + 0.5, 0.0));
 }
 
 /// A bus shelter: roof, back panel and two side panels, open to the street.
-fn shelter(ground: &Ground, at: Point2<f64>, side: f64, raised: f64, out: &mut Vec<StaticObject>) {
+fn shelter(
+    street: &StreetLayout<'_>,
+    ground: &Ground,
+    at: Point2<f64>,
+    side: f64,
+    raised: f64,
+    out: &mut Vec<StaticObject>,
+) {
     let (length, depth, height) = (3.6, 1.4, 2.4);
-    let z = ground.untextured_height(at.x, at.y) + raised;
+    let z = street.ground_height_m(ground, at.x, at.y) + raised;
     let place = |dx: f64, dy: f64, dz: f64, size: Vector3<f64>| {
-        boxed(
+        street.boxed(
             StaticKind::Wall,
             Vector3::new(at.x + dx, at.y + side * dy, z + dz),
             size,
@@ -607,6 +694,7 @@ fn shelter(ground: &Ground, at: Point2<f64>, side: f64, raised: f64, out: &mut V
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector2;
 
     fn layout(crossings: &[f64]) -> StreetLayout<'_> {
         StreetLayout {
@@ -616,6 +704,7 @@ mod tests {
             cross_half_width_m: 7.0,
             view: (-150.0, 400.0),
             furniture: true,
+            t_world_street: Isometry2::identity(),
         }
     }
 
@@ -641,7 +730,7 @@ mod tests {
         let crossings = [-200.0, 60.0, 170.0, 280.0, 390.0];
         let street = layout(&crossings);
         let ground = Ground::flat(0.0);
-        let building = boxed(
+        let building = street.boxed(
             StaticKind::Building,
             Vector3::new(100.0, -(10.2 + 4.0 + 2.0 + 6.0), 8.0),
             Vector3::new(20.0, 12.0, 18.0),
@@ -667,5 +756,56 @@ mod tests {
         // the facade got detail, none of it more than a metre out
         assert!(statics.iter().any(|s| s.kind == StaticKind::Facade));
         assert_eq!(statics, streetscape(&street, &ground, &[building], 3));
+    }
+
+    /// A street turned and moved in the world gets the same detail, turned
+    /// and moved with it.
+    #[test]
+    fn a_street_in_another_frame_gets_the_same_detail_in_that_frame() {
+        let crossings = [-200.0, 60.0, 170.0];
+        let along_x = layout(&crossings);
+        let t_world_street = Isometry2::new(Vector2::new(50.0, -3.0), -0.5 * std::f64::consts::PI);
+        let turned = StreetLayout {
+            t_world_street,
+            ..layout(&crossings)
+        };
+        let ground = Ground::flat(0.0);
+        let centre = Vector3::new(100.0, -(10.2 + 4.0 + 2.0 + 6.0), 8.0);
+        let size = Vector3::new(20.0, 12.0, 18.0);
+        let a = streetscape(
+            &along_x,
+            &ground,
+            &[along_x.boxed(StaticKind::Building, centre, size)],
+            3,
+        );
+        let b = streetscape(
+            &turned,
+            &ground,
+            &[turned.boxed(StaticKind::Building, centre, size)],
+            3,
+        );
+        assert_eq!(a.len(), b.len());
+        assert!(a.iter().filter(|s| s.kind == StaticKind::Facade).count() > 5);
+        let turn = Isometry3::from_parts(
+            Translation3::new(
+                t_world_street.translation.x,
+                t_world_street.translation.y,
+                0.0,
+            ),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, t_world_street.rotation.angle()),
+        );
+        for (a, b) in a.iter().zip(&b) {
+            assert_eq!((a.kind, a.shape), (b.kind, b.shape));
+            let moved = turn * a.t_world_object;
+            let d = moved.translation.vector - b.t_world_object.translation.vector;
+            assert!(d.norm() < 1e-9, "{:?}: {d}", a.kind);
+            assert!(moved.rotation.angle_to(&b.t_world_object.rotation) < 1e-9);
+        }
+        // a walker on the turned street's sidewalk is raised, one on its
+        // carriageway is not
+        let on_sidewalk = t_world_street * Point2::new(0.0, -12.0);
+        let on_street = t_world_street * Point2::new(0.0, -5.0);
+        assert!(turned.raised_m(on_sidewalk.x, on_sidewalk.y) > KERB_HEIGHT_M);
+        assert_eq!(turned.raised_m(on_street.x, on_street.y), 0.0);
     }
 }

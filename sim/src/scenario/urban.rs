@@ -42,7 +42,7 @@ use crate::traffic::{
     simulate_traffic,
 };
 use limot_estimator::input::ObjectClass;
-use nalgebra::Point2;
+use nalgebra::{Isometry2, Point2};
 use rand::RngExt;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -267,6 +267,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         cross_half_width_m: 0.5 * u.cross_street_width_m,
         view: (street.view_lo, street.view_hi),
         furniture: u.street_furniture,
+        t_world_street: Isometry2::identity(),
     };
     let detail = streetscape(&layout, &ground, &statics, spec.seed);
     statics.extend(detail);

@@ -2,7 +2,10 @@
 //! its sidewalks in blocks (beyond the main street's corner buildings, whose
 //! side walls line its first stretch), cars parked half on the sidewalk along
 //! both kerbs, light poles and trees at the back of the sidewalks. Each building lot is built with the
-//! probability `building_fraction`, as on the main street.
+//! probability `building_fraction`, as on the main street, and its street
+//! face gets the main street's facade detail and front garden
+//! (`streetscape::building_detail`). The sidewalks are not raised: the
+//! parked cars stand half on them.
 //!
 //! The cross street at x = c runs along y; its carriageway is two lanes
 //! (|x - c| <= lane_width), its sidewalks reach to the cross street's half
@@ -16,9 +19,10 @@ use super::{
     TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
 use crate::scenario::common::{draw_body, parked_agent, pole, tree, uniform};
+use crate::scenario::streetscape::{StreetLayout, building_detail};
 use crate::scene::{Agent, Ground, StaticObject};
 use limot_estimator::input::ObjectClass;
-use nalgebra::Point2;
+use nalgebra::{Isometry2, Point2, Vector2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -146,6 +150,18 @@ pub(super) fn side_street(
             y -= u.tree_spacing_m * uniform(&mut rng, 0.7, 1.3);
         }
     }
+    // the cross street's own frame: x along it, away from the main street
+    let layout = StreetLayout {
+        kerb_m: u.lane_width_m,
+        sidewalk_width_m: half - u.lane_width_m,
+        crossings: &[],
+        cross_half_width_m: 0.0,
+        view: (0.0, -far_y_m),
+        furniture: false,
+        t_world_street: Isometry2::new(Vector2::new(crossing_x_m, 0.0), -0.5 * PI),
+    };
+    let detail = building_detail(&layout, ground, &out, seed);
+    out.extend(detail);
     SideStreet {
         statics: out,
         parked,
@@ -158,7 +174,7 @@ mod tests {
     use crate::scenario::ScenarioSpec;
     use crate::scenario::common::generate_ground;
     use crate::scenario::urban::layout;
-    use crate::scene::Shape;
+    use crate::scene::{Shape, StaticKind};
 
     /// Footprints stay off the carriageway and out of the main street's
     /// building zone, and the street is lined along its whole length.
@@ -179,8 +195,19 @@ mod tests {
                 let p = s.t_world_object.translation.vector;
                 let (half_x, half_y) = match s.shape {
                     Shape::Cuboid { half_extents_m } => {
-                        building_ys.push(p.y);
-                        (half_extents_m.x, half_extents_m.y)
+                        if s.kind == StaticKind::Building {
+                            building_ys.push(p.y);
+                        }
+                        // the footprint's world box (facade detail is
+                        // turned with the street)
+                        let half = s
+                            .t_world_object
+                            .rotation
+                            .to_rotation_matrix()
+                            .matrix()
+                            .abs()
+                            * half_extents_m;
+                        (half.x, half.y)
                     }
                     Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => {
                         (radius_m, radius_m)
@@ -212,12 +239,18 @@ mod tests {
                 statics
                     .iter()
                     .filter(|s| {
-                        matches!(s.shape, Shape::Cuboid { .. })
+                        s.kind == StaticKind::Building
                             && (s.t_world_object.translation.vector.x - c) * sign > 0.0
                     })
                     .count()
             };
             assert!(side_count(1.0) >= 8 && side_count(-1.0) >= 8);
+            // the street faces have the main street's facade detail
+            let detail = statics
+                .iter()
+                .filter(|s| s.kind == StaticKind::Facade)
+                .count();
+            assert!(detail >= 4 * building_ys.len(), "{detail} facade parts");
             // parked cars on both sides, off the carriageway, ids in order
             let ids: Vec<u32> = side.parked.iter().map(|a| a.id).collect();
             assert_eq!(ids, (1000..1000 + ids.len() as u32).collect::<Vec<_>>());
