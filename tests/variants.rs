@@ -63,6 +63,10 @@ fn allfilt_loses_the_map_where_parked_cars_are_the_structure() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The default urban route turns right after 22 s; on the cross street the
+/// IMU's accelerometer bias, which the start cannot tell from a tilt, must
+/// not turn into along-track drift (0.18 m for both with gravity held
+/// along -z, 0.033 m / 0.035 m estimated).
 #[test]
 fn lio_and_limot_track_the_turning_urban_route() {
     let mut spec = resolve_scenario("urban").unwrap();
@@ -71,7 +75,7 @@ fn lio_and_limot_track_the_turning_urban_route() {
     let dir = simulate(&spec, "variants-urban-turn");
     let lio = ate_of(&dir, Variant::Lio);
     let limot = ate_of(&dir, Variant::Limot);
-    assert!(lio < 0.5, "lio ATE_T {lio:.3} m");
-    assert!(limot < 0.5, "limot ATE_T {limot:.3} m");
+    assert!(lio < 0.08, "lio ATE_T {lio:.3} m");
+    assert!(limot < 0.08, "limot ATE_T {limot:.3} m");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -162,6 +162,7 @@ fn imu_factor_residual_vanishes_at_the_true_states() {
             &true_bias(),
             &true_pose(t1),
             &velocity(t1),
+            &GRAVITY,
             false,
         );
         let whitened = factor
@@ -300,6 +301,7 @@ fn covariance_matches_monte_carlo() {
             &true_bias(),
             &true_pose(t1),
             &velocity(t1),
+            &GRAVITY,
             false,
         );
         chi2_sum += factor
@@ -485,19 +487,26 @@ proptest! {
         let (pred_pose, pred_v) = pre.predict(&pose_i, &v_i, &bias_i, &gravity);
         let pose_j = lie::oplus(&pred_pose, &Vector6::from(pose_err));
         let v_j = pred_v + v_err;
-        let factor = ImuFactor::new(7, 8, pre, gravity).unwrap();
+        let given = ImuFactor::new(7, 8, pre.clone(), gravity).unwrap();
+        // gravity as the variable Key::Gravity, at the same value
+        let estimated = ImuFactor::with_estimated_gravity(7, 8, pre).unwrap();
         let mut values = Values::new();
         values.insert(Key::EgoPose(7), Variable::Pose(pose_i));
         values.insert(Key::EgoVelocity(7), Variable::Vector3(v_i));
         values.insert(Key::EgoBias(7), Variable::Bias(bias_i));
         values.insert(Key::EgoPose(8), Variable::Pose(pose_j));
         values.insert(Key::EgoVelocity(8), Variable::Vector3(v_j));
-        let lin = factor.linearize(&values);
-        let scale = lin.jacobians.iter().map(|j| j.amax()).fold(1.0, f64::max);
-        let err = check_factor_jacobians(&factor, &values, 1e-6);
-        prop_assert!(err < 1e-5 * scale, "Jacobian error {:e} (scale {:e})", err, scale);
-        // The residual-only path agrees with linearize.
-        prop_assert!((factor.residual(&values) - lin.residual).amax() == 0.0);
+        values.insert(Key::Gravity, Variable::Vector3(gravity));
+        for factor in [&given, &estimated] {
+            let lin = factor.linearize(&values);
+            prop_assert_eq!(lin.jacobians.len(), factor.keys().len());
+            let scale = lin.jacobians.iter().map(|j| j.amax()).fold(1.0, f64::max);
+            let err = check_factor_jacobians(factor, &values, 1e-6);
+            prop_assert!(err < 1e-5 * scale, "Jacobian error {:e} (scale {:e})", err, scale);
+            // The residual-only path agrees with linearize.
+            prop_assert!((factor.residual(&values) - lin.residual).amax() == 0.0);
+        }
+        prop_assert!((given.residual(&values) - estimated.residual(&values)).amax() == 0.0);
     }
 
     #[test]

@@ -30,10 +30,13 @@ pub struct ImuFactorJacobians {
     pub pose_j: SMatrix<f64, 9, 6>,
     /// With respect to the velocity at `j`.
     pub velocity_j: SMatrix<f64, 9, 3>,
+    /// With respect to gravity in the world frame.
+    pub gravity: SMatrix<f64, 9, 3>,
 }
 
 /// Preintegrated IMU factor on `[EgoPose(i), EgoVelocity(i), EgoBias(i),
-/// EgoPose(j), EgoVelocity(j)]`. Residual (Forster eq. 45, first-order bias
+/// EgoPose(j), EgoVelocity(j)]`, and `Gravity` when gravity is estimated
+/// ([`ImuFactor::with_estimated_gravity`]) rather than given. Residual (Forster eq. 45, first-order bias
 /// correction with `δb = b_i − b̂`):
 /// * `r_ΔR = Log((ΔR·Exp(J_R^g·δbg))ᵀ·R_iᵀ·R_j)`
 /// * `r_Δv = R_iᵀ(v_j − v_i − g·Δt) − (Δv + J_v^a·δba + J_v^g·δbg)`
@@ -42,9 +45,10 @@ pub struct ImuFactorJacobians {
 /// Noise: the preintegration covariance (same `(δφ, δv, δp)` order).
 #[derive(Debug, Clone)]
 pub struct ImuFactor {
-    keys: [Key; 5],
+    keys: Vec<Key>,
     preintegration: Preintegration,
-    gravity_world: Vector3<f64>,
+    /// Gravity in the world frame, m/s²; `None`: the value of `Key::Gravity`.
+    gravity_world: Option<Vector3<f64>>,
     noise: NoiseModel,
 }
 
@@ -62,19 +66,46 @@ impl ImuFactor {
         preintegration: Preintegration,
         gravity_world: Vector3<f64>,
     ) -> Result<ImuFactor, FactorError> {
+        ImuFactor::build(i, j, preintegration, Some(gravity_world))
+    }
+
+    /// As [`ImuFactor::new`], with gravity the variable `Key::Gravity`
+    /// (the sixth key), so the window estimates the world's gravity
+    /// direction with the states.
+    ///
+    /// # Errors
+    /// As [`ImuFactor::new`].
+    pub fn with_estimated_gravity(
+        i: u64,
+        j: u64,
+        preintegration: Preintegration,
+    ) -> Result<ImuFactor, FactorError> {
+        ImuFactor::build(i, j, preintegration, None)
+    }
+
+    fn build(
+        i: u64,
+        j: u64,
+        preintegration: Preintegration,
+        gravity_world: Option<Vector3<f64>>,
+    ) -> Result<ImuFactor, FactorError> {
         let cov = preintegration.covariance();
         let noise = NoiseModel::from_covariance(&DMatrix::from_column_slice(9, 9, cov.as_slice()))
             .ok_or(FactorError::BadCovariance {
                 what: "IMU preintegration",
             })?;
+        let mut keys = vec![
+            Key::EgoPose(i),
+            Key::EgoVelocity(i),
+            Key::EgoBias(i),
+            Key::EgoPose(j),
+            Key::EgoVelocity(j),
+        ];
+        if gravity_world.is_none() {
+            keys.push(Key::Gravity);
+        }
         Ok(ImuFactor {
-            keys: [
-                Key::EgoPose(i),
-                Key::EgoVelocity(i),
-                Key::EgoBias(i),
-                Key::EgoPose(j),
-                Key::EgoVelocity(j),
-            ],
+            keys,
             preintegration,
             gravity_world,
             noise,
@@ -86,13 +117,15 @@ impl ImuFactor {
         &self.preintegration
     }
 
-    /// Gravity in the world frame, m/s².
-    pub fn gravity_world(&self) -> &Vector3<f64> {
-        &self.gravity_world
+    /// Gravity in the world frame, m/s², when given (`None` when it is the
+    /// variable `Key::Gravity`).
+    pub fn gravity_world(&self) -> Option<&Vector3<f64>> {
+        self.gravity_world.as_ref()
     }
 
     /// Residual and (if asked) its Jacobians wrt right perturbations of the
-    /// five states, in fixed-size types.
+    /// five states and gravity `g` (world, m/s²), in fixed-size types.
+    #[allow(clippy::too_many_arguments)]
     pub fn evaluate(
         &self,
         t_world_imu_i: &Isometry3<f64>,
@@ -100,10 +133,10 @@ impl ImuFactor {
         bias_i: &ImuBias,
         t_world_imu_j: &Isometry3<f64>,
         v_world_j: &Vector3<f64>,
+        g: &Vector3<f64>,
         with_jacobians: bool,
     ) -> (Vector9, Option<ImuFactorJacobians>) {
         let pre = &self.preintegration;
-        let g = &self.gravity_world;
         let dt = pre.delta_t_s();
         let r_i = t_world_imu_i.rotation.to_rotation_matrix().into_inner();
         let r_j = t_world_imu_j.rotation.to_rotation_matrix().into_inner();
@@ -190,6 +223,15 @@ impl ImuFactor {
         let mut velocity_j = SMatrix::<f64, 9, 3>::zeros();
         velocity_j.fixed_view_mut::<3, 3>(3, 0).copy_from(&r_i_t);
 
+        // r_Δv and r_Δp are linear in g.
+        let mut gravity = SMatrix::<f64, 9, 3>::zeros();
+        gravity
+            .fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&(-r_i_t * dt));
+        gravity
+            .fixed_view_mut::<3, 3>(6, 0)
+            .copy_from(&(-r_i_t * (0.5 * dt * dt)));
+
         (
             residual,
             Some(ImuFactorJacobians {
@@ -198,6 +240,7 @@ impl ImuFactor {
                 bias_i: bias_jac,
                 pose_j,
                 velocity_j,
+                gravity,
             }),
         )
     }
@@ -207,13 +250,20 @@ impl ImuFactor {
         values: &Values,
         with_jacobians: bool,
     ) -> (Vector9, Option<ImuFactorJacobians>) {
-        let [kpi, kvi, kbi, kpj, kvj] = &self.keys;
+        let [kpi, kvi, kbi, kpj, kvj] = &self.keys[..5] else {
+            unreachable!("an IMU factor has five state keys");
+        };
+        let g = match &self.gravity_world {
+            Some(g) => g,
+            None => values.vector3(&Key::Gravity),
+        };
         self.evaluate(
             values.pose(kpi),
             values.vector3(kvi),
             values.bias(kbi),
             values.pose(kpj),
             values.vector3(kvj),
+            g,
             with_jacobians,
         )
     }
@@ -235,15 +285,19 @@ impl Factor for ImuFactor {
     fn linearize(&self, values: &Values) -> Linearization {
         let (residual, jac) = self.evaluate_values(values, true);
         let jac = jac.expect("Jacobians were requested");
+        let mut jacobians = vec![
+            to_dmatrix(&jac.pose_i),
+            to_dmatrix(&jac.velocity_i),
+            to_dmatrix(&jac.bias_i),
+            to_dmatrix(&jac.pose_j),
+            to_dmatrix(&jac.velocity_j),
+        ];
+        if self.gravity_world.is_none() {
+            jacobians.push(to_dmatrix(&jac.gravity));
+        }
         Linearization {
             residual: to_dvector(&residual),
-            jacobians: vec![
-                to_dmatrix(&jac.pose_i),
-                to_dmatrix(&jac.velocity_i),
-                to_dmatrix(&jac.bias_i),
-                to_dmatrix(&jac.pose_j),
-                to_dmatrix(&jac.velocity_j),
-            ],
+            jacobians,
         }
     }
 
@@ -386,6 +440,25 @@ mod tests {
         .unwrap();
         let err = check_factor_jacobians(&factor, &test_values(), 1e-6);
         assert!(err < 1e-6, "max Jacobian error {err:e}");
+    }
+
+    #[test]
+    fn imu_factor_with_estimated_gravity_matches_the_given_one_and_finite_differences() {
+        let g = Vector3::new(0.07, -0.05, -9.8);
+        let given = ImuFactor::new(3, 4, test_preintegration(), g).unwrap();
+        let estimated = ImuFactor::with_estimated_gravity(3, 4, test_preintegration()).unwrap();
+        assert_eq!(estimated.keys().len(), 6);
+        assert_eq!(estimated.keys()[5], Key::Gravity);
+        assert!(estimated.gravity_world().is_none());
+        let mut values = test_values();
+        values.insert(Key::Gravity, Variable::Vector3(g));
+        assert_eq!(given.residual(&values), estimated.residual(&values));
+        let err = check_factor_jacobians(&estimated, &values, 1e-6);
+        assert!(err < 1e-6, "max Jacobian error {err:e}");
+        // gravity moves the velocity and position residuals only
+        let lin = estimated.linearize(&values);
+        assert_eq!(lin.jacobians[5].rows(0, 3).amax(), 0.0);
+        assert!(lin.jacobians[5].rows(3, 6).amax() > 0.0);
     }
 
     #[test]

@@ -32,6 +32,8 @@ pub enum Key {
         /// Track id.
         id: u64,
     },
+    /// Gravity in the world frame, m/s² (dim 3): one node for the whole run.
+    Gravity,
 }
 
 impl Key {
@@ -40,7 +42,7 @@ impl Key {
         match *self {
             Key::EgoPose(k) | Key::EgoVelocity(k) | Key::EgoBias(k) => Some(k),
             Key::ObjectPose { frame, .. } | Key::ObjectMotion { frame, .. } => Some(frame),
-            Key::StaticObjectPose { .. } => None,
+            Key::StaticObjectPose { .. } | Key::Gravity => None,
         }
     }
 }
@@ -54,6 +56,7 @@ impl fmt::Display for Key {
             Key::ObjectPose { id, frame } => write!(f, "o{id}@{frame}"),
             Key::ObjectMotion { id, frame } => write!(f, "m{id}@{frame}"),
             Key::StaticObjectPose { id } => write!(f, "s{id}"),
+            Key::Gravity => write!(f, "g"),
         }
     }
 }

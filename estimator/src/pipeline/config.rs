@@ -135,6 +135,14 @@ pub struct EstimatorConfig {
     pub window_size: usize,
     /// Gravity magnitude, m/s² (the world z axis points up).
     pub gravity_mps2: f64,
+    /// Estimate gravity in the world frame with the states (one variable
+    /// for the run, prior along -z) instead of holding it along -z. The
+    /// world's tilt starts as the first state's, and an accelerometer
+    /// bias the start cannot tell from a tilt (the ego has not yet turned)
+    /// stays in it; with gravity estimated, the first turn separates the two.
+    pub estimate_gravity: bool,
+    /// With `estimate_gravity`: prior sigma of gravity's direction, rad.
+    pub gravity_tilt_sigma_rad: f64,
     /// IMU noise densities and bias random walks.
     pub imu_noise: ImuNoise,
     /// Largest tolerated hole in the IMU stream, s; longer gaps are errors.
@@ -220,6 +228,8 @@ impl Default for EstimatorConfig {
             filter_unsettled_detections: true,
             window_size: 5,
             gravity_mps2: 9.80511,
+            estimate_gravity: true,
+            gravity_tilt_sigma_rad: 0.01,
             imu_noise: ImuNoise::default(),
             max_imu_gap_s: 0.05,
             init_window_s: 0.5,

@@ -11,6 +11,10 @@ use crate::pipeline::initialization::{MIN_STATIC_SAMPLES, NotStatic, moving_init
 use nalgebra::{Isometry3, Vector3};
 use std::time::Instant;
 
+/// Prior sigma of the estimated gravity's magnitude, m/s²: the magnitude
+/// is known, only the direction is uncertain.
+const GRAVITY_MAGNITUDE_SIGMA_MPS2: f64 = 1e-3;
+
 /// Prior sigmas on the first inertial state.
 #[derive(Debug, Clone, Copy)]
 struct InitSigmas {
@@ -240,6 +244,21 @@ impl Estimator {
                 NoiseModel::diagonal_sigmas(&[sigmas.velocity_mps; 3]),
             )))
             .map_err(&window_error)?;
+        if c.estimate_gravity {
+            let g = Variable::Vector3(self.gravity_world);
+            self.smoother
+                .add_variable(Key::Gravity, g)
+                .map_err(&window_error)?;
+            // the direction as a tilt of the world; the magnitude is known
+            let tilt = c.gravity_mps2 * c.gravity_tilt_sigma_rad;
+            self.smoother
+                .add_factor(Box::new(PriorFactor::new(
+                    Key::Gravity,
+                    g,
+                    NoiseModel::diagonal_sigmas(&[tilt, tilt, GRAVITY_MAGNITUDE_SIGMA_MPS2]),
+                )))
+                .map_err(&window_error)?;
+        }
         let ab = c.init_accel_bias_sigma_mps2;
         let gb = c.init_gyro_bias_sigma_radps;
         self.smoother

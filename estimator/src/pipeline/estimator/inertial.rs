@@ -50,6 +50,9 @@ impl Estimator {
         self.marginalize_old_frames(frame_index, t_s)?;
         let state = self.window_state(frame_index, t_s);
         self.latest = Some(state);
+        if self.config.estimate_gravity {
+            self.gravity_world = *self.smoother.values().vector3(&Key::Gravity);
+        }
         timings.graph = clock.elapsed();
 
         let t_world_lidar = state.t_world_imu * self.t_imu_lidar;
@@ -144,8 +147,12 @@ impl Estimator {
             .add_variable(Key::EgoBias(k), Variable::Bias(predicted.bias))
             .map_err(&window_error)?;
         let dt_s = preintegration.delta_t_s();
-        let imu_factor =
-            ImuFactor::new(j, k, preintegration, self.gravity_world).map_err(&factor_error)?;
+        let imu_factor = if self.config.estimate_gravity {
+            ImuFactor::with_estimated_gravity(j, k, preintegration)
+        } else {
+            ImuFactor::new(j, k, preintegration, self.gravity_world)
+        }
+        .map_err(&factor_error)?;
         let bias_factor =
             BiasRandomWalkFactor::new(j, k, dt_s, &self.config.imu_noise).map_err(&factor_error)?;
         self.smoother
