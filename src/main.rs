@@ -24,8 +24,21 @@ fn keep_freed_pages() {
     unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
 }
 
+/// End quietly when the reader of stdout goes away (`limot eval ego ... |
+/// head -1`), as Unix tools do. Rust ignores SIGPIPE, so a print to a closed
+/// pipe would panic instead.
+fn die_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restores the default disposition of one signal, before any
+    // thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
     keep_freed_pages();
+    die_on_closed_pipe();
     match limot::cli::Cli::parse().run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

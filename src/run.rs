@@ -12,7 +12,10 @@ use crate::io::kitti::KittiError;
 use crate::io::kitti::poses::StampedPose;
 use crate::io::kitti::velodyne::raise_elevation;
 use crate::io::mcap::{McapError, McapRecorder, McapRequest, McapStats};
-use crate::io::{ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, write_run_files};
+use crate::io::{
+    ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, imu_resolves_gravity,
+    write_run_files,
+};
 use limot_estimator::input::{Extrinsics, Frame, ImuSample};
 use limot_estimator::pipeline::{
     DeskewedSweep, Estimator, EstimatorConfig, EstimatorError, FrameEstimate, Mode, Variant,
@@ -286,8 +289,9 @@ pub fn run_observed(
     })
 }
 
-/// `config` (or the default) for `variant`: LiDAR-only without an IMU, and
-/// an IMU-gap limit fitted to the rate of `imu_samples`.
+/// `config` (or the default) for `variant`: LiDAR-only without an IMU, an
+/// IMU-gap limit fitted to the rate of `imu_samples`, and gravity held along
+/// -z for an IMU too slow to estimate it ([`imu_resolves_gravity`]).
 fn estimator_config(
     config: Option<EstimatorConfig>,
     variant: Variant,
@@ -300,6 +304,7 @@ fn estimator_config(
         config.mode = Mode::LidarOnly;
     }
     config.max_imu_gap_s = imu_gap_limit_s(imu_samples, config.max_imu_gap_s);
+    config.estimate_gravity &= imu_resolves_gravity(imu_samples);
     config
 }
 

@@ -316,6 +316,28 @@ fn kitti_labels_as_results_track_perfectly() {
     assert_eq!((o.tp_percent, o.track_id), (0.0, None));
 }
 
+/// Output into a pipe whose reader has gone (`| head -1`) ends the process
+/// quietly, as for any Unix tool, instead of a panic.
+#[test]
+fn cli_ends_quietly_when_its_reader_goes_away() {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = Command::new(env!("CARGO_BIN_EXE_limot"))
+        .args(["simulate", "urban", "--print", "--out"])
+        .arg(scratch("cli_pipe"))
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}", out.status);
+    }
+}
+
 #[test]
 fn cli_prints_ate_and_fails_with_file_and_line() {
     let dir = dataset();

@@ -309,6 +309,38 @@ pub fn imu_gap_limit_s(samples: &[ImuSample], configured_s: f64) -> f64 {
     }
 }
 
+/// The slowest IMU whose gravity the estimator estimates (50 Hz), s per sample.
+pub const GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S: f64 = 0.02;
+
+/// Whether `samples` come fast enough (at most
+/// [`GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S`] apart) for the estimator to
+/// estimate gravity's direction (`EstimatorConfig::estimate_gravity`). An
+/// IMU at the sweep rate (KITTI tracking's 10 Hz OXTS records) integrates a
+/// sweep in one or two steps; their error, not a tilt, would move the
+/// estimated gravity (docs/kitti-real-data.md).
+///
+/// ```
+/// use limot::io::imu_resolves_gravity;
+/// use limot_estimator::input::ImuSample;
+/// use nalgebra::Vector3;
+/// let at = |rate_hz: f64| -> Vec<ImuSample> {
+///     (0..50)
+///         .map(|i| ImuSample {
+///             t_s: i as f64 / rate_hz,
+///             accel_mps2: Vector3::new(0.0, 0.0, 9.81),
+///             gyro_radps: Vector3::zeros(),
+///         })
+///         .collect()
+/// };
+/// assert!(imu_resolves_gravity(&at(100.0)));
+/// assert!(!imu_resolves_gravity(&at(10.0))); // KITTI tracking's OXTS records
+/// assert!(!imu_resolves_gravity(&[]));
+/// ```
+pub fn imu_resolves_gravity(samples: &[ImuSample]) -> bool {
+    let times: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    nominal_period_s(&times).is_some_and(|period_s| period_s <= GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S)
+}
+
 /// Hands out the IMU samples of a source in time order, the ones due before
 /// each sweep at a time: everything measured up to the end of the sweep
 /// (within [`SWEEP_END_TOLERANCE_S`]). Before the first frame it skips the

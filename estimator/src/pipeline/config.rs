@@ -140,6 +140,8 @@ pub struct EstimatorConfig {
     /// world's tilt starts as the first state's, and an accelerometer
     /// bias the start cannot tell from a tilt (the ego has not yet turned)
     /// stays in it; with gravity estimated, the first turn separates the two.
+    /// Needs an IMU that resolves a sweep's motion (`limot::run` holds
+    /// gravity for one slower than 50 Hz).
     pub estimate_gravity: bool,
     /// With `estimate_gravity`: prior sigma of gravity's direction, rad.
     pub gravity_tilt_sigma_rad: f64,
