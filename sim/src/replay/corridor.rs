@@ -666,3 +666,173 @@ impl Lining<'_> {
     }
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn flat() -> Ground {
+        Ground {
+            base_height_m: 0.0,
+            slope: Vector2::zeros(),
+            undulations: Vec::new(),
+            crown: None,
+            roughness: None,
+        }
+    }
+
+    /// Distance from `p` to a static's footprint, computed from its pose.
+    fn distance_to_static_m(object: &StaticObject, p: &Point2<f64>) -> f64 {
+        let Shape::Cuboid { half_extents_m } = object.shape else {
+            panic!("not a box: {object:?}");
+        };
+        let local = object.t_world_object.inverse_transform_point(&Point3::new(
+            p.x,
+            p.y,
+            object.t_world_object.translation.z,
+        ));
+        Vector2::new(
+            (local.x.abs() - half_extents_m.x).max(0.0),
+            (local.y.abs() - half_extents_m.y).max(0.0),
+        )
+        .norm()
+    }
+
+    fn corners(object: &StaticObject) -> Vec<Point2<f64>> {
+        let Shape::Cuboid { half_extents_m: h } = object.shape else {
+            panic!("not a box: {object:?}");
+        };
+        [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|(a, b)| {
+                object
+                    .t_world_object
+                    .transform_point(&Point3::new(a * h.x, b * h.y, 0.0))
+                    .xy()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_long_building_near_a_walker_is_kept_clear_of_it_and_of_the_road() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(200.0, 0.0)]).unwrap();
+        // a walker on the left sidewalk 2.5 m beyond the edge, near the west
+        // end of a building whose street face would be 3 m beyond the edge
+        let walker = (Point2::new(90.0, DEFAULT_EDGE_M + 2.5), 0.4);
+        let clearance = Clearance {
+            path: &path,
+            agents: vec![walker],
+            edge_m: [DEFAULT_EDGE_M; 2],
+        };
+        let ground = flat();
+        let lining = Lining {
+            path: &path,
+            ground: &ground,
+            clearance: &clearance,
+            side: 1.0,
+            edge_m: DEFAULT_EDGE_M,
+        };
+        let mut out = Vec::new();
+        lining.building(100.0, 3.0, Vector3::new(30.0, 14.0, 15.0), &mut out);
+        assert!(!out.is_empty(), "the building was dropped");
+        assert!(
+            out.iter()
+                .all(|o| o.t_world_object.translation.y > lining.at(100.0, 10.0).y),
+            "not set back"
+        );
+        // the old test, a circle of half the diagonal, would have dropped it
+        assert!((walker.0 - lining.at(100.0, 10.0)).norm() < 0.5 * 30.0f64.hypot(14.0));
+        let length_m: f64 = out
+            .iter()
+            .map(|o| match o.shape {
+                Shape::Cuboid { half_extents_m } => 2.0 * half_extents_m.x,
+                _ => 0.0,
+            })
+            .sum();
+        assert!(length_m >= 15.0 - 1e-9, "only {length_m} m of 30 m kept");
+        for object in &out {
+            assert_eq!(object.kind, StaticKind::Building);
+            let gap_m = distance_to_static_m(object, &walker.0) - walker.1;
+            assert!(
+                gap_m >= AGENT_CLEARANCE_M - 1e-9,
+                "{gap_m} m from the walker"
+            );
+            for c in corners(object) {
+                assert!(c.y >= DEFAULT_EDGE_M - EDGE_TOLERANCE_M, "{c} on the road");
+            }
+        }
+    }
+
+    #[test]
+    fn a_rectangle_is_tested_exactly_and_a_circle_by_its_radius() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(100.0, 0.0)]).unwrap();
+        let clearance = Clearance {
+            path: &path,
+            agents: vec![(Point2::new(50.0, 8.0), 0.5)],
+            edge_m: [4.0, 6.0],
+        };
+        let rectangle = |x: f64, y: f64| Footprint::Rectangle {
+            centre: Point2::new(x, y),
+            yaw_rad: 0.0,
+            half_extents_m: Vector2::new(2.0, 0.15),
+        };
+        // a guard rail 1 m beyond each edge; the left edge is the wider one
+        assert!(clearance.free(&rectangle(20.0, -5.0)));
+        assert!(clearance.free(&rectangle(20.0, 7.0)));
+        assert!(
+            !clearance.free(&rectangle(20.0, 5.0)),
+            "inside the left edge"
+        );
+        // beside the agent: 0.85 m from its circle's edge clears, 0.35 m does not
+        assert!(clearance.free(&rectangle(53.35, 8.0)));
+        assert!(!clearance.free(&rectangle(52.85, 8.0)));
+        let circle = |y: f64| Footprint::Circle {
+            centre: Point2::new(20.0, y),
+            radius_m: 1.0,
+        };
+        assert!(clearance.free(&circle(-4.5)));
+        assert!(!clearance.free(&circle(-4.4)));
+        // a rectangle across the path is caught by its outline
+        let across = Footprint::Rectangle {
+            centre: Point2::new(30.0, 0.0),
+            yaw_rad: std::f64::consts::FRAC_PI_2,
+            half_extents_m: Vector2::new(40.0, 0.2),
+        };
+        assert!(!clearance.free(&across));
+    }
+
+    #[test]
+    fn the_draws_do_not_depend_on_what_is_kept() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(300.0, 0.0)]).unwrap();
+        let ground = flat();
+        let crowded: Vec<_> = (0..60)
+            .map(|i| (Point2::new(5.0 * i as f64, DEFAULT_EDGE_M + 2.0), 0.4))
+            .collect();
+        let draws_after = |agents: Vec<(Point2<f64>, f64)>| {
+            let clearance = Clearance {
+                path: &path,
+                agents,
+                edge_m: [DEFAULT_EDGE_M; 2],
+            };
+            let lining = Lining {
+                path: &path,
+                ground: &ground,
+                clearance: &clearance,
+                side: 1.0,
+                edge_m: DEFAULT_EDGE_M,
+            };
+            let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let mut out = Vec::new();
+            lining.city(&mut rng, &mut out);
+            lining.residential(&mut rng, &mut out);
+            (out.len(), uniform(&mut rng, 0.0, 1.0))
+        };
+        let (empty_kept, empty_next) = draws_after(Vec::new());
+        let (crowded_kept, crowded_next) = draws_after(crowded);
+        assert!(crowded_kept < empty_kept);
+        assert_eq!(empty_next, crowded_next);
+    }
+}
