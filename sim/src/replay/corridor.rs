@@ -14,9 +14,16 @@
 //! sides with what a corridor of its type holds, at distances measured from a
 //! road edge per side: [`DEFAULT_EDGE_M`] or, when labelled vehicles drive or
 //! park farther out, 1 m beyond the outermost of them (within
-//! [`EDGE_SEARCH_M`]). A candidate object is dropped when it would come
-//! within 0.5 m of any replayed agent's box at any labelled time or within
-//! the road edge of any part of the path (inside of bends). The straight
+//! [`EDGE_SEARCH_M`]). Each candidate object has a footprint on the ground:
+//! a circle for round things (poles, trees, shrubs), its exact oriented
+//! rectangle for boxes (buildings, guard rails, walls). It is clear when
+//! that footprint keeps [`AGENT_CLEARANCE_M`] from every replayed agent's
+//! footprint circle (sampled every 0.5 s of its labelled presence) and
+//! reaches at most [`EDGE_TOLERANCE_M`] inside the road edge, on the side
+//! of the path it is on, of any part of the path (inside of bends; a
+//! rectangle is tested along its outline). A building that is not clear is
+//! set back, then split; any other object is dropped. Every object's random
+//! draws are made whether or not it is kept. The straight
 //! street generators of the highway and urban families assume a road along
 //! x and are not used; the object helpers they share are.
 
@@ -70,6 +77,20 @@ const EXTENSION_M: f64 = 60.0;
 const SLOPE_RIDGE_M2: f64 = 0.01;
 /// Clearance between a static object and any agent box, m.
 const AGENT_CLEARANCE_M: f64 = 0.5;
+/// How far a static may reach inside the road edge (a kerb's width), m.
+const EDGE_TOLERANCE_M: f64 = 0.5;
+/// Radius around a tree's trunk kept clear (its crown overhangs), m.
+const TREE_CLEARANCE_M: f64 = 1.5;
+/// Spacing of the points along a rectangular footprint's outline that are
+/// tested against the road edge, m.
+const OUTLINE_SAMPLE_M: f64 = 0.5;
+/// A building that is not clear is set back by up to this many steps...
+const SETBACK_STEPS: usize = 3;
+/// ...of this much each, m.
+const SETBACK_STEP_M: f64 = 1.5;
+/// A building that is not clear at any set-back is split in two halves, each
+/// placed alike, while the halves are at least this long, m.
+const MIN_BUILDING_LENGTH_M: f64 = 5.0;
 
 impl Corridor {
     /// The corridor of a drive with no corridor named: highway when the ego's
@@ -232,7 +253,88 @@ pub(super) fn fit_ground(
     (ground, fit)
 }
 
-/// Where the statics must keep clear of: the path and the agents.
+/// The ground an upright static covers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Footprint {
+    /// A disc: poles, trees (their crowns), shrubs.
+    Circle { centre: Point2<f64>, radius_m: f64 },
+    /// A rectangle whose first half extent lies along `yaw_rad`: buildings,
+    /// guard rails, walls.
+    Rectangle {
+        centre: Point2<f64>,
+        yaw_rad: f64,
+        half_extents_m: Vector2<f64>,
+    },
+}
+
+impl Footprint {
+    /// The rectangle `width_m` wide from `p0` to `p1` (a [`cuboid_between`]'s).
+    fn between(p0: Point2<f64>, p1: Point2<f64>, width_m: f64) -> Footprint {
+        let d = p1 - p0;
+        Footprint::Rectangle {
+            centre: nalgebra::center(&p0, &p1),
+            yaw_rad: d.y.atan2(d.x),
+            half_extents_m: Vector2::new(0.5 * d.norm(), 0.5 * width_m),
+        }
+    }
+
+    /// Distance from `p` to the footprint, 0 inside it, m.
+    fn distance_m(&self, p: &Point2<f64>) -> f64 {
+        match *self {
+            Footprint::Circle { centre, radius_m } => ((p - centre).norm() - radius_m).max(0.0),
+            Footprint::Rectangle {
+                centre,
+                yaw_rad,
+                half_extents_m,
+            } => {
+                let (sin, cos) = yaw_rad.sin_cos();
+                let d = p - centre;
+                let local = Vector2::new(cos * d.x + sin * d.y, -sin * d.x + cos * d.y);
+                local
+                    .abs()
+                    .zip_map(&half_extents_m, |l, h| (l - h).max(0.0))
+                    .norm()
+            }
+        }
+    }
+
+    /// Points of the footprint with how far it reaches around each, m: a
+    /// circle's centre and radius; a rectangle's centre and its outline at
+    /// most [`OUTLINE_SAMPLE_M`] apart, reaching 0. Every point of the
+    /// footprint is within reach of one of them, and every point within a
+    /// distance d of the footprint is within about d + OUTLINE_SAMPLE_M / 2.
+    fn probes(&self) -> Vec<(Point2<f64>, f64)> {
+        match *self {
+            Footprint::Circle { centre, radius_m } => vec![(centre, radius_m)],
+            Footprint::Rectangle {
+                centre,
+                yaw_rad,
+                half_extents_m,
+            } => {
+                let (sin, cos) = yaw_rad.sin_cos();
+                let along = Vector2::new(cos, sin) * half_extents_m.x;
+                let across = Vector2::new(-sin, cos) * half_extents_m.y;
+                let corners = [
+                    centre - along - across,
+                    centre + along - across,
+                    centre + along + across,
+                    centre - along + across,
+                ];
+                let mut probes = vec![(centre, 0.0)];
+                for (i, a) in corners.iter().enumerate() {
+                    let b = corners[(i + 1) % 4];
+                    let pieces = ((b - a).norm() / OUTLINE_SAMPLE_M).ceil().max(1.0) as usize;
+                    probes.extend(
+                        (0..pieces).map(|k| (a + (b - a) * (k as f64 / pieces as f64), 0.0)),
+                    );
+                }
+                probes
+            }
+        }
+    }
+}
+
+/// Where the statics must keep clear of: the carriageway and the agents.
 struct Clearance<'a> {
     path: &'a LanePath,
     /// Agent footprint circles (centre, radius) at their labelled times.
@@ -242,17 +344,25 @@ struct Clearance<'a> {
 }
 
 impl Clearance<'_> {
-    /// Whether a footprint circle at `at` of radius `radius_m` is free.
-    fn free(&self, at: &Point2<f64>, radius_m: f64) -> bool {
-        let edge = self.edge_m[0].min(self.edge_m[1]);
-        if let Some((_, lateral)) = self.path.project_near(at, edge + radius_m)
-            && lateral.abs() < edge + radius_m - 0.5
-        {
-            return false;
-        }
-        self.agents
-            .iter()
-            .all(|(c, r)| (c - at).norm() >= r + radius_m + AGENT_CLEARANCE_M)
+    /// Whether `footprint` keeps [`AGENT_CLEARANCE_M`] from every agent
+    /// circle and reaches at most [`EDGE_TOLERANCE_M`] inside the road edge
+    /// (of the side of the path it is on) anywhere along the path.
+    fn free(&self, footprint: &Footprint) -> bool {
+        let widest_m = self.edge_m[0].max(self.edge_m[1]);
+        let off_road = footprint.probes().iter().all(|(p, reach_m)| {
+            match self.path.project_near(p, widest_m + reach_m) {
+                Some((_, lateral)) => {
+                    let edge = self.edge_m[usize::from(lateral > 0.0)];
+                    lateral.abs() - reach_m >= edge - EDGE_TOLERANCE_M
+                }
+                None => true,
+            }
+        });
+        off_road
+            && self
+                .agents
+                .iter()
+                .all(|(c, r)| footprint.distance_m(c) >= r + AGENT_CLEARANCE_M)
     }
 }
 
@@ -371,28 +481,50 @@ impl Lining<'_> {
         }
     }
 
-    /// A building block with its street face `front_m` beyond the edge.
+    /// A building block `size_m` (length along the path, depth, height)
+    /// centred at arc length `s` with its street face `front_m` beyond the
+    /// edge. Where that is not clear it is set back by up to
+    /// [`SETBACK_STEPS`] of [`SETBACK_STEP_M`]; where none is, it is split
+    /// into two halves placed alike, and dropped when the halves would be
+    /// shorter than [`MIN_BUILDING_LENGTH_M`].
     fn building(&self, s: f64, front_m: f64, size_m: Vector3<f64>, out: &mut Vec<StaticObject>) {
-        let at = self.at(s, front_m + 0.5 * size_m.y);
-        if !self.clearance.free(&at, 0.5 * size_m.xy().norm()) {
-            return;
-        }
         let yaw = self.path.heading_at(s);
-        out.push(upright_static(
-            self.ground,
-            StaticKind::Building,
-            Shape::Cuboid {
-                half_extents_m: size_m * 0.5 + Vector3::new(0.0, 0.0, 0.25),
-            },
-            at,
-            -0.5,
-            yaw,
-        ));
+        for step in 0..=SETBACK_STEPS {
+            let front = front_m + step as f64 * SETBACK_STEP_M;
+            let at = self.at(s, front + 0.5 * size_m.y);
+            let footprint = Footprint::Rectangle {
+                centre: at,
+                yaw_rad: yaw,
+                half_extents_m: 0.5 * size_m.xy(),
+            };
+            if self.clearance.free(&footprint) {
+                out.push(upright_static(
+                    self.ground,
+                    StaticKind::Building,
+                    Shape::Cuboid {
+                        half_extents_m: size_m * 0.5 + Vector3::new(0.0, 0.0, 0.25),
+                    },
+                    at,
+                    -0.5,
+                    yaw,
+                ));
+                return;
+            }
+        }
+        let half_length_m = 0.5 * size_m.x;
+        if half_length_m >= MIN_BUILDING_LENGTH_M {
+            let half = Vector3::new(half_length_m, size_m.y, size_m.z);
+            self.building(s - 0.5 * half_length_m, front_m, half, out);
+            self.building(s + 0.5 * half_length_m, front_m, half, out);
+        }
     }
 
     fn pole(&self, s: f64, offset_m: f64, height_m: f64, out: &mut Vec<StaticObject>) {
         let at = self.at(s, offset_m);
-        if !self.clearance.free(&at, 0.2) {
+        if !self.clearance.free(&Footprint::Circle {
+            centre: at,
+            radius_m: 0.2,
+        }) {
             return;
         }
         out.push(upright_static(
@@ -408,20 +540,18 @@ impl Lining<'_> {
         ));
     }
 
+    /// A tree at `offset_m` beyond the edge, drawn whether or not it is kept
+    /// (the draws never depend on the clearance); kept when a circle of
+    /// [`TREE_CLEARANCE_M`] around its trunk is clear.
     fn tree(&self, s: f64, offset_m: f64, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
         let at = self.at(s, offset_m);
-        // the crown overhangs: keep the trunk clear by the crown's radius
-        if !self.clearance.free(&at, 1.5) {
-            return;
+        let tree = tree(self.ground, at, (2.5, 4.5), (0.12, 0.25), (1.4, 2.4), rng);
+        if self.clearance.free(&Footprint::Circle {
+            centre: at,
+            radius_m: TREE_CLEARANCE_M,
+        }) {
+            out.extend(tree);
         }
-        out.extend(tree(
-            self.ground,
-            at,
-            (2.5, 4.5),
-            (0.12, 0.25),
-            (1.4, 2.4),
-            rng,
-        ));
     }
 
     fn residential(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
@@ -442,7 +572,10 @@ impl Lining<'_> {
         self.walk(rng, (5.0, 10.0), |s, rng| {
             let at = self.at(s, uniform(rng, 2.5, 3.5));
             let r = uniform(rng, 0.5, 1.0);
-            if self.clearance.free(&at, r) {
+            if self.clearance.free(&Footprint::Circle {
+                centre: at,
+                radius_m: r,
+            }) {
                 out.push(upright_static(
                     self.ground,
                     StaticKind::Shrub,
@@ -474,6 +607,8 @@ impl Lining<'_> {
 
     fn highway(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
         const RAIL_SEGMENT_M: f64 = 4.0;
+        const RAIL_WIDTH_M: f64 = 0.3;
+        const WALL_WIDTH_M: f64 = 0.3;
         let rail_offset = 1.0;
         let mut s = 0.0;
         while s + RAIL_SEGMENT_M <= self.path.length_m() {
@@ -481,14 +616,16 @@ impl Lining<'_> {
                 self.at(s, rail_offset),
                 self.at(s + RAIL_SEGMENT_M, rail_offset),
             );
-            let mid = nalgebra::center(&p0, &p1);
-            if self.clearance.free(&mid, 0.5 * RAIL_SEGMENT_M) {
+            if self
+                .clearance
+                .free(&Footprint::between(p0, p1, RAIL_WIDTH_M))
+            {
                 out.push(cuboid_between(
                     self.ground,
                     StaticKind::GuardRail,
                     p0,
                     p1,
-                    0.3,
+                    RAIL_WIDTH_M,
                     (0.45, 0.8),
                 ));
             }
@@ -508,13 +645,16 @@ impl Lining<'_> {
                 let mut u = s;
                 while u + 5.0 <= (s + length).min(self.path.length_m()) {
                     let (p0, p1) = (self.at(u, 3.5), self.at(u + 5.0, 3.5));
-                    if self.clearance.free(&nalgebra::center(&p0, &p1), 2.5) {
+                    if self
+                        .clearance
+                        .free(&Footprint::between(p0, p1, WALL_WIDTH_M))
+                    {
                         out.push(cuboid_between(
                             self.ground,
                             StaticKind::Wall,
                             p0,
                             p1,
-                            0.3,
+                            WALL_WIDTH_M,
                             (-0.3, height),
                         ));
                     }
@@ -523,5 +663,176 @@ impl Lining<'_> {
             }
             s += length + uniform(rng, 50.0, 300.0);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn flat() -> Ground {
+        Ground {
+            base_height_m: 0.0,
+            slope: Vector2::zeros(),
+            undulations: Vec::new(),
+            crown: None,
+            roughness: None,
+        }
+    }
+
+    /// Distance from `p` to a static's footprint, computed from its pose.
+    fn distance_to_static_m(object: &StaticObject, p: &Point2<f64>) -> f64 {
+        let Shape::Cuboid { half_extents_m } = object.shape else {
+            panic!("not a box: {object:?}");
+        };
+        let local = object.t_world_object.inverse_transform_point(&Point3::new(
+            p.x,
+            p.y,
+            object.t_world_object.translation.z,
+        ));
+        Vector2::new(
+            (local.x.abs() - half_extents_m.x).max(0.0),
+            (local.y.abs() - half_extents_m.y).max(0.0),
+        )
+        .norm()
+    }
+
+    fn corners(object: &StaticObject) -> Vec<Point2<f64>> {
+        let Shape::Cuboid { half_extents_m: h } = object.shape else {
+            panic!("not a box: {object:?}");
+        };
+        [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|(a, b)| {
+                object
+                    .t_world_object
+                    .transform_point(&Point3::new(a * h.x, b * h.y, 0.0))
+                    .xy()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_long_building_near_a_walker_is_kept_clear_of_it_and_of_the_road() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(200.0, 0.0)]).unwrap();
+        // a walker on the left sidewalk 2.5 m beyond the edge, near the west
+        // end of a building whose street face would be 3 m beyond the edge
+        let walker = (Point2::new(90.0, DEFAULT_EDGE_M + 2.5), 0.4);
+        let clearance = Clearance {
+            path: &path,
+            agents: vec![walker],
+            edge_m: [DEFAULT_EDGE_M; 2],
+        };
+        let ground = flat();
+        let lining = Lining {
+            path: &path,
+            ground: &ground,
+            clearance: &clearance,
+            side: 1.0,
+            edge_m: DEFAULT_EDGE_M,
+        };
+        let mut out = Vec::new();
+        lining.building(100.0, 3.0, Vector3::new(30.0, 14.0, 15.0), &mut out);
+        assert!(!out.is_empty(), "the building was dropped");
+        assert!(
+            out.iter()
+                .all(|o| o.t_world_object.translation.y > lining.at(100.0, 10.0).y),
+            "not set back"
+        );
+        // the old test, a circle of half the diagonal, would have dropped it
+        assert!((walker.0 - lining.at(100.0, 10.0)).norm() < 0.5 * 30.0f64.hypot(14.0));
+        let length_m: f64 = out
+            .iter()
+            .map(|o| match o.shape {
+                Shape::Cuboid { half_extents_m } => 2.0 * half_extents_m.x,
+                _ => 0.0,
+            })
+            .sum();
+        assert!(length_m >= 15.0 - 1e-9, "only {length_m} m of 30 m kept");
+        for object in &out {
+            assert_eq!(object.kind, StaticKind::Building);
+            let gap_m = distance_to_static_m(object, &walker.0) - walker.1;
+            assert!(
+                gap_m >= AGENT_CLEARANCE_M - 1e-9,
+                "{gap_m} m from the walker"
+            );
+            for c in corners(object) {
+                assert!(c.y >= DEFAULT_EDGE_M - EDGE_TOLERANCE_M, "{c} on the road");
+            }
+        }
+    }
+
+    #[test]
+    fn a_rectangle_is_tested_exactly_and_a_circle_by_its_radius() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(100.0, 0.0)]).unwrap();
+        let clearance = Clearance {
+            path: &path,
+            agents: vec![(Point2::new(50.0, 8.0), 0.5)],
+            edge_m: [4.0, 6.0],
+        };
+        let rectangle = |x: f64, y: f64| Footprint::Rectangle {
+            centre: Point2::new(x, y),
+            yaw_rad: 0.0,
+            half_extents_m: Vector2::new(2.0, 0.15),
+        };
+        // a guard rail 1 m beyond each edge; the left edge is the wider one
+        assert!(clearance.free(&rectangle(20.0, -5.0)));
+        assert!(clearance.free(&rectangle(20.0, 7.0)));
+        assert!(
+            !clearance.free(&rectangle(20.0, 5.0)),
+            "inside the left edge"
+        );
+        // beside the agent: 0.85 m from its circle's edge clears, 0.35 m does not
+        assert!(clearance.free(&rectangle(53.35, 8.0)));
+        assert!(!clearance.free(&rectangle(52.85, 8.0)));
+        let circle = |y: f64| Footprint::Circle {
+            centre: Point2::new(20.0, y),
+            radius_m: 1.0,
+        };
+        assert!(clearance.free(&circle(-4.5)));
+        assert!(!clearance.free(&circle(-4.4)));
+        // a rectangle across the path is caught by its outline
+        let across = Footprint::Rectangle {
+            centre: Point2::new(30.0, 0.0),
+            yaw_rad: std::f64::consts::FRAC_PI_2,
+            half_extents_m: Vector2::new(40.0, 0.2),
+        };
+        assert!(!clearance.free(&across));
+    }
+
+    #[test]
+    fn the_draws_do_not_depend_on_what_is_kept() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(300.0, 0.0)]).unwrap();
+        let ground = flat();
+        let crowded: Vec<_> = (0..60)
+            .map(|i| (Point2::new(5.0 * i as f64, DEFAULT_EDGE_M + 2.0), 0.4))
+            .collect();
+        let draws_after = |agents: Vec<(Point2<f64>, f64)>| {
+            let clearance = Clearance {
+                path: &path,
+                agents,
+                edge_m: [DEFAULT_EDGE_M; 2],
+            };
+            let lining = Lining {
+                path: &path,
+                ground: &ground,
+                clearance: &clearance,
+                side: 1.0,
+                edge_m: DEFAULT_EDGE_M,
+            };
+            let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let mut out = Vec::new();
+            lining.city(&mut rng, &mut out);
+            lining.residential(&mut rng, &mut out);
+            (out.len(), uniform(&mut rng, 0.0, 1.0))
+        };
+        let (empty_kept, empty_next) = draws_after(Vec::new());
+        let (crowded_kept, crowded_next) = draws_after(crowded);
+        assert!(crowded_kept < empty_kept);
+        assert_eq!(empty_next, crowded_next);
     }
 }
