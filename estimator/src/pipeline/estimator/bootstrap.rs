@@ -245,7 +245,7 @@ impl Estimator {
             )))
             .map_err(&window_error)?;
         if c.estimate_gravity {
-            let g = Variable::Vector3(self.gravity_world);
+            let g = Variable::Vector3(self.gravity_world());
             self.smoother
                 .add_variable(Key::Gravity, g)
                 .map_err(&window_error)?;

@@ -112,7 +112,7 @@ impl Estimator {
                 &start.t_world_imu,
                 &start.velocity_world_mps,
                 &start.bias,
-                &self.gravity_world,
+                &self.gravity_world(),
                 self.config.max_imu_gap_s,
             )
         {

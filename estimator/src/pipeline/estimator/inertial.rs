@@ -50,9 +50,6 @@ impl Estimator {
         self.marginalize_old_frames(frame_index, t_s)?;
         let state = self.window_state(frame_index, t_s);
         self.latest = Some(state);
-        if self.config.estimate_gravity {
-            self.gravity_world = *self.smoother.values().vector3(&Key::Gravity);
-        }
         timings.graph = clock.elapsed();
 
         let t_world_lidar = state.t_world_imu * self.t_imu_lidar;
@@ -108,7 +105,7 @@ impl Estimator {
             &previous.t_world_imu,
             &previous.velocity_world_mps,
             &previous.bias,
-            &self.gravity_world,
+            &self.gravity_world(),
         );
         let predicted = EgoState {
             frame_index,
@@ -150,7 +147,7 @@ impl Estimator {
         let imu_factor = if self.config.estimate_gravity {
             ImuFactor::with_estimated_gravity(j, k, preintegration)
         } else {
-            ImuFactor::new(j, k, preintegration, self.gravity_world)
+            ImuFactor::new(j, k, preintegration, self.gravity_world())
         }
         .map_err(&factor_error)?;
         let bias_factor =

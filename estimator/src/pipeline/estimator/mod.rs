@@ -30,7 +30,7 @@ pub use error::EstimatorError;
 use super::config::{EstimatorConfig, Mode, Variant};
 use super::estimate::{DeskewedSweep, FrameEstimate};
 use super::objects::ObjectGraph;
-use crate::graph::SlidingWindowSmoother;
+use crate::graph::{Key, SlidingWindowSmoother, Variable};
 use crate::imu::ImuBias;
 use crate::input::{Detection, Extrinsics, Frame, ImuSample, InputError, LidarPoint};
 use crate::lidar::Deskewer;
@@ -153,7 +153,6 @@ pub struct Estimator {
     config: EstimatorConfig,
     t_lidar_imu: Isometry3<f64>,
     t_imu_lidar: Isometry3<f64>,
-    gravity_world: Vector3<f64>,
     imu: Vec<ImuSample>,
     last_scan_t_s: Option<f64>,
     next_frame_index: u64,
@@ -213,7 +212,6 @@ impl Estimator {
         let objects = ObjectGraph::new(config.objects.clone());
         let feature_extractor = FeatureExtractor::new(config.features.clone());
         Ok(Estimator {
-            gravity_world: Vector3::new(0.0, 0.0, -config.gravity_mps2),
             t_lidar_imu: extrinsics.t_lidar_imu,
             t_imu_lidar: extrinsics.t_lidar_imu.inverse(),
             config,
@@ -240,6 +238,15 @@ impl Estimator {
             objects,
             invalid_detections: 0,
         })
+    }
+
+    /// Gravity in the world frame, m/s²: the window's estimate once it
+    /// holds one (`EstimatorConfig::estimate_gravity`), else along -z.
+    fn gravity_world(&self) -> Vector3<f64> {
+        match self.smoother.values().get(&Key::Gravity) {
+            Some(Variable::Vector3(g)) => *g,
+            _ => Vector3::new(0.0, 0.0, -self.config.gravity_mps2),
+        }
     }
 
     /// The configuration it runs with.
