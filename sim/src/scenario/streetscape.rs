@@ -79,6 +79,11 @@ impl StreetLayout<'_> {
         self.t_world_street.inverse_transform_point(&p)
     }
 
+    /// Street-frame position of `object`'s centre (on the ground plane).
+    fn local_position(&self, object: &StaticObject) -> Point2<f64> {
+        self.local(Point2::from(object.t_world_object.translation.vector.xy()))
+    }
+
     /// The untextured ground height under the street-frame point (x, y).
     fn ground_height_m(&self, ground: &Ground, x: f64, y: f64) -> f64 {
         let p = self.world(Point2::new(x, y));
@@ -200,9 +205,7 @@ pub(crate) fn building_detail(
 /// bits of the building's position in the street's frame, on the
 /// streetscape's stream number.
 fn building_rng(street: &StreetLayout<'_>, seed: u64, building: &StaticObject) -> ChaCha8Rng {
-    let c = street.local(Point2::from(
-        building.t_world_object.translation.vector.xy(),
-    ));
+    let c = street.local_position(building);
     let mut key = seed;
     for v in [c.x, c.y] {
         key = (key ^ v.to_bits())
@@ -272,15 +275,14 @@ fn street_face(street: &StreetLayout<'_>, building: &StaticObject) -> Option<Str
     } else {
         return None;
     };
-    let w = pose.translation.vector;
-    let c = street.local(Point2::new(w.x, w.y));
+    let c = street.local_position(building);
     let out_y = -c.y.signum();
     Some(StreetFace {
         x0: c.x - along,
         x1: c.x + along,
         y: c.y + out_y * across,
         out_y,
-        top_z: w.z + h.z,
+        top_z: pose.translation.vector.z + h.z,
     })
 }
 
@@ -505,7 +507,7 @@ fn furniture(
         let occupied: Vec<f64> = statics
             .iter()
             .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
-            .map(|s| street.local(Point2::from(s.t_world_object.translation.vector.xy())))
+            .map(|s| street.local_position(s))
             .filter(|p| p.y * side > 0.0)
             .map(|p| p.x)
             .collect();
@@ -587,7 +589,7 @@ fn furniture(
         let free = statics
             .iter()
             .filter(|s| matches!(s.kind, StaticKind::Pole | StaticKind::TreeTrunk))
-            .map(|s| street.local(Point2::from(s.t_world_object.translation.vector.xy())))
+            .map(|s| street.local_position(s))
             .all(|p| p.y * side < 0.0 || (p.x - x).abs() > 2.5);
         if !near_crossing && free {
             shelter(
