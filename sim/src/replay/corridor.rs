@@ -278,6 +278,12 @@ impl Footprint {
         }
     }
 
+    /// A rectangle's unit axes: along `yaw_rad` (its first half extent) and across.
+    fn rectangle_axes(yaw_rad: f64) -> (Vector2<f64>, Vector2<f64>) {
+        let (sin, cos) = yaw_rad.sin_cos();
+        (Vector2::new(cos, sin), Vector2::new(-sin, cos))
+    }
+
     /// Distance from `p` to the footprint, 0 inside it, m.
     fn distance_m(&self, p: &Point2<f64>) -> f64 {
         match *self {
@@ -287,9 +293,9 @@ impl Footprint {
                 yaw_rad,
                 half_extents_m,
             } => {
-                let (sin, cos) = yaw_rad.sin_cos();
+                let (along, across) = Footprint::rectangle_axes(yaw_rad);
                 let d = p - centre;
-                let local = Vector2::new(cos * d.x + sin * d.y, -sin * d.x + cos * d.y);
+                let local = Vector2::new(along.dot(&d), across.dot(&d));
                 local
                     .abs()
                     .zip_map(&half_extents_m, |l, h| (l - h).max(0.0))
@@ -311,9 +317,9 @@ impl Footprint {
                 yaw_rad,
                 half_extents_m,
             } => {
-                let (sin, cos) = yaw_rad.sin_cos();
-                let along = Vector2::new(cos, sin) * half_extents_m.x;
-                let across = Vector2::new(-sin, cos) * half_extents_m.y;
+                let (along, across) = Footprint::rectangle_axes(yaw_rad);
+                let along = along * half_extents_m.x;
+                let across = across * half_extents_m.y;
                 let corners = [
                     centre - along - across,
                     centre + along - across,
