@@ -9,9 +9,9 @@ use limot::io::Source;
 use limot::run::{RunOptions, run, write_output};
 use limot::simulate::resolve_scenario;
 use limot_estimator::Variant;
+use limot_sim::Dataset;
 use limot_sim::scenario::ScenarioSpec;
-use nalgebra::Vector3;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// The urban streets without moving agents, the ego driving straight along
 /// the main street (its inner lane).
@@ -43,19 +43,6 @@ fn static_urban_route(duration_s: f64, noise_free: bool) -> ScenarioSpec {
         spec.imu.gyro_bias_initial_sigma = 0.0;
     }
     spec
-}
-
-/// The dataset's true accelerometer biases (`gt/imu_bias.csv`), in time order.
-fn truth_accel_biases(dir: &Path) -> Vec<(f64, Vector3<f64>)> {
-    let text = std::fs::read_to_string(dir.join("gt/imu_bias.csv")).unwrap();
-    let mut lines = text.lines();
-    assert!(lines.next().unwrap().starts_with("t_s,bax,bay,baz"));
-    lines
-        .map(|line| {
-            let v: Vec<f64> = line.split(',').map(|f| f.parse().unwrap()).collect();
-            (v[0], Vector3::new(v[1], v[2], v[3]))
-        })
-        .collect()
 }
 
 fn simulate(spec: &ScenarioSpec, name: &str) -> PathBuf {
@@ -186,14 +173,14 @@ fn static_urban_right_turn_is_tracked() {
             // after the turn the accelerometer bias is found: 0.06 m/s²
             // along x in this seed, off by at most 0.009 from 40 s on
             // (by 0.03-0.05 with gravity held along -z)
-            let truth = truth_accel_biases(&dir);
+            let truth = Dataset::open(&dir).unwrap().bias_truth().unwrap();
             let worst = output
                 .estimates
                 .iter()
                 .filter(|e| e.t_s >= 40.0)
                 .map(|e| {
-                    let k = truth.partition_point(|(t, _)| *t < e.t_s - 1e-6);
-                    (e.bias.accel_mps2 - truth[k].1).norm()
+                    let k = truth.partition_point(|b| b.t_s < e.t_s - 1e-6);
+                    (e.bias.accel_mps2 - truth[k].accel_bias).norm()
                 })
                 .fold(0.0, f64::max);
             eprintln!("accelerometer bias error after the turn: {worst:.4} m/s²");
