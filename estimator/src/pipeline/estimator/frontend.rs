@@ -12,7 +12,7 @@ use crate::lidar::LocalMapError;
 use crate::lidar::ScanFeatures;
 use crate::lidar::{DeskewError, SweepMotion};
 use crate::lidar::{ScanMatchResult, match_scan};
-use crate::object_removal::{BoxAtTime, ConstantVelocityBox, all_boxes_mask, dynamic_feature_mask};
+use crate::object_removal::{BoxAtTime, ConstantVelocityBox, moving_box_mask};
 use crate::pipeline::config::Variant;
 use crate::pipeline::estimate::{ModuleTimings, ScanMatchSummary};
 use crate::tracking::{Lifecycle, Motion, Track, TrackerConfig};
@@ -302,49 +302,54 @@ impl Estimator {
         if matches!(filter, FeatureFilter::Keep) {
             return Vec::new();
         }
-        // Edge features first, then planar: mask[..n_edge] belongs to the
-        // edge list, mask[n_edge..] to the planar list.
-        let n_edge = features.edge_indices.len();
-        let indices = || features.edge_indices.iter().chain(&features.planar_indices);
-        let points: Vec<Vector3<f64>> = indices().map(|&i| scan.points[i].position()).collect();
-        let times: Vec<f64> = indices()
-            .map(|&i| scan.t_s + f64::from(scan.points[i].time_offset_s))
-            .collect();
-        let pose_at = |t: f64| motion.pose_at(t);
-        let mask = match filter {
+        let boxes: Vec<&dyn BoxAtTime> = match filter {
             FeatureFilter::Keep => return Vec::new(),
-            FeatureFilter::AllBoxes(boxes) => {
-                all_boxes_mask(&points, &times, &pose_at, boxes, &self.config.filter)
-            }
-            FeatureFilter::Moving(boxes) => {
-                let refs: Vec<&dyn BoxAtTime> = boxes.iter().map(|b| b.as_ref()).collect();
-                dynamic_feature_mask(&points, &times, &pose_at, &refs, &self.config.filter)
-            }
+            FeatureFilter::AllBoxes(boxes) => boxes.iter().map(|b| b as &dyn BoxAtTime).collect(),
+            FeatureFilter::Moving(boxes) => boxes.iter().map(|b| b.as_ref()).collect(),
         };
-        // The inputs are finite and equally long and the config is
-        // validated at construction, so the filter cannot fail here.
-        let mask = mask.unwrap_or_else(|_| vec![false; points.len()]);
-        if !mask.contains(&true) {
+        // The feature points in scan order: the lists are in ring order, and
+        // a scan stored by firing column (the simulator's) read in ring
+        // order would touch a new cache line per point.
+        let mut is_feature = vec![false; scan.points.len()];
+        for &i in features.edge_indices.iter().chain(&features.planar_indices) {
+            is_feature[i] = true;
+        }
+        let in_scan_order: Vec<u32> = (0..scan.points.len() as u32)
+            .filter(|&i| is_feature[i as usize])
+            .collect();
+        let point = |k: usize| &scan.points[in_scan_order[k] as usize];
+        let pose_at = |t: f64| motion.pose_at(t);
+        let mut mask = vec![false; in_scan_order.len()];
+        // The point times are finite and the config is validated at
+        // construction, so the filter cannot fail here; if it did, nothing
+        // would be dropped.
+        if moving_box_mask(
+            |k| point(k).position(),
+            |k| scan.t_s + f64::from(point(k).time_offset_s),
+            &pose_at,
+            &boxes,
+            &self.config.filter,
+            &mut mask,
+        )
+        .is_err()
+            || !mask.contains(&true)
+        {
             return Vec::new();
         }
-        let mut removed: Vec<u32> = indices()
+        // ascending, as `in_scan_order` is
+        let removed: Vec<u32> = in_scan_order
+            .iter()
             .zip(&mask)
             .filter(|(_, drop)| **drop)
-            .map(|(&i, _)| i as u32)
+            .map(|(&i, _)| i)
             .collect();
-        removed.sort_unstable();
-        removed.dedup();
-        // The mask depends on a point's position and time only, so an index
-        // listed twice gets the same verdict at both places.
-        let (edge_mask, planar_mask) = mask.split_at(n_edge);
-        let mut edge_drop = edge_mask.iter();
-        features
-            .edge_indices
-            .retain(|_| !edge_drop.next().copied().unwrap_or(false));
-        let mut planar_drop = planar_mask.iter();
-        features
-            .planar_indices
-            .retain(|_| !planar_drop.next().copied().unwrap_or(false));
+        let mut dropped = is_feature;
+        dropped.fill(false);
+        for &i in &removed {
+            dropped[i as usize] = true;
+        }
+        features.edge_indices.retain(|&i| !dropped[i]);
+        features.planar_indices.retain(|&i| !dropped[i]);
         removed
     }
 
