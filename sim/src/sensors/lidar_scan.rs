@@ -451,9 +451,9 @@ impl BeamCandidates {
         self.flat.resize(starts[NUM_LASERS] as usize, 0);
         let mut next = starts;
         for &(index, first, end) in &self.runs {
-            for beam in usize::from(first)..usize::from(end) {
-                self.flat[next[beam] as usize] = index;
-                next[beam] += 1;
+            for slot in &mut next[usize::from(first)..usize::from(end)] {
+                self.flat[*slot as usize] = index;
+                *slot += 1;
             }
         }
     }
