@@ -36,10 +36,13 @@ impl SinCosTable {
         // round to nearest by the 1.5 * 2^52 trick (|t| < 2^51): f64::round is
         // a libm call on baseline x86-64
         const ROUND: f64 = 6_755_399_441_055_744.0;
-        let k = (t + ROUND) - ROUND;
+        let shifted = t + ROUND;
+        let k = shifted - ROUND;
         let d = (t - k) * (TAU / TABLE_LEN as f64);
-        // TABLE_LEN is a power of two: the mask is the Euclidean remainder
-        let (s0, c0) = self.0[(k as i64 & (TABLE_LEN as i64 - 1)) as usize];
+        // the low bits of `shifted`'s significand are k in two's complement,
+        // and TABLE_LEN is a power of two: masking them is the Euclidean
+        // remainder (no float-to-integer conversion)
+        let (s0, c0) = self.0[shifted.to_bits() as usize & (TABLE_LEN - 1)];
         let d2 = d * d;
         let sd = d * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)));
         let cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)));

@@ -224,8 +224,9 @@ pub struct RecordedFrame {
 /// LiDAR returns per ground-truth instance id in a sweep's labels.
 pub fn points_per_instance(labels: &[u32]) -> BTreeMap<u32, usize> {
     let mut counts = BTreeMap::new();
-    for &label in labels {
-        *counts.entry(label).or_insert(0) += 1;
+    // by runs: a sweep's labels come in long runs of one instance
+    for run in labels.chunk_by(|a, b| a == b) {
+        *counts.entry(run[0]).or_insert(0) += run.len();
     }
     counts
 }

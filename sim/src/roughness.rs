@@ -163,11 +163,11 @@ impl Roughness {
     pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let n = TILE_CELLS;
         let (u, v) = (x / CELL_M, y / CELL_M);
-        let (fu, fv) = (floor(u), floor(v));
-        let (tx, ty) = (u - fu, v - fv);
+        let (iu, iv) = (floor(u), floor(v));
+        let (tx, ty) = (u - iu as f64, v - iv as f64);
         // n is a power of two: the mask is the Euclidean remainder
-        let ix = (fu as i64 & (n as i64 - 1)) as usize;
-        let iy = (fv as i64 & (n as i64 - 1)) as usize;
+        let ix = (iu & (n as i64 - 1)) as usize;
+        let iy = (iv & (n as i64 - 1)) as usize;
         let (ix1, iy1) = ((ix + 1) % n, (iy + 1) % n);
         let h = |i: usize, j: usize| self.heights[j * n + i] as f64 * self.scale_m;
         let (h00, h10, h01, h11) = (h(ix, iy), h(ix1, iy), h(ix, iy1), h(ix1, iy1));
@@ -180,12 +180,12 @@ impl Roughness {
     }
 }
 
-/// `x.floor()` for finite |x| < 2^62 without the libm call it is on
-/// baseline x86-64.
+/// `x.floor()` as an integer, for finite |x| < 2^52, without the libm call
+/// it is on baseline x86-64.
 #[inline]
-fn floor(x: f64) -> f64 {
-    let t = x as i64 as f64;
-    if t > x { t - 1.0 } else { t }
+fn floor(x: f64) -> i64 {
+    let t = x as i64;
+    if t as f64 > x { t - 1 } else { t }
 }
 
 #[cfg(test)]

@@ -103,7 +103,7 @@ impl Ground {
 
     /// The large-scale terrain: plane and undulations (one sin_cos per
     /// undulation).
-    #[inline]
+    #[inline(always)]
     pub fn terrain_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let mut h = self.base_height_m + self.slope.x * x + self.slope.y * y;
         let (mut gx, mut gy) = (self.slope.x, self.slope.y);
@@ -118,7 +118,7 @@ impl Ground {
     }
 
     /// The road's detail on the terrain: crown and roughness texture.
-    #[inline]
+    #[inline(always)]
     pub fn detail_height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let (mut h, mut gx, mut gy) = (0.0, 0.0, 0.0);
         if let Some(c) = &self.crown {

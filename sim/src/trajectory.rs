@@ -97,20 +97,29 @@ impl Trajectory {
         self.t0_s + (self.knots.len() - 1) as f64 * self.dt_s
     }
 
-    /// Interpolated knot (values and derivatives) at time `t_s`.
-    pub fn knot_at(&self, t_s: f64) -> Knot {
+    /// Where `t_s` falls: before the first or after the last knot (at
+    /// rest there), or on the segment between two knots at the normalised
+    /// parameter `s`.
+    fn place(&self, t_s: f64) -> Place<'_> {
         let n = self.knots.len();
         // strictly outside: a query exactly at an end knot keeps its motion
         if n == 1 || t_s < self.t0_s {
-            return at_rest(&self.knots[0]);
+            return Place::Rest(&self.knots[0]);
         }
         if t_s > self.end_s() {
-            return at_rest(&self.knots[n - 1]);
+            return Place::Rest(&self.knots[n - 1]);
         }
         let u = (t_s - self.t0_s) / self.dt_s;
         let i = (u.floor() as usize).min(n - 2);
-        let s = u - i as f64;
-        let (a, b) = (&self.knots[i], &self.knots[i + 1]);
+        Place::Between(&self.knots[i], &self.knots[i + 1], u - i as f64)
+    }
+
+    /// Interpolated knot (values and derivatives) at time `t_s`.
+    pub fn knot_at(&self, t_s: f64) -> Knot {
+        let (a, b, s) = match self.place(t_s) {
+            Place::Rest(k) => return at_rest(k),
+            Place::Between(a, b, s) => (a, b, s),
+        };
         let h = self.dt_s;
         let mut out = Knot::default();
         for c in 0..3 {
@@ -120,10 +129,22 @@ impl Trajectory {
         out
     }
 
-    /// The body pose `t_world_body` at `t_s` (clamped to the trajectory).
+    /// The body pose `t_world_body` at `t_s` (clamped to the trajectory):
+    /// that of [`Trajectory::knot_at`], from the values alone.
     pub fn pose_at(&self, t_s: f64) -> Isometry3<f64> {
-        let k = self.knot_at(t_s);
-        pose_of(&k)
+        match self.place(t_s) {
+            Place::Rest(k) => knot_pose(k),
+            Place::Between(a, b, s) => {
+                let h = self.dt_s;
+                let at = |c: usize, jets: fn(&Knot) -> &[Jet; 3]| {
+                    quintic_hermite_value(&jets(a)[c], &jets(b)[c], s, h)
+                };
+                pose_of(
+                    std::array::from_fn(|c| at(c, |k| &k.position)),
+                    std::array::from_fn(|c| at(c, |k| &k.euler)),
+                )
+            }
+        }
     }
 
     /// Pose, velocities and accelerations at `t_s` (clamped to the trajectory).
@@ -135,7 +156,7 @@ impl Trajectory {
         let e = euler_rate_matrix(pitch.value, roll.value);
         let de = euler_rate_matrix_dot(pitch, roll);
         KinematicState {
-            t_world_body: pose_of(&k),
+            t_world_body: knot_pose(&k),
             velocity_world_mps: Vector3::new(
                 k.position[0].rate,
                 k.position[1].rate,
@@ -160,18 +181,26 @@ fn at_rest(k: &Knot) -> Knot {
     }
 }
 
-fn pose_of(k: &Knot) -> Isometry3<f64> {
-    let [yaw, pitch, roll] = k.euler;
-    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_euler_angles(
-        roll.value,
-        pitch.value,
-        yaw.value,
-    ));
-    let t = Translation3::new(
-        k.position[0].value,
-        k.position[1].value,
-        k.position[2].value,
-    );
+/// Where [`Trajectory::place`] puts a time.
+enum Place<'a> {
+    /// Outside the knots: at rest at this one.
+    Rest(&'a Knot),
+    /// Between two knots, at the normalised parameter in [0, 1].
+    Between(&'a Knot, &'a Knot, f64),
+}
+
+/// The pose of a knot (its values).
+fn knot_pose(k: &Knot) -> Isometry3<f64> {
+    pose_of(k.position.map(|j| j.value), k.euler.map(|j| j.value))
+}
+
+/// The pose of a knot's values: `position` (x, y, z) and `euler` (yaw,
+/// pitch, roll).
+fn pose_of(position: [f64; 3], euler: [f64; 3]) -> Isometry3<f64> {
+    let [yaw, pitch, roll] = euler;
+    let rotation =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_euler_angles(roll, pitch, yaw));
+    let t = Translation3::new(position[0], position[1], position[2]);
     Isometry3::from_parts(t, rotation)
 }
 
@@ -263,6 +292,33 @@ fn quintic_hermite(a: &Jet, b: &Jet, s: f64, h: f64) -> Jet {
         }
     }
     Jet::new(d[0], d[1] / h, d[2] / (h * h))
+}
+
+/// The value of [`quintic_hermite`] alone (the same operations).
+fn quintic_hermite_value(a: &Jet, b: &Jet, s: f64, h: f64) -> f64 {
+    let (s2, s3) = (s * s, s * s * s);
+    let (s4, s5) = (s3 * s, s3 * s2);
+    let basis = [
+        1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5,
+        s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5,
+        0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5,
+        10.0 * s3 - 15.0 * s4 + 6.0 * s5,
+        -4.0 * s3 + 7.0 * s4 - 3.0 * s5,
+        0.5 * s3 - s4 + 0.5 * s5,
+    ];
+    let coef = [
+        a.value,
+        a.rate * h,
+        a.accel * h * h,
+        b.value,
+        b.rate * h,
+        b.accel * h * h,
+    ];
+    let mut value = 0.0;
+    for (c, bf) in coef.iter().zip(basis.iter()) {
+        value += c * bf;
+    }
+    value
 }
 
 #[cfg(test)]

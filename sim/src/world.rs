@@ -36,7 +36,7 @@ mod ground;
 mod shapes;
 
 use ground::intersect_ground;
-use shapes::{intersect_cuboid, intersect_shape};
+use shapes::{Placement, intersect_cuboid, intersect_shape};
 
 /// What a ray hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -129,6 +129,7 @@ struct StaticGeom {
     kind: StaticKind,
     shape: Shape,
     t_world_object: Isometry3<f64>,
+    placement: Placement,
 }
 
 /// The world with every agent pose evaluated at one time.
@@ -147,7 +148,7 @@ type GroundSample = (f64, f64, f64);
 #[derive(Debug, Clone, Copy)]
 struct AgentPose {
     index: usize,
-    t_world_box: Isometry3<f64>,
+    box_placement: Placement,
     center_world: Point3<f64>,
 }
 
@@ -177,6 +178,7 @@ impl World {
                 kind: s.kind,
                 shape: s.shape,
                 t_world_object: s.t_world_object,
+                placement: Placement::of(&s.t_world_object),
             })
             .collect();
         for (index, s) in statics.iter().enumerate() {
@@ -360,7 +362,7 @@ impl World {
                 let t_world_box = agent.trajectory.pose_at(t_s);
                 Some(AgentPose {
                     index,
-                    t_world_box,
+                    box_placement: Placement::of(&t_world_box),
                     center_world: Point3::from(t_world_box.translation.vector),
                 })
             })
@@ -477,7 +479,7 @@ impl World {
             let index = (*self.static_of_collider.get(leaf as usize)?)?;
             let s = &self.statics[index];
             let (range, normal) =
-                intersect_shape(&s.shape, &s.t_world_object, origin, dir, max_range_m)?;
+                intersect_shape(&s.shape, &s.placement, origin, dir, max_range_m)?;
             if best.get().is_none_or(|(r, _, _)| range < r) {
                 best.set(Some((range, normal, index)));
             }
@@ -515,7 +517,7 @@ impl World {
             }
             let s = &self.statics[index];
             let Some((range, normal)) =
-                intersect_shape(&s.shape, &s.t_world_object, origin, dir, max_range_m)
+                intersect_shape(&s.shape, &s.placement, origin, dir, max_range_m)
             else {
                 continue;
             };
@@ -714,7 +716,7 @@ impl WorldAt<'_> {
             }
             if let Some((range_m, normal_world)) = intersect_cuboid(
                 &agent.half_extents_m,
-                &pose.t_world_box,
+                &pose.box_placement,
                 origin_world,
                 dir,
                 limit,

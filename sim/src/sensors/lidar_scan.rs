@@ -126,6 +126,10 @@ impl LidarSimulator {
         validate(&config)?;
         let table = elevation_table_rad();
         let elevation_cos_sin = table.map(|el| (el.cos(), el.sin()));
+        debug_assert!(
+            table.windows(2).all(|pair| pair[0] > pair[1]),
+            "beams fall with the beam index (BeamCandidates)"
+        );
         let mut gains = ChaCha8Rng::seed_from_u64(seed);
         gains.set_stream(LASER_GAIN_STREAM);
         let laser_gain = std::array::from_fn(|_| {
@@ -214,6 +218,7 @@ impl LidarSimulator {
                 // next column's search starts (a task's first column has none,
                 // so a task's points do not depend on the others')
                 let mut ground_ranges_m = [f64::NAN; NUM_LASERS];
+                let mut candidates = BeamCandidates::default();
                 let columns = points
                     .chunks_mut(NUM_LASERS)
                     .zip(labels.chunks_mut(NUM_LASERS));
@@ -224,6 +229,7 @@ impl LidarSimulator {
                         points,
                         labels,
                         &mut ground_ranges_m,
+                        &mut candidates,
                     );
                 }
                 counts
@@ -248,7 +254,8 @@ impl LidarSimulator {
     /// in beam order, to the front of `points` and `labels` (64 slots each),
     /// and their number is returned. `ground_ranges_m` holds each beam's
     /// ground range in the column before (NaN: none), where the beam's
-    /// search starts, and is updated to this column's.
+    /// search starts, and is updated to this column's. `candidates` is
+    /// scratch space.
     fn fire_column(
         &self,
         sweep: &Sweep<'_>,
@@ -256,6 +263,7 @@ impl LidarSimulator {
         points: &mut [LidarPoint],
         labels: &mut [u32],
         ground_ranges_m: &mut [f64; NUM_LASERS],
+        candidates: &mut BeamCandidates,
     ) -> u8 {
         let mut count = 0;
         let cfg = &self.config;
@@ -289,7 +297,8 @@ impl LidarSimulator {
         let across_world = t_world_lidar.rotation * Vector3::new(-sin_az, cos_az, 0.0);
         let spheres = sweep.world.static_bounding_spheres();
         let corners = sweep.world.static_bounding_corners();
-        let statics: Vec<(usize, f64, f64)> = sweep
+        candidates.clear();
+        let statics = sweep
             .static_bins
             .at(cfg.azimuth_at(tau_s))
             .iter()
@@ -323,9 +332,11 @@ impl LidarSimulator {
                     // beside or behind the sensor: any beam may reach it
                     (index, f64::NEG_INFINITY, f64::INFINITY)
                 }
-            })
-            .collect();
-        let mut beam_statics = Vec::with_capacity(statics.len());
+            });
+        for (index, lo, hi) in statics {
+            candidates.add(index, &self.elevation_tan, lo, hi);
+        }
+        candidates.finish();
         let snapshot = sweep.world.snapshot_agents(t_s, visible);
         let mut rng = column_rng(self.seed, sweep.frame_index, column);
         for (beam, &(cos_el, sin_el)) in self.elevation_cos_sin.iter().enumerate() {
@@ -335,19 +346,11 @@ impl LidarSimulator {
             let noise: f64 = rng.sample(StandardNormal);
             let dropout: f64 = rng.random();
             let speckle: f64 = rng.sample(StandardNormal);
-            let slope = self.elevation_tan[beam];
-            beam_statics.clear();
-            beam_statics.extend(
-                statics
-                    .iter()
-                    .filter(|(_, lo, hi)| (*lo..=*hi).contains(&slope))
-                    .map(|(index, _, _)| *index),
-            );
             let Some(hit) = snapshot.cast_ray_next_to(
                 &origin_world,
                 &dir_world,
                 cfg.max_range_m,
-                &beam_statics,
+                candidates.of_beam(beam),
                 &mut ground_ranges_m[beam],
             ) else {
                 continue;
@@ -390,6 +393,75 @@ struct Sweep<'a> {
     static_bins: &'a StaticBins,
     frame_index: u64,
     t_start_s: f64,
+}
+
+/// The statics each beam of one column may hit: those whose range of beam
+/// slopes (tan elevation) holds the beam's, listed per beam in the order
+/// they were added. A static's beams are a run of consecutive beams, as the
+/// beams' slopes fall with the beam index; the lists are kept flat, and
+/// the buffers are reused from column to column.
+#[derive(Debug)]
+struct BeamCandidates {
+    /// Per static added: its index and its run of beams, `first..end`.
+    runs: Vec<(usize, u8, u8)>,
+    /// Where each beam's list starts in `flat` (and where the last ends).
+    starts: [u32; NUM_LASERS + 1],
+    flat: Vec<usize>,
+}
+
+impl Default for BeamCandidates {
+    fn default() -> Self {
+        BeamCandidates {
+            runs: Vec::new(),
+            starts: [0; NUM_LASERS + 1],
+            flat: Vec::new(),
+        }
+    }
+}
+
+impl BeamCandidates {
+    /// Forgets every static.
+    fn clear(&mut self) {
+        self.runs.clear();
+    }
+
+    /// Adds static `index`, which beams with slopes in `[lo, hi]` may hit;
+    /// `slopes` are the beams', falling with the beam index.
+    fn add(&mut self, index: usize, slopes: &[f64; NUM_LASERS], lo: f64, hi: f64) {
+        let first = slopes.partition_point(|&slope| slope > hi);
+        let end = slopes.partition_point(|&slope| slope >= lo);
+        if first < end {
+            self.runs.push((index, first as u8, end as u8));
+        }
+    }
+
+    /// Lays out the lists of the statics added since [`BeamCandidates::clear`].
+    fn finish(&mut self) {
+        let mut starts = [0u32; NUM_LASERS + 1];
+        for &(_, first, end) in &self.runs {
+            for beam in first..end {
+                starts[usize::from(beam) + 1] += 1;
+            }
+        }
+        for beam in 0..NUM_LASERS {
+            starts[beam + 1] += starts[beam];
+        }
+        self.starts = starts;
+        self.flat.clear();
+        self.flat.resize(starts[NUM_LASERS] as usize, 0);
+        let mut next = starts;
+        for &(index, first, end) in &self.runs {
+            for slot in &mut next[usize::from(first)..usize::from(end)] {
+                self.flat[*slot as usize] = index;
+                *slot += 1;
+            }
+        }
+    }
+
+    /// The statics beam `beam` may hit, in the order they were added.
+    fn of_beam(&self, beam: usize) -> &[usize] {
+        &self.flat[self.starts[beam] as usize..self.starts[beam + 1] as usize]
+    }
 }
 
 /// A static's bounding box must lie at least this far ahead of the sensor
@@ -639,6 +711,39 @@ mod tests {
             mean.abs() < 0.15 && (sd - want_sd).abs() < 0.1,
             "{mean} {sd}"
         );
+    }
+
+    #[test]
+    fn beam_candidates_are_the_statics_whose_slope_range_holds_the_beam() {
+        let table = elevation_table_rad();
+        assert!(table.windows(2).all(|pair| pair[0] > pair[1]));
+        let slopes = table.map(f64::tan);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut candidates = BeamCandidates::default();
+        for _ in 0..50 {
+            candidates.clear();
+            let mut ranges = Vec::new();
+            for index in 0..rng.random_range(0..40) {
+                let (a, b): (f64, f64) = (rng.random_range(-0.6..0.1), rng.random_range(-0.6..0.1));
+                let (lo, hi) = match rng.random_range(0..4) {
+                    0 => (f64::NEG_INFINITY, f64::INFINITY),
+                    // exactly a beam's slope at either end
+                    1 => (slopes[index % NUM_LASERS], slopes[index % NUM_LASERS]),
+                    _ => (a.min(b), a.max(b)),
+                };
+                candidates.add(index * 7, &slopes, lo, hi);
+                ranges.push((index * 7, lo, hi));
+            }
+            candidates.finish();
+            for (beam, slope) in slopes.iter().enumerate() {
+                let want: Vec<usize> = ranges
+                    .iter()
+                    .filter(|(_, lo, hi)| (*lo..=*hi).contains(slope))
+                    .map(|(index, _, _)| *index)
+                    .collect();
+                assert_eq!(candidates.of_beam(beam), want.as_slice(), "{beam}");
+            }
+        }
     }
 
     #[test]

@@ -5,30 +5,75 @@ use super::ShapeHit;
 use crate::scene::Shape;
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
-/// Exact f64 ray intersection with a shape placed at `t_world_object`:
+/// Where a shape is, for the ray tests: the object's axes in the world (the
+/// columns of its rotation) and its origin. A ray goes into the object's
+/// frame by three dot products, cheaper than rotating by a quaternion.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Placement {
+    /// The object's x, y and z axes, world frame.
+    axes: [Vector3<f64>; 3],
+    /// The object's origin, world frame.
+    origin: Point3<f64>,
+}
+
+impl Placement {
+    /// The placement of an object at `t_world_object`.
+    pub(super) fn of(t_world_object: &Isometry3<f64>) -> Placement {
+        let rotation = t_world_object.rotation.to_rotation_matrix();
+        let m = rotation.matrix();
+        Placement {
+            axes: [0, 1, 2].map(|i| m.column(i).into_owned()),
+            origin: Point3::from(t_world_object.translation.vector),
+        }
+    }
+
+    /// A world vector in the object's frame.
+    #[inline]
+    fn vector_to_local(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        Vector3::new(
+            self.axes[0].dot(v),
+            self.axes[1].dot(v),
+            self.axes[2].dot(v),
+        )
+    }
+
+    /// A world point in the object's frame.
+    #[inline]
+    fn point_to_local(&self, p: &Point3<f64>) -> Point3<f64> {
+        Point3::from(self.vector_to_local(&(p - self.origin)))
+    }
+
+    /// An object-frame vector in the world.
+    #[inline]
+    fn vector_to_world(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        self.axes[0] * v.x + self.axes[1] * v.y + self.axes[2] * v.z
+    }
+}
+
+/// Exact f64 ray intersection with a shape placed at `placement`:
 /// nearest entry within (0, max_range_m] and the outward world normal.
 pub(super) fn intersect_shape(
     shape: &Shape,
-    t_world_object: &Isometry3<f64>,
+    placement: &Placement,
     origin: &Point3<f64>,
     dir: &Vector3<f64>,
     max_range_m: f64,
 ) -> Option<ShapeHit> {
     match shape {
         Shape::Cuboid { half_extents_m } => {
-            intersect_cuboid(half_extents_m, t_world_object, origin, dir, max_range_m)
+            intersect_cuboid(half_extents_m, placement, origin, dir, max_range_m)
         }
         Shape::Cylinder {
             radius_m,
             half_height_m,
         } => {
-            let o = t_world_object.inverse_transform_point(origin);
-            let d = t_world_object.inverse_transform_vector(dir);
+            let o = placement.point_to_local(origin);
+            let d = placement.vector_to_local(dir);
             let (t_in, n_local) = cylinder_entry(*radius_m, *half_height_m, &o, &d)?;
-            accept(t_in, max_range_m, t_world_object, n_local)
+            accept(t_in, max_range_m, placement, n_local)
         }
         Shape::Ball { radius_m } => {
-            let c = Point3::from(t_world_object.translation.vector);
+            let c = placement.origin;
             let oc = origin - c;
             let half_b = oc.dot(dir);
             let c_term = oc.norm_squared() - radius_m * radius_m;
@@ -50,25 +95,28 @@ pub(super) fn intersect_shape(
 fn accept(
     t_in: f64,
     max_range_m: f64,
-    t_world_object: &Isometry3<f64>,
+    placement: &Placement,
     n_local: Vector3<f64>,
 ) -> Option<ShapeHit> {
     if t_in <= 0.0 || t_in > max_range_m {
         return None;
     }
-    Some((t_in, Unit::new_normalize(t_world_object.rotation * n_local)))
+    Some((
+        t_in,
+        Unit::new_normalize(placement.vector_to_world(&n_local)),
+    ))
 }
 
 /// Slab test of an oriented box; entry range and outward world normal.
 pub(super) fn intersect_cuboid(
     half_extents_m: &Vector3<f64>,
-    t_world_box: &Isometry3<f64>,
+    placement: &Placement,
     origin: &Point3<f64>,
     dir: &Vector3<f64>,
     max_range_m: f64,
 ) -> Option<ShapeHit> {
-    let o = t_world_box.inverse_transform_point(origin);
-    let d = t_world_box.inverse_transform_vector(dir);
+    let o = placement.point_to_local(origin);
+    let d = placement.vector_to_local(dir);
     let mut t_in = f64::NEG_INFINITY;
     let mut t_out = f64::INFINITY;
     let mut axis_in = 0;
@@ -101,7 +149,7 @@ pub(super) fn intersect_cuboid(
     }
     let mut n_local = Vector3::zeros();
     n_local[axis_in] = sign_in;
-    accept(t_in, max_range_m, t_world_box, n_local)
+    accept(t_in, max_range_m, placement, n_local)
 }
 
 /// Entry of a ray into a z-axis cylinder (local frame): (t, outward normal).

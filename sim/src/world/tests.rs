@@ -350,7 +350,7 @@ fn analytic_shapes_agree_with_parry() {
                 rng.random_range(-1.5..1.5),
             );
         let dir = Unit::new_normalize(target - origin);
-        let ours = intersect_shape(&shape, &pose, &origin, &dir, 100.0);
+        let ours = intersect_shape(&shape, &Placement::of(&pose), &origin, &dir, 100.0);
         // parry in the local frame of the ray origin
         let rel = Isometry3::from_parts(
             Translation3::from(pose.translation.vector - origin.coords),
