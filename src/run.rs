@@ -66,7 +66,7 @@ pub enum RunError {
     },
     /// The estimator never produced a pose.
     #[error(
-        "{path}: the estimator produced no pose (it never initialised: no static interval at the start?)"
+        "{path}: the estimator produced no pose: it never initialised (it needs a static interval, or, moving, LiDAR-only matches that constrain every direction; a straight corridor of guard rails leaves the motion along it unobserved)"
     )]
     NoEstimate {
         /// The source.

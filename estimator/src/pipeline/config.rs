@@ -209,6 +209,13 @@ pub struct EstimatorConfig {
     pub redeskew_rotation_rad: f64,
     /// LiDAR-only: re-de-skews per sweep at most.
     pub max_redeskew_rounds: usize,
+    /// LiDAR-only: the second sweep has no velocity to predict from, so it
+    /// is matched from forward speeds `0, step, 2 step, …` up to this, m/s,
+    /// and the speed explaining the most of the scene is kept.
+    pub start_max_speed_mps: f64,
+    /// The step of that search, m/s: small enough that one sweep at half
+    /// the step stays well inside the correspondence distance.
+    pub start_speed_step_mps: f64,
 }
 
 impl Default for EstimatorConfig {
@@ -262,6 +269,10 @@ impl Default for EstimatorConfig {
             redeskew_translation_m: 0.03,
             redeskew_rotation_rad: 0.003,
             max_redeskew_rounds: 2,
+            // motorway speeds; 5 m/s puts the nearest speed at most 0.25 m
+            // from the truth in a 0.1 s sweep, inside the 1 m match distance
+            start_max_speed_mps: 40.0,
+            start_speed_step_mps: 5.0,
             solver: SolverConfig {
                 max_iterations: 10,
                 function_tolerance: 1e-6,

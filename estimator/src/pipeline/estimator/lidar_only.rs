@@ -48,6 +48,16 @@ impl Estimator {
         let mut features;
         let mut matched;
         let mut rounds = 0;
+        // One pose so far: no velocity to predict from, and the ego may
+        // already move metres per sweep (a drive recorded in traffic).
+        if let (1, Some(&(t_b, pose_b))) = (
+            self.lidar_only_history.len(),
+            self.lidar_only_history.back(),
+        ) && mid_s > t_b
+        {
+            (guess_mid, twist_per_s) =
+                self.search_start_speed(frame_index, scan, (t_b, pose_b), &mut timings)?;
+        }
         loop {
             let motion = SweepMotion::constant_velocity(
                 t_s,
@@ -121,5 +131,60 @@ impl Estimator {
             tracks,
             timings,
         })
+    }
+
+    /// The second sweep's start: the pose and velocity of the forward speed,
+    /// among `0, step, 2 step, … max` ([`EstimatorConfig::start_speed_step_mps`],
+    /// along the LiDAR's x axis), whose de-skewed sweep, matched from where
+    /// that speed puts it, finds the most correspondences. Matching from a
+    /// standstill guess alone would lock onto traffic moving with the ego
+    /// when the static world lies more than the correspondence distance
+    /// away; the speed that explains the most of the scene wins instead.
+    ///
+    /// [`EstimatorConfig::start_speed_step_mps`]: crate::pipeline::config::EstimatorConfig::start_speed_step_mps
+    fn search_start_speed(
+        &mut self,
+        frame_index: u64,
+        scan: &LidarScan,
+        (t_b, pose_b): (f64, Isometry3<f64>),
+        timings: &mut ModuleTimings,
+    ) -> Result<(Isometry3<f64>, Vector6<f64>), EstimatorError> {
+        let half_s = 0.5 * scan.sweep_duration_s.max(1e-3);
+        let mid_s = scan.t_s + half_s;
+        let step = self.config.start_speed_step_mps;
+        let speeds = if step > 0.0 {
+            (self.config.start_max_speed_mps / step).floor().max(0.0) as usize
+        } else {
+            0
+        };
+        let mut best: Option<(usize, Isometry3<f64>, Vector6<f64>)> = None;
+        for k in 0..=speeds {
+            let mut twist = Vector6::zeros();
+            twist[0] = k as f64 * step;
+            let guess = pose_b * lie::se3_exp(&(twist * (mid_s - t_b)));
+            let motion = SweepMotion::constant_velocity(
+                scan.t_s,
+                guess * lie::se3_exp(&(-twist * half_s)),
+                mid_s + half_s,
+                guess * lie::se3_exp(&(twist * half_s)),
+            )
+            .map_err(|source| EstimatorError::Deskew {
+                frame_index,
+                t_s: scan.t_s,
+                source,
+            })?;
+            let filter = self.feature_filter(scan, &motion);
+            let features = self.sweep_features(scan, &motion, mid_s, &filter, timings);
+            let clock = Instant::now();
+            let matched = self.match_features(&features, &guess);
+            timings.scan_matching += clock.elapsed();
+            let Some(m) = matched else { continue };
+            let found = m.edge_matches + m.planar_matches;
+            if best.as_ref().is_none_or(|(most, ..)| found > *most) {
+                let twist = lie::se3_log(&(pose_b.inverse() * m.t_world_lidar)) / (mid_s - t_b);
+                best = Some((found, m.t_world_lidar, twist));
+            }
+        }
+        Ok(best.map_or((pose_b, Vector6::zeros()), |(_, pose, twist)| (pose, twist)))
     }
 }
