@@ -45,7 +45,7 @@ mod variable_index;
 pub use between_factor::BetweenFactor;
 pub use conditioned_factor::ConditionedFactor;
 pub use elimination::SolverWorkspace;
-pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
+pub use factor::{Factor, FactorError, JacobiansMut, Linearization, check_factor_jacobians};
 pub use imu_factor::{BiasRandomWalkFactor, ImuFactor, ImuFactorJacobians, Vector9};
 pub use key::Key;
 pub use linearization::{NormalEquations, linearize_normal_equations, total_cost};
