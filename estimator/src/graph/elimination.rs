@@ -1,17 +1,20 @@
-//! Elimination: a fill-reducing block ordering (AMD on the graph of
-//! variables) and faer's supernodal sparse Cholesky of `H + diag(damping)`,
-//! with the symbolic analyses kept in a reusable [`SolverWorkspace`].
+//! Elimination: the Cholesky factorization of `H + diag(damping)`. Small
+//! problems (a sliding window's connected parts, mostly) take faer's dense
+//! Cholesky; larger ones a fill-reducing block ordering (AMD on the graph of
+//! variables) and faer's supernodal sparse Cholesky, with the symbolic
+//! analyses kept in a reusable [`SolverWorkspace`].
 
 use super::linearization::{BlockPattern, NormalEquations};
 use super::optimizer::SolverError;
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::sparse::linalg::{SupernodalThreshold, amd};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, Mat, Side};
+use faer::{Conj, Mat, Par, Side};
 use nalgebra::DVector;
 
 /// Sparse Cholesky factorizations that keep their symbolic analyses
@@ -30,13 +33,35 @@ use nalgebra::DVector;
 /// cost grows linearly with the number of objects; the variables' blocks
 /// make a supernodal factorization (dense kernels) pay off over the scalar
 /// simplicial one.
+///
+/// Problems of at most `dense_max_dim` dimensions skip all of that: `H` is
+/// written into a dense matrix (in variable order) and factorized by faer's
+/// dense Cholesky, cheaper than the sparse one's bookkeeping at these sizes.
 pub(super) struct SparseCholesky {
     /// Most recently used first, at most [`SparseCholesky::KEPT_PATTERNS`].
     structures: Vec<CholeskyStructure>,
     /// Values of `H + diag(damping)` on the front pattern (buffer reused).
     matrix_values: Vec<f64>,
-    /// Whether the front structure holds a successful factorization.
-    factored: bool,
+    /// `H + diag(damping)`, then its factor `L` (lower triangle), of the
+    /// latest dense factorization.
+    dense: Mat<f64>,
+    /// Scratch of the dense factorization.
+    dense_workspace: MemBuffer,
+    /// Largest total dimension factorized densely.
+    dense_max_dim: usize,
+    /// Which factorization the latest successful [`SparseCholesky::factorize`] made.
+    factored: Factored,
+}
+
+/// The state of a [`SparseCholesky`] after a factorization.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Factored {
+    /// None, or it failed.
+    No,
+    /// `dense` holds `L`.
+    Dense,
+    /// The front structure holds `L`.
+    Sparse,
 }
 
 /// What stays fixed while the block structure does.
@@ -57,9 +82,22 @@ struct CholeskyStructure {
 pub struct SolverWorkspace(pub(super) SparseCholesky);
 
 impl SolverWorkspace {
-    /// An empty workspace.
+    /// An empty workspace: problems of at most
+    /// [`SolverWorkspace::DENSE_MAX_DIM`] dimensions are factorized densely.
     pub fn new() -> SolverWorkspace {
         SolverWorkspace(SparseCholesky::new())
+    }
+
+    /// Largest total tangent dimension solved with a dense Cholesky by
+    /// default; larger problems go the sparse way.
+    pub const DENSE_MAX_DIM: usize = 200;
+
+    /// An empty workspace that factorizes problems of at most
+    /// `dense_max_dim` dimensions densely and larger ones sparsely (0: always
+    /// sparse, `usize::MAX`: always dense). The two give the same steps to
+    /// rounding.
+    pub fn with_dense_max_dim(dense_max_dim: usize) -> SolverWorkspace {
+        SolverWorkspace(SparseCholesky::with_dense_max_dim(dense_max_dim))
     }
 }
 
@@ -83,10 +121,18 @@ impl SparseCholesky {
     const KEPT_PATTERNS: usize = 8;
 
     pub(super) fn new() -> SparseCholesky {
+        SparseCholesky::with_dense_max_dim(SolverWorkspace::DENSE_MAX_DIM)
+    }
+
+    /// See [`SolverWorkspace::with_dense_max_dim`].
+    pub(super) fn with_dense_max_dim(dense_max_dim: usize) -> SparseCholesky {
         SparseCholesky {
             structures: Vec::new(),
             matrix_values: Vec::new(),
-            factored: false,
+            dense: Mat::new(),
+            dense_workspace: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            dense_max_dim,
+            factored: Factored::No,
         }
     }
 
@@ -114,14 +160,18 @@ impl SparseCholesky {
     }
 
     /// Numeric factorization of `H + diag(damping)`; `Ok(false)` if not
-    /// positive definite. Builds the ordering, pattern and symbolic
-    /// analysis only for a block structure not seen among the kept ones.
+    /// positive definite. Dense up to `dense_max_dim` dimensions; sparse
+    /// beyond, building the ordering, pattern and symbolic analysis only for
+    /// a block structure not seen among the kept ones.
     pub(super) fn factorize(
         &mut self,
         normal: &NormalEquations,
         damping: &DVector<f64>,
     ) -> Result<bool, SolverError> {
-        self.factored = false;
+        self.factored = Factored::No;
+        if normal.index.total_dim() <= self.dense_max_dim {
+            return self.factorize_dense(normal, damping);
+        }
         match self
             .structures
             .iter()
@@ -153,15 +203,61 @@ impl SparseCholesky {
             Default::default(),
         );
         // The only numeric failure is a non-positive pivot: not SPD.
-        self.factored = result.is_ok();
-        Ok(self.factored)
+        if result.is_ok() {
+            self.factored = Factored::Sparse;
+        }
+        Ok(result.is_ok())
+    }
+
+    /// [`SparseCholesky::factorize`] with faer's dense Cholesky, `H` in
+    /// variable order (its lower triangle written block by block).
+    fn factorize_dense(
+        &mut self,
+        normal: &NormalEquations,
+        damping: &DVector<f64>,
+    ) -> Result<bool, SolverError> {
+        let n = normal.index.total_dim();
+        if self.dense.nrows() != n {
+            self.dense = Mat::zeros(n, n);
+            let par = Par::Seq;
+            let req = llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
+                .or(llt::solve::solve_in_place_scratch::<f64>(n, 1, par));
+            self.dense_workspace = MemBuffer::try_new(req).map_err(factorization_error)?;
+        } else {
+            self.dense.fill(0.0);
+        }
+        normal.write_lower(self.dense.as_mut());
+        for (i, &d) in damping.iter().enumerate() {
+            self.dense[(i, i)] += d;
+        }
+        let result = llt::factor::cholesky_in_place(
+            self.dense.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut self.dense_workspace),
+            Default::default(),
+        );
+        if result.is_ok() {
+            self.factored = Factored::Dense;
+        }
+        Ok(result.is_ok())
     }
 
     /// `rhs ← (H + diag(damping))⁻¹·rhs` (rows in variable order) with the
     /// latest successful factorization.
     pub(super) fn solve_in_place(&mut self, mut rhs: faer::MatMut<'_, f64>) {
+        if self.factored == Factored::Dense {
+            llt::solve::solve_in_place_with_conj(
+                self.dense.as_ref(),
+                Conj::No,
+                rhs,
+                Par::Seq,
+                MemStack::new(&mut self.dense_workspace),
+            );
+            return;
+        }
         let structure = match self.structures.first_mut() {
-            Some(structure) if self.factored => structure,
+            Some(structure) if self.factored == Factored::Sparse => structure,
             _ => unreachable!("solve_in_place after a successful factorize"),
         };
         let (n, k) = (rhs.nrows(), rhs.ncols());
@@ -350,6 +446,30 @@ mod tests {
             .unwrap()
             .expect("SPD");
         let dense = full.cholesky().expect("SPD").solve(&rhs);
-        assert!((x - dense).amax() < 1e-9);
+        assert!((&x - &dense).amax() < 1e-9);
+        // faer's dense Cholesky (the small problems' path) agrees, for one
+        // right-hand side and for several.
+        let mut dense_path = SparseCholesky::with_dense_max_dim(usize::MAX);
+        let y = dense_path
+            .solve(&normal, &damping, &rhs)
+            .unwrap()
+            .expect("SPD");
+        assert!((&x - &y).amax() < 1e-12 * x.amax().max(1.0));
+        let mut sparse_path = SparseCholesky::with_dense_max_dim(0);
+        assert!(sparse_path.factorize(&normal, &damping).unwrap());
+        let columns = |i: usize, c: usize| ((i * 3 + c * 7) as f64 * 0.21).cos();
+        let mut several_dense = Mat::<f64>::from_fn(n, 3, columns);
+        let mut several_sparse = Mat::<f64>::from_fn(n, 3, columns);
+        dense_path.solve_in_place(several_dense.as_mut());
+        sparse_path.solve_in_place(several_sparse.as_mut());
+        for c in 0..3 {
+            for i in 0..n {
+                assert!((several_dense[(i, c)] - several_sparse[(i, c)]).abs() < 1e-12);
+            }
+        }
+        // Not positive definite: both paths say so.
+        let negative = DVector::from_element(n, -1e6);
+        assert_eq!(dense_path.solve(&normal, &negative, &rhs).unwrap(), None);
+        assert_eq!(sparse_path.solve(&normal, &negative, &rhs).unwrap(), None);
     }
 }

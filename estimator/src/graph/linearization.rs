@@ -90,6 +90,21 @@ impl NormalEquations {
         h
     }
 
+    /// Adds the lower triangle of `H` (and the upper half of its diagonal
+    /// blocks) into `out` (`n × n`, variable order).
+    pub(super) fn write_lower(&self, mut out: faer::MatMut<'_, f64>) {
+        for (&(pr, pc), &offset) in &self.blocks {
+            let (ro, rd) = (self.index.offsets[pr], self.index.dims[pr]);
+            let co = self.index.offsets[pc];
+            let block = self.block_slice(pr, pc, offset);
+            for (c, col) in block.chunks_exact(rd).enumerate() {
+                for (r, &x) in col.iter().enumerate() {
+                    out[(ro + r, co + c)] += x;
+                }
+            }
+        }
+    }
+
     /// Number of stored (lower-triangle) blocks; grows linearly with the
     /// factors for a sparse graph.
     pub fn block_count(&self) -> usize {
