@@ -1,5 +1,5 @@
 //! Elimination: the Cholesky factorization of `H + diag(damping)`. Small
-//! problems (a sliding window's connected parts, mostly) take faer's dense
+//! problems (a sliding window's connected parts, mostly) take a dense
 //! Cholesky; larger ones a fill-reducing block ordering (AMD on the graph of
 //! variables) and faer's supernodal sparse Cholesky, with the symbolic
 //! analyses kept in a reusable [`SolverWorkspace`].
@@ -35,18 +35,21 @@ use nalgebra::DVector;
 /// simplicial one.
 ///
 /// Problems of at most `dense_max_dim` dimensions skip all of that: `H` is
-/// written into a dense matrix (in variable order) and factorized by faer's
-/// dense Cholesky, cheaper than the sparse one's bookkeeping at these sizes.
+/// written into a dense matrix (in variable order) and factorized by a
+/// plain dense Cholesky that skips zeros, cheaper than the sparse one's
+/// bookkeeping at these sizes.
 pub(super) struct SparseCholesky {
     /// Most recently used first, at most [`SparseCholesky::KEPT_PATTERNS`].
     structures: Vec<CholeskyStructure>,
     /// Values of `H + diag(damping)` on the front pattern (buffer reused).
     matrix_values: Vec<f64>,
     /// `H + diag(damping)`, then its factor `L` (lower triangle), of the
-    /// latest dense factorization.
-    dense: Mat<f64>,
-    /// Scratch of the dense factorization.
-    dense_workspace: MemBuffer,
+    /// latest dense factorization: column-major, `dense_dim²` values.
+    dense: Vec<f64>,
+    /// Dimension of `dense`.
+    dense_dim: usize,
+    /// One right-hand side of a dense solve.
+    dense_rhs: Vec<f64>,
     /// Largest total dimension factorized densely.
     dense_max_dim: usize,
     /// Which factorization the latest successful [`SparseCholesky::factorize`] made.
@@ -129,8 +132,9 @@ impl SparseCholesky {
         SparseCholesky {
             structures: Vec::new(),
             matrix_values: Vec::new(),
-            dense: Mat::new(),
-            dense_workspace: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            dense: Vec::new(),
+            dense_dim: 0,
+            dense_rhs: Vec::new(),
             dense_max_dim,
             factored: Factored::No,
         }
@@ -209,7 +213,7 @@ impl SparseCholesky {
         Ok(result.is_ok())
     }
 
-    /// [`SparseCholesky::factorize`] with faer's dense Cholesky, `H` in
+    /// [`SparseCholesky::factorize`] with a dense Cholesky, `H` in
     /// variable order (its lower triangle written block by block).
     fn factorize_dense(
         &mut self,
@@ -217,43 +221,33 @@ impl SparseCholesky {
         damping: &DVector<f64>,
     ) -> Result<bool, SolverError> {
         let n = normal.index.total_dim();
-        if self.dense.nrows() != n {
-            self.dense = Mat::zeros(n, n);
-            let par = Par::Seq;
-            let req = llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
-                .or(llt::solve::solve_in_place_scratch::<f64>(n, 1, par));
-            self.dense_workspace = MemBuffer::try_new(req).map_err(factorization_error)?;
-        } else {
-            self.dense.fill(0.0);
-        }
-        normal.write_lower(self.dense.as_mut());
+        self.dense_dim = n;
+        self.dense.clear();
+        self.dense.resize(n * n, 0.0);
+        normal.write_lower(&mut self.dense);
         for (i, &d) in damping.iter().enumerate() {
-            self.dense[(i, i)] += d;
+            self.dense[i * n + i] += d;
         }
-        let result = llt::factor::cholesky_in_place(
-            self.dense.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut self.dense_workspace),
-            Default::default(),
-        );
-        if result.is_ok() {
+        let ok = dense_cholesky_in_place(&mut self.dense, n);
+        if ok {
             self.factored = Factored::Dense;
         }
-        Ok(result.is_ok())
+        Ok(ok)
     }
 
     /// `rhs ← (H + diag(damping))⁻¹·rhs` (rows in variable order) with the
     /// latest successful factorization.
     pub(super) fn solve_in_place(&mut self, mut rhs: faer::MatMut<'_, f64>) {
         if self.factored == Factored::Dense {
-            llt::solve::solve_in_place_with_conj(
-                self.dense.as_ref(),
-                Conj::No,
-                rhs,
-                Par::Seq,
-                MemStack::new(&mut self.dense_workspace),
-            );
+            let n = self.dense_dim;
+            for c in 0..rhs.ncols() {
+                self.dense_rhs.clear();
+                self.dense_rhs.extend((0..n).map(|i| rhs[(i, c)]));
+                dense_cholesky_solve_in_place(&self.dense, n, &mut self.dense_rhs);
+                for (i, &x) in self.dense_rhs.iter().enumerate() {
+                    rhs[(i, c)] = x;
+                }
+            }
             return;
         }
         let structure = match self.structures.first_mut() {
@@ -328,6 +322,64 @@ impl CholeskyStructure {
             factor,
             workspace,
         })
+    }
+}
+
+/// In-place Cholesky `A = L·Lᵀ` of the column-major `n × n` `a` (its lower
+/// triangle read, `L` written there; the strict upper triangle is left
+/// alone). Left-looking by columns, skipping the zero entries of `L`'s rows,
+/// so the block sparsity of a window's `H` (an object's chain couples only
+/// neighbouring variables) saves most of the work. `false` if a pivot is not
+/// positive (or not finite): not positive definite.
+fn dense_cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    debug_assert_eq!(a.len(), n * n);
+    for j in 0..n {
+        let (done, rest) = a.split_at_mut(j * n);
+        let col_j = &mut rest[j..n];
+        for k in 0..j {
+            let l_jk = done[k * n + j];
+            if l_jk != 0.0 {
+                for (x, &l) in col_j.iter_mut().zip(&done[k * n + j..k * n + n]) {
+                    *x -= l_jk * l;
+                }
+            }
+        }
+        let pivot = col_j[0];
+        if !(pivot > 0.0 && pivot.is_finite()) {
+            return false;
+        }
+        let l_jj = pivot.sqrt();
+        col_j[0] = l_jj;
+        let inv = 1.0 / l_jj;
+        for x in &mut col_j[1..] {
+            *x *= inv;
+        }
+    }
+    true
+}
+
+/// `x ← (L·Lᵀ)⁻¹·x` with the factor of [`dense_cholesky_in_place`].
+fn dense_cholesky_solve_in_place(l: &[f64], n: usize, x: &mut [f64]) {
+    // L·y = x, by columns.
+    for j in 0..n {
+        let col = &l[j * n..(j + 1) * n];
+        let y_j = x[j] / col[j];
+        x[j] = y_j;
+        if y_j != 0.0 {
+            for (xi, &lij) in x[j + 1..].iter_mut().zip(&col[j + 1..]) {
+                *xi -= y_j * lij;
+            }
+        }
+    }
+    // Lᵀ·x = y, by rows of Lᵀ (columns of L).
+    for j in (0..n).rev() {
+        let col = &l[j * n..(j + 1) * n];
+        let dot: f64 = x[j + 1..]
+            .iter()
+            .zip(&col[j + 1..])
+            .map(|(a, b)| a * b)
+            .sum();
+        x[j] = (x[j] - dot) / col[j];
     }
 }
 
@@ -447,7 +499,7 @@ mod tests {
             .expect("SPD");
         let dense = full.cholesky().expect("SPD").solve(&rhs);
         assert!((&x - &dense).amax() < 1e-9);
-        // faer's dense Cholesky (the small problems' path) agrees, for one
+        // The dense Cholesky (the small problems' path) agrees, for one
         // right-hand side and for several.
         let mut dense_path = SparseCholesky::with_dense_max_dim(usize::MAX);
         let y = dense_path

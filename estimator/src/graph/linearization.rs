@@ -91,15 +91,17 @@ impl NormalEquations {
     }
 
     /// Adds the lower triangle of `H` (and the upper half of its diagonal
-    /// blocks) into `out` (`n × n`, variable order).
-    pub(super) fn write_lower(&self, mut out: faer::MatMut<'_, f64>) {
+    /// blocks) into `out` (column-major `n × n`, variable order).
+    pub(super) fn write_lower(&self, out: &mut [f64]) {
+        let n = self.index.total_dim();
         for (&(pr, pc), &offset) in &self.blocks {
             let (ro, rd) = (self.index.offsets[pr], self.index.dims[pr]);
             let co = self.index.offsets[pc];
             let block = self.block_slice(pr, pc, offset);
             for (c, col) in block.chunks_exact(rd).enumerate() {
-                for (r, &x) in col.iter().enumerate() {
-                    out[(ro + r, co + c)] += x;
+                let start = (co + c) * n + ro;
+                for (o, &x) in out[start..start + rd].iter_mut().zip(col) {
+                    *o += x;
                 }
             }
         }
