@@ -1,20 +1,17 @@
-//! Elimination: the Cholesky factorization of `H + diag(damping)`. Small
-//! problems (a sliding window's connected parts, mostly) take a dense
-//! Cholesky; larger ones a fill-reducing block ordering (AMD on the graph of
-//! variables) and faer's supernodal sparse Cholesky, with the symbolic
-//! analyses kept in a reusable [`SolverWorkspace`].
+//! Elimination: a fill-reducing block ordering (AMD on the graph of
+//! variables) and faer's supernodal sparse Cholesky of `H + diag(damping)`,
+//! with the symbolic analyses kept in a reusable [`SolverWorkspace`].
 
 use super::linearization::{BlockPattern, NormalEquations};
 use super::optimizer::SolverError;
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::sparse::linalg::{SupernodalThreshold, amd};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, Mat, Par, Side};
+use faer::{Conj, Mat, Side};
 use nalgebra::DVector;
 
 /// Sparse Cholesky factorizations that keep their symbolic analyses
@@ -33,38 +30,13 @@ use nalgebra::DVector;
 /// cost grows linearly with the number of objects; the variables' blocks
 /// make a supernodal factorization (dense kernels) pay off over the scalar
 /// simplicial one.
-///
-/// Problems of at most `dense_max_dim` dimensions skip all of that: `H` is
-/// written into a dense matrix (in variable order) and factorized by a
-/// plain dense Cholesky that skips zeros, cheaper than the sparse one's
-/// bookkeeping at these sizes.
 pub(super) struct SparseCholesky {
     /// Most recently used first, at most [`SparseCholesky::KEPT_PATTERNS`].
     structures: Vec<CholeskyStructure>,
     /// Values of `H + diag(damping)` on the front pattern (buffer reused).
     matrix_values: Vec<f64>,
-    /// `H + diag(damping)`, then its factor `L` (lower triangle), of the
-    /// latest dense factorization: column-major, `dense_dim²` values.
-    dense: Vec<f64>,
-    /// Dimension of `dense`.
-    dense_dim: usize,
-    /// One right-hand side of a dense solve.
-    dense_rhs: Vec<f64>,
-    /// Largest total dimension factorized densely.
-    dense_max_dim: usize,
-    /// Which factorization the latest successful [`SparseCholesky::factorize`] made.
-    factored: Factored,
-}
-
-/// The state of a [`SparseCholesky`] after a factorization.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Factored {
-    /// None, or it failed.
-    No,
-    /// `dense` holds `L`.
-    Dense,
-    /// The front structure holds `L`.
-    Sparse,
+    /// Whether the front structure holds a successful factorization.
+    factored: bool,
 }
 
 /// What stays fixed while the block structure does.
@@ -85,22 +57,9 @@ struct CholeskyStructure {
 pub struct SolverWorkspace(pub(super) SparseCholesky);
 
 impl SolverWorkspace {
-    /// An empty workspace: problems of at most
-    /// [`SolverWorkspace::DENSE_MAX_DIM`] dimensions are factorized densely.
+    /// An empty workspace.
     pub fn new() -> SolverWorkspace {
         SolverWorkspace(SparseCholesky::new())
-    }
-
-    /// Largest total tangent dimension solved with a dense Cholesky by
-    /// default; larger problems go the sparse way.
-    pub const DENSE_MAX_DIM: usize = 200;
-
-    /// An empty workspace that factorizes problems of at most
-    /// `dense_max_dim` dimensions densely and larger ones sparsely (0: always
-    /// sparse, `usize::MAX`: always dense). The two give the same steps to
-    /// rounding.
-    pub fn with_dense_max_dim(dense_max_dim: usize) -> SolverWorkspace {
-        SolverWorkspace(SparseCholesky::with_dense_max_dim(dense_max_dim))
     }
 }
 
@@ -124,19 +83,10 @@ impl SparseCholesky {
     const KEPT_PATTERNS: usize = 8;
 
     pub(super) fn new() -> SparseCholesky {
-        SparseCholesky::with_dense_max_dim(SolverWorkspace::DENSE_MAX_DIM)
-    }
-
-    /// See [`SolverWorkspace::with_dense_max_dim`].
-    pub(super) fn with_dense_max_dim(dense_max_dim: usize) -> SparseCholesky {
         SparseCholesky {
             structures: Vec::new(),
             matrix_values: Vec::new(),
-            dense: Vec::new(),
-            dense_dim: 0,
-            dense_rhs: Vec::new(),
-            dense_max_dim,
-            factored: Factored::No,
+            factored: false,
         }
     }
 
@@ -164,18 +114,14 @@ impl SparseCholesky {
     }
 
     /// Numeric factorization of `H + diag(damping)`; `Ok(false)` if not
-    /// positive definite. Dense up to `dense_max_dim` dimensions; sparse
-    /// beyond, building the ordering, pattern and symbolic analysis only for
-    /// a block structure not seen among the kept ones.
+    /// positive definite. Builds the ordering, pattern and symbolic
+    /// analysis only for a block structure not seen among the kept ones.
     pub(super) fn factorize(
         &mut self,
         normal: &NormalEquations,
         damping: &DVector<f64>,
     ) -> Result<bool, SolverError> {
-        self.factored = Factored::No;
-        if normal.index.total_dim() <= self.dense_max_dim {
-            return self.factorize_dense(normal, damping);
-        }
+        self.factored = false;
         match self
             .structures
             .iter()
@@ -207,51 +153,15 @@ impl SparseCholesky {
             Default::default(),
         );
         // The only numeric failure is a non-positive pivot: not SPD.
-        if result.is_ok() {
-            self.factored = Factored::Sparse;
-        }
-        Ok(result.is_ok())
-    }
-
-    /// [`SparseCholesky::factorize`] with a dense Cholesky, `H` in
-    /// variable order (its lower triangle written block by block).
-    fn factorize_dense(
-        &mut self,
-        normal: &NormalEquations,
-        damping: &DVector<f64>,
-    ) -> Result<bool, SolverError> {
-        let n = normal.index.total_dim();
-        self.dense_dim = n;
-        self.dense.clear();
-        self.dense.resize(n * n, 0.0);
-        normal.write_lower(&mut self.dense);
-        for (i, &d) in damping.iter().enumerate() {
-            self.dense[i * n + i] += d;
-        }
-        let ok = dense_cholesky_in_place(&mut self.dense, n);
-        if ok {
-            self.factored = Factored::Dense;
-        }
-        Ok(ok)
+        self.factored = result.is_ok();
+        Ok(self.factored)
     }
 
     /// `rhs ← (H + diag(damping))⁻¹·rhs` (rows in variable order) with the
     /// latest successful factorization.
     pub(super) fn solve_in_place(&mut self, mut rhs: faer::MatMut<'_, f64>) {
-        if self.factored == Factored::Dense {
-            let n = self.dense_dim;
-            for c in 0..rhs.ncols() {
-                self.dense_rhs.clear();
-                self.dense_rhs.extend((0..n).map(|i| rhs[(i, c)]));
-                dense_cholesky_solve_in_place(&self.dense, n, &mut self.dense_rhs);
-                for (i, &x) in self.dense_rhs.iter().enumerate() {
-                    rhs[(i, c)] = x;
-                }
-            }
-            return;
-        }
         let structure = match self.structures.first_mut() {
-            Some(structure) if self.factored == Factored::Sparse => structure,
+            Some(structure) if self.factored => structure,
             _ => unreachable!("solve_in_place after a successful factorize"),
         };
         let (n, k) = (rhs.nrows(), rhs.ncols());
@@ -322,64 +232,6 @@ impl CholeskyStructure {
             factor,
             workspace,
         })
-    }
-}
-
-/// In-place Cholesky `A = L·Lᵀ` of the column-major `n × n` `a` (its lower
-/// triangle read, `L` written there; the strict upper triangle is left
-/// alone). Left-looking by columns, skipping the zero entries of `L`'s rows,
-/// so the block sparsity of a window's `H` (an object's chain couples only
-/// neighbouring variables) saves most of the work. `false` if a pivot is not
-/// positive (or not finite): not positive definite.
-fn dense_cholesky_in_place(a: &mut [f64], n: usize) -> bool {
-    debug_assert_eq!(a.len(), n * n);
-    for j in 0..n {
-        let (done, rest) = a.split_at_mut(j * n);
-        let col_j = &mut rest[j..n];
-        for k in 0..j {
-            let l_jk = done[k * n + j];
-            if l_jk != 0.0 {
-                for (x, &l) in col_j.iter_mut().zip(&done[k * n + j..k * n + n]) {
-                    *x -= l_jk * l;
-                }
-            }
-        }
-        let pivot = col_j[0];
-        if !(pivot > 0.0 && pivot.is_finite()) {
-            return false;
-        }
-        let l_jj = pivot.sqrt();
-        col_j[0] = l_jj;
-        let inv = 1.0 / l_jj;
-        for x in &mut col_j[1..] {
-            *x *= inv;
-        }
-    }
-    true
-}
-
-/// `x ← (L·Lᵀ)⁻¹·x` with the factor of [`dense_cholesky_in_place`].
-fn dense_cholesky_solve_in_place(l: &[f64], n: usize, x: &mut [f64]) {
-    // L·y = x, by columns.
-    for j in 0..n {
-        let col = &l[j * n..(j + 1) * n];
-        let y_j = x[j] / col[j];
-        x[j] = y_j;
-        if y_j != 0.0 {
-            for (xi, &lij) in x[j + 1..].iter_mut().zip(&col[j + 1..]) {
-                *xi -= y_j * lij;
-            }
-        }
-    }
-    // Lᵀ·x = y, by rows of Lᵀ (columns of L).
-    for j in (0..n).rev() {
-        let col = &l[j * n..(j + 1) * n];
-        let dot: f64 = x[j + 1..]
-            .iter()
-            .zip(&col[j + 1..])
-            .map(|(a, b)| a * b)
-            .sum();
-        x[j] = (x[j] - dot) / col[j];
     }
 }
 
@@ -498,30 +350,6 @@ mod tests {
             .unwrap()
             .expect("SPD");
         let dense = full.cholesky().expect("SPD").solve(&rhs);
-        assert!((&x - &dense).amax() < 1e-9);
-        // The dense Cholesky (the small problems' path) agrees, for one
-        // right-hand side and for several.
-        let mut dense_path = SparseCholesky::with_dense_max_dim(usize::MAX);
-        let y = dense_path
-            .solve(&normal, &damping, &rhs)
-            .unwrap()
-            .expect("SPD");
-        assert!((&x - &y).amax() < 1e-12 * x.amax().max(1.0));
-        let mut sparse_path = SparseCholesky::with_dense_max_dim(0);
-        assert!(sparse_path.factorize(&normal, &damping).unwrap());
-        let columns = |i: usize, c: usize| ((i * 3 + c * 7) as f64 * 0.21).cos();
-        let mut several_dense = Mat::<f64>::from_fn(n, 3, columns);
-        let mut several_sparse = Mat::<f64>::from_fn(n, 3, columns);
-        dense_path.solve_in_place(several_dense.as_mut());
-        sparse_path.solve_in_place(several_sparse.as_mut());
-        for c in 0..3 {
-            for i in 0..n {
-                assert!((several_dense[(i, c)] - several_sparse[(i, c)]).abs() < 1e-12);
-            }
-        }
-        // Not positive definite: both paths say so.
-        let negative = DVector::from_element(n, -1e6);
-        assert_eq!(dense_path.solve(&normal, &negative, &rhs).unwrap(), None);
-        assert_eq!(sparse_path.solve(&normal, &negative, &rhs).unwrap(), None);
+        assert!((x - dense).amax() < 1e-9);
     }
 }

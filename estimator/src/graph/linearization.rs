@@ -90,23 +90,6 @@ impl NormalEquations {
         h
     }
 
-    /// Adds the lower triangle of `H` (and the upper half of its diagonal
-    /// blocks) into `out` (column-major `n × n`, variable order).
-    pub(super) fn write_lower(&self, out: &mut [f64]) {
-        let n = self.index.total_dim();
-        for (&(pr, pc), &offset) in &self.blocks {
-            let (ro, rd) = (self.index.offsets[pr], self.index.dims[pr]);
-            let co = self.index.offsets[pc];
-            let block = self.block_slice(pr, pc, offset);
-            for (c, col) in block.chunks_exact(rd).enumerate() {
-                let start = (co + c) * n + ro;
-                for (o, &x) in out[start..start + rd].iter_mut().zip(col) {
-                    *o += x;
-                }
-            }
-        }
-    }
-
     /// Number of stored (lower-triangle) blocks; grows linearly with the
     /// factors for a sparse graph.
     pub fn block_count(&self) -> usize {

@@ -1,8 +1,8 @@
 //! Sparse nonlinear least squares on the factor graph: Levenberg–Marquardt
 //! with Nielsen damping, robust kernels by IRLS, normal equations assembled
-//! block by block and solved with faer's dense Cholesky (small problems) or
-//! its supernodal sparse Cholesky, the variables laid out in a block-AMD
-//! elimination order (see `SparseCholesky`).
+//! block by block and solved with faer's supernodal sparse Cholesky, the
+//! variables laid out in a block-AMD elimination order (see
+//! `SparseCholesky`).
 //!
 //! Conventions: the step `δ` is a stacked right perturbation of every
 //! variable in [`VariableIndex`] order; `H = JᵀJ`, `g = Jᵀr` of the whitened,
@@ -326,7 +326,7 @@ pub fn gauss_newton_step<F: Borrow<dyn Factor>>(
     let normal = linearize_normal_equations(factors, values, &index)?;
     let zero = DVector::zeros(index.total_dim());
     let rhs = -&normal.gradient;
-    let step = SparseCholesky::with_dense_max_dim(0)
+    let step = SparseCholesky::new()
         .solve(&normal, &zero, &rhs)?
         .ok_or(SolverError::NotPositiveDefinite { lambda: 0.0 })?;
     Ok((normal, step))
