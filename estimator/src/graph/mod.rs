@@ -21,8 +21,8 @@
 //! * Poses are [`Isometry3`](nalgebra::Isometry3) with the right perturbation
 //!   `T ⊕ ξ = T·Exp(ξ)`, tangent `ξ = (ρ, φ)` (see [`crate::lie`]).
 //! * Velocities and biases are Euclidean: `x ⊕ δ = x + δ`.
-//! * A factor returns its *unwhitened* residual and Jacobians (one per key,
-//!   with respect to that key's tangent); the [`NoiseModel`] whitens them and
+//! * A factor writes its *unwhitened* residual and Jacobians (one per key,
+//!   with respect to that key's tangent) into the caller's buffers; the [`NoiseModel`] whitens them and
 //!   applies the robust kernel, so factors never do.
 
 mod between_factor;
