@@ -3,8 +3,8 @@
 //! pose graph, robust kernels, error paths and timing of window-sized solves.
 
 use limot_estimator::graph::{
-    BetweenFactor, Factor, Key, Linearization, MarginalizationConfig, NoiseModel, PriorFactor,
-    RobustKernel, SlidingWindowSmoother, SolverConfig, SolverError, Values, Variable,
+    BetweenFactor, Factor, JacobiansMut, Key, Linearization, MarginalizationConfig, NoiseModel,
+    PriorFactor, RobustKernel, SlidingWindowSmoother, SolverConfig, SolverError, Values, Variable,
     VariableIndex, WindowError, check_factor_jacobians, gauss_newton_step,
     linearize_normal_equations, marginal_covariance, marginalize, optimize, total_cost,
 };
@@ -61,15 +61,26 @@ impl Factor for LinearFactor {
     fn keys(&self) -> &[Key] {
         &self.keys
     }
-    fn linearize(&self, values: &Values) -> Linearization {
-        let mut residual = -self.b.clone();
+    fn residual_dim(&self) -> usize {
+        self.b.len()
+    }
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        self.residual_into(values, residual);
+        for (i, a) in self.a.iter().enumerate() {
+            jacobians.set(i, a);
+        }
+    }
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        let mut r = -self.b.clone();
         for (key, a) in self.keys.iter().zip(&self.a) {
-            residual += a * vector_of(values.get(key).expect("key"));
+            r += a * vector_of(values.get(key).expect("key"));
         }
-        Linearization {
-            residual,
-            jacobians: self.a.clone(),
-        }
+        residual.copy_from_slice(r.as_slice());
     }
     fn noise(&self) -> &NoiseModel {
         &self.noise
@@ -87,11 +98,20 @@ impl Factor for NanFactor {
     fn keys(&self) -> &[Key] {
         &self.keys
     }
-    fn linearize(&self, _values: &Values) -> Linearization {
-        Linearization {
-            residual: DVector::from_element(3, f64::NAN),
-            jacobians: vec![DMatrix::identity(3, 3)],
-        }
+    fn residual_dim(&self) -> usize {
+        3
+    }
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        self.residual_into(values, residual);
+        jacobians.set_scaled_identity(0, 1.0);
+    }
+    fn residual_into(&self, _values: &Values, residual: &mut [f64]) {
+        residual.fill(f64::NAN);
     }
     fn noise(&self) -> &NoiseModel {
         &self.noise
@@ -496,7 +516,7 @@ fn normal_equations_match_dense_jacobian_products() {
     let mut r = DVector::zeros(rows);
     let mut row = 0;
     for f in &graph.factors {
-        let lin = f.linearize(values);
+        let lin = Linearization::of(f.as_ref(), values);
         let l = &f.noise().sqrt_information;
         let d = lin.residual.len();
         r.rows_mut(row, d).copy_from(&(l * &lin.residual));

@@ -1,12 +1,12 @@
 //! Relative-pose factor between two SE(3) variables: the paper's LiDAR
 //! odometry residual `r_odo = Log(Z⁻¹·T_a⁻¹·T_b)`.
 
-use super::factor::{Factor, Linearization};
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::Values;
 use crate::lie;
-use nalgebra::{DMatrix, DVector, Isometry3};
+use nalgebra::Isometry3;
 
 /// `r = Log(measured_t_a_b⁻¹ · T_a⁻¹ · T_b)` (tangent order `(ρ, φ)`).
 #[derive(Debug, Clone)]
@@ -42,7 +42,16 @@ impl Factor for BetweenFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
+    fn residual_dim(&self) -> usize {
+        6
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
         let t_a = values.pose(&self.keys[0]);
         let t_b = values.pose(&self.keys[1]);
         // E = Z⁻¹·T_a⁻¹·T_b. A right perturbation of T_b enters E on the
@@ -52,23 +61,19 @@ impl Factor for BetweenFactor {
         let (r, jr_inv) = lie::se3_log_with_jacobian(&error);
         let d_b = jr_inv;
         let d_a = -jr_inv * lie::se3_adjoint(&(t_b.inverse() * t_a));
-        Linearization {
-            residual: DVector::from_column_slice(r.as_slice()),
-            jacobians: vec![
-                DMatrix::from_column_slice(6, 6, d_a.as_slice()),
-                DMatrix::from_column_slice(6, 6, d_b.as_slice()),
-            ],
-        }
+        residual.copy_from_slice(r.as_slice());
+        jacobians.set(0, &d_a);
+        jacobians.set(1, &d_b);
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
         let error = self.measured_t_a_b.inverse()
             * lie::between(values.pose(&self.keys[0]), values.pose(&self.keys[1]));
-        DVector::from_column_slice(lie::se3_log(&error).as_slice())
+        residual.copy_from_slice(lie::se3_log(&error).as_slice());
     }
 }
 

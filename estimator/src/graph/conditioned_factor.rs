@@ -8,11 +8,10 @@
 //! per object: the ego gives its information to the objects but takes none
 //! back from that frame, the usual sparsification of sliding-window SLAM.
 
-use super::factor::{Factor, Linearization};
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::Values;
-use nalgebra::{DMatrix, DVector};
 
 /// `inner` with the keys in `fixed` held at the values `fixed` stores.
 #[derive(Debug)]
@@ -75,16 +74,31 @@ impl Factor for ConditionedFactor {
         &self.free_keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
-        let lin = self.inner.linearize(&self.merged(values));
-        let jacobians: Vec<DMatrix<f64>> = self
-            .free_positions
+    fn residual_dim(&self) -> usize {
+        self.inner.residual_dim()
+    }
+
+    /// The inner factor's Jacobians of the held keys go to a scratch
+    /// buffer (allocated: conditioned factors are few, the oldest frame's).
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        let merged = self.merged(values);
+        let rows = jacobians.rows();
+        let inner_cols: Vec<usize> = self
+            .inner
+            .keys()
             .iter()
-            .map(|&i| lin.jacobians[i].clone())
+            .map(|key| merged.get(key).expect("every inner key merged").dim())
             .collect();
-        Linearization {
-            residual: lin.residual,
-            jacobians,
+        let mut inner_values = vec![0.0; rows * inner_cols.iter().sum::<usize>()];
+        let mut inner = JacobiansMut::new(&mut inner_values, rows, &inner_cols);
+        self.inner.linearize_into(&merged, residual, &mut inner);
+        for (free, &i) in self.free_positions.iter().enumerate() {
+            jacobians.set(free, &inner.block(i));
         }
     }
 
@@ -92,8 +106,8 @@ impl Factor for ConditionedFactor {
         self.inner.noise()
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
-        self.inner.residual(&self.merged(values))
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        self.inner.residual_into(&self.merged(values), residual);
     }
 
     /// The held keys that `values` still has take their values from it:
@@ -113,7 +127,7 @@ impl Factor for ConditionedFactor {
 mod tests {
     use super::*;
     use crate::graph::between_factor::BetweenFactor;
-    use crate::graph::{Variable, check_factor_jacobians};
+    use crate::graph::{Linearization, Variable, check_factor_jacobians};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
     fn pose(x: f64, yaw: f64) -> Isometry3<f64> {
@@ -132,12 +146,12 @@ mod tests {
         let mut values = Values::new();
         values.insert(a, Variable::Pose(pose(1.0, 0.1)));
         values.insert(b, Variable::Pose(pose(4.5, 0.5)));
-        let full = inner.linearize(&values);
+        let full = Linearization::of(&inner, &values);
         let mut fixed = Values::new();
         fixed.insert(a, *values.get(&a).unwrap());
         let conditioned = ConditionedFactor::new(Box::new(inner), fixed).unwrap();
         assert_eq!(conditioned.keys(), &[b]);
-        let lin = conditioned.linearize(&values);
+        let lin = Linearization::of(&conditioned, &values);
         assert_eq!(lin.residual, full.residual);
         assert_eq!(lin.jacobians.len(), 1);
         assert_eq!(lin.jacobians[0], full.jacobians[1]);

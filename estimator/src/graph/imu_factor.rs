@@ -5,14 +5,14 @@
 //! `T ⊕ (ρ, φ) = T·Exp((ρ, φ))`, i.e. to first order `p ← p + R·ρ`,
 //! `R ← R·Exp(φ)`; velocities (world frame) and biases are Euclidean.
 
-use super::factor::{Factor, FactorError, Linearization};
+use super::factor::{Factor, FactorError, JacobiansMut};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::Values;
 use crate::imu::Preintegration;
 use crate::imu::{ImuBias, ImuNoise};
 use crate::lie;
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{DMatrix, Isometry3, Matrix3, SMatrix, SVector, Vector3};
 
 /// 9-vector residual `(r_ΔR, r_Δv, r_Δp)`.
 pub type Vector9 = SVector<f64, 9>;
@@ -269,35 +269,31 @@ impl ImuFactor {
     }
 }
 
-fn to_dvector<const N: usize>(v: &SVector<f64, N>) -> DVector<f64> {
-    DVector::from_column_slice(v.as_slice())
-}
-
-fn to_dmatrix<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
-    DMatrix::from_column_slice(R, C, m.as_slice())
-}
-
 impl Factor for ImuFactor {
     fn keys(&self) -> &[Key] {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
-        let (residual, jac) = self.evaluate_values(values, true);
+    fn residual_dim(&self) -> usize {
+        9
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        let (r, jac) = self.evaluate_values(values, true);
         let jac = jac.expect("Jacobians were requested");
-        let mut jacobians = vec![
-            to_dmatrix(&jac.pose_i),
-            to_dmatrix(&jac.velocity_i),
-            to_dmatrix(&jac.bias_i),
-            to_dmatrix(&jac.pose_j),
-            to_dmatrix(&jac.velocity_j),
-        ];
+        residual.copy_from_slice(r.as_slice());
+        jacobians.set(0, &jac.pose_i);
+        jacobians.set(1, &jac.velocity_i);
+        jacobians.set(2, &jac.bias_i);
+        jacobians.set(3, &jac.pose_j);
+        jacobians.set(4, &jac.velocity_j);
         if self.gravity_world.is_none() {
-            jacobians.push(to_dmatrix(&jac.gravity));
-        }
-        Linearization {
-            residual: to_dvector(&residual),
-            jacobians,
+            jacobians.set(5, &jac.gravity);
         }
     }
 
@@ -305,8 +301,8 @@ impl Factor for ImuFactor {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
-        to_dvector(&self.evaluate_values(values, false).0)
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        residual.copy_from_slice(self.evaluate_values(values, false).0.as_slice());
     }
 }
 
@@ -358,21 +354,29 @@ impl Factor for BiasRandomWalkFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
-        Linearization {
-            residual: self.residual(values),
-            jacobians: vec![-DMatrix::identity(6, 6), DMatrix::identity(6, 6)],
-        }
+    fn residual_dim(&self) -> usize {
+        6
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        self.residual_into(values, residual);
+        jacobians.set_scaled_identity(0, -1.0);
+        jacobians.set_scaled_identity(1, 1.0);
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
         let b_i = values.bias(&self.keys[0]).to_vector6();
         let b_j = values.bias(&self.keys[1]).to_vector6();
-        to_dvector(&(b_j - b_i))
+        residual.copy_from_slice((b_j - b_i).as_slice());
     }
 }
 
@@ -456,7 +460,7 @@ mod tests {
         let err = check_factor_jacobians(&estimated, &values, 1e-6);
         assert!(err < 1e-6, "max Jacobian error {err:e}");
         // gravity moves the velocity and position residuals only
-        let lin = estimated.linearize(&values);
+        let lin = crate::graph::Linearization::of(&estimated, &values);
         assert_eq!(lin.jacobians[5].rows(0, 3).amax(), 0.0);
         assert!(lin.jacobians[5].rows(3, 6).amax() > 0.0);
     }

@@ -4,8 +4,9 @@
 //! pair of variables; and the compressed-column [`BlockPattern`] of `H` that
 //! the sparse Cholesky factorizes.
 
-use super::factor::Factor;
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
+use super::noise::NoiseModel;
 use super::optimizer::SolverError;
 use super::values::Values;
 use super::variable_index::VariableIndex;
@@ -315,123 +316,170 @@ impl BlockPattern {
     }
 }
 
-/// A factor's residual and Jacobians after whitening and IRLS reweighting.
-struct WhitenedLinearization {
-    residual: DVector<f64>,
-    jacobians: Vec<DMatrix<f64>>,
-    cost: f64,
+/// Buffers one factor at a time is linearized and whitened in, reused from
+/// factor to factor: linearizing allocates nothing per factor.
+#[derive(Debug, Default)]
+pub(super) struct FactorBuffers {
+    /// The residual, whitened and reweighted in place.
+    residual: Vec<f64>,
+    /// The Jacobian blocks ([`JacobiansMut`]'s layout), whitened in place.
+    jacobians: Vec<f64>,
+    /// `L·x` before it is copied back (non-diagonal noise models).
+    product: Vec<f64>,
+    /// Tangent dimension of each key of the factor.
+    cols: Vec<usize>,
 }
 
-/// Checks shapes (against the keys' tangent dims, `tangent_dims`; the
-/// caller has checked that every key has a value), then returns the
-/// factor's whitened, reweighted residual and Jacobians, and its cost.
+/// Whether `l` is square and diagonal (most noise models are).
+fn is_diagonal(l: &DMatrix<f64>) -> bool {
+    let n = l.nrows();
+    l.is_square()
+        && l.as_slice()
+            .chunks_exact(n.max(1))
+            .enumerate()
+            .all(|(c, col)| col.iter().enumerate().all(|(r, &x)| r == c || x == 0.0))
+}
+
+/// `x ← (L·x)·scale` for each column `x` (length `L.ncols()`) of `values`
+/// (column-major, `columns` columns); `product` is scratch.
+fn whiten_columns(
+    l: &DMatrix<f64>,
+    diagonal: bool,
+    scale: f64,
+    values: &mut [f64],
+    product: &mut Vec<f64>,
+) {
+    let m = l.nrows();
+    if m == 0 {
+        return;
+    }
+    if diagonal {
+        for col in values.chunks_exact_mut(m) {
+            for (r, x) in col.iter_mut().enumerate() {
+                *x = (l[(r, r)] * *x) * scale;
+            }
+        }
+        return;
+    }
+    // A plain column loop: the general matrix product's packing dominated
+    // for 6×6 blocks.
+    let l_values = l.as_slice();
+    product.clear();
+    product.resize(m, 0.0);
+    for col in values.chunks_exact_mut(m) {
+        product.fill(0.0);
+        for (kk, &b) in col.iter().enumerate() {
+            for (o, &a) in product.iter_mut().zip(&l_values[kk * m..(kk + 1) * m]) {
+                *o += a * b;
+            }
+        }
+        for (x, &p) in col.iter_mut().zip(product.iter()) {
+            *x = p * scale;
+        }
+    }
+}
+
+/// `(weight, cost)` of a whitened residual: the IRLS weight and `ρ(‖r‖)`
+/// (`½‖r‖²` without a kernel).
+fn weight_and_cost(noise: &NoiseModel, whitened: &[f64]) -> (f64, f64) {
+    let s = whitened.iter().map(|x| x * x).sum::<f64>().sqrt();
+    match noise.robust {
+        Some(kernel) => (kernel.weight(s), kernel.loss(s)),
+        None => (1.0, 0.5 * s * s),
+    }
+}
+
+/// The shape error of a factor whose noise model does not match its residual.
+fn noise_mismatch(factor_id: usize, factor: &dyn Factor, cols: &[usize]) -> SolverError {
+    let l = &factor.noise().sqrt_information;
+    SolverError::DimensionMismatch {
+        factor: factor_id,
+        key: factor.keys().first().copied().unwrap_or(Key::EgoPose(0)),
+        residual_dim: factor.residual_dim(),
+        noise_dim: l.ncols(),
+        jacobian_rows: l.nrows(),
+        jacobian_cols: 0,
+        tangent_dim: cols.first().copied().unwrap_or(0),
+    }
+}
+
+/// Checks the noise model's shape against the factor's residual, then
+/// writes the factor's whitened, reweighted residual and Jacobians (keys of
+/// tangent dims `buffers.cols`, filled by the caller) into `buffers` and
+/// returns its cost.
 fn whitened_linearization(
     factor_id: usize,
     factor: &dyn Factor,
     values: &Values,
-    tangent_dims: &[usize],
-) -> Result<WhitenedLinearization, SolverError> {
-    let lin = factor.linearize(values);
+    buffers: &mut FactorBuffers,
+) -> Result<f64, SolverError> {
     let noise = factor.noise();
-    let keys = factor.keys();
-    let non_finite = || SolverError::NonFinite {
-        factor: factor_id,
-        keys: key_list(keys),
-    };
-    if lin.jacobians.len() != keys.len() {
-        return Err(SolverError::DimensionMismatch {
-            factor: factor_id,
-            key: keys.first().copied().unwrap_or(Key::EgoPose(0)),
-            residual_dim: lin.residual.len(),
-            noise_dim: noise.dim(),
-            jacobian_rows: 0,
-            jacobian_cols: lin.jacobians.len(),
-            tangent_dim: keys.len(),
-        });
-    }
-    for ((key, jac), &tangent_dim) in keys.iter().zip(&lin.jacobians).zip(tangent_dims) {
-        if jac.nrows() != lin.residual.len()
-            || jac.ncols() != tangent_dim
-            || noise.sqrt_information.ncols() != lin.residual.len()
-        {
-            return Err(SolverError::DimensionMismatch {
-                factor: factor_id,
-                key: *key,
-                residual_dim: lin.residual.len(),
-                noise_dim: noise.sqrt_information.ncols(),
-                jacobian_rows: jac.nrows(),
-                jacobian_cols: jac.ncols(),
-                tangent_dim,
-            });
-        }
-        if jac.iter().any(|v| !v.is_finite()) {
-            return Err(non_finite());
-        }
-    }
-    if lin.residual.iter().any(|v| !v.is_finite()) {
-        return Err(non_finite());
-    }
-    let mut residual = noise.whiten(&lin.residual);
-    let s = residual.norm();
-    let (weight, cost) = match noise.robust {
-        Some(kernel) => (kernel.weight(s), kernel.loss(s)),
-        None => (1.0, 0.5 * s * s),
-    };
-    let sqrt_w = weight.sqrt();
-    residual *= sqrt_w;
     let l = &noise.sqrt_information;
-    // Most noise models are diagonal: scale rows instead of a full product
-    // (the same numbers: the skipped terms are exact zeros).
-    let diagonal =
-        l.is_square() && (0..l.ncols()).all(|c| (0..l.nrows()).all(|r| r == c || l[(r, c)] == 0.0));
-    let mut jacobians = lin.jacobians;
-    for j in &mut jacobians {
-        if diagonal {
-            // In place: the factor's Jacobian is ours to scale.
-            let m = j.nrows();
-            for col in j.as_mut_slice().chunks_exact_mut(m) {
-                for (r, x) in col.iter_mut().enumerate() {
-                    *x = (l[(r, r)] * *x) * sqrt_w;
-                }
-            }
-        } else {
-            *j = whiten_jacobian(l, j, sqrt_w);
-        }
+    let rows = factor.residual_dim();
+    if l.nrows() != rows || l.ncols() != rows {
+        return Err(noise_mismatch(factor_id, factor, &buffers.cols));
     }
-    Ok(WhitenedLinearization {
+    let FactorBuffers {
         residual,
         jacobians,
-        cost,
-    })
-}
-
-/// `(L·J)·scale` for the small matrices of one factor. A plain column
-/// loop: the general matrix product's packing dominated for 6×6 blocks.
-fn whiten_jacobian(
-    sqrt_information: &DMatrix<f64>,
-    jacobian: &DMatrix<f64>,
-    scale: f64,
-) -> DMatrix<f64> {
-    let (m, k) = sqrt_information.shape();
-    let n = jacobian.ncols();
-    debug_assert_eq!(jacobian.nrows(), k);
-    let l = sqrt_information.as_slice();
-    let j = jacobian.as_slice();
-    let mut out = DMatrix::zeros(m, n);
-    for (c, out_col) in out.as_mut_slice().chunks_exact_mut(m).enumerate() {
-        for kk in 0..k {
-            let b = j[c * k + kk];
-            for (o, &a) in out_col.iter_mut().zip(&l[kk * m..(kk + 1) * m]) {
-                *o += a * b;
-            }
-        }
-        if scale != 1.0 {
-            for o in out_col.iter_mut() {
-                *o *= scale;
-            }
+        product,
+        cols,
+    } = buffers;
+    residual.clear();
+    residual.resize(rows, 0.0);
+    jacobians.clear();
+    jacobians.resize(rows * cols.iter().sum::<usize>(), 0.0);
+    factor.linearize_into(
+        values,
+        residual,
+        &mut JacobiansMut::new(jacobians, rows, cols),
+    );
+    if residual
+        .iter()
+        .chain(jacobians.iter())
+        .any(|v| !v.is_finite())
+    {
+        return Err(SolverError::NonFinite {
+            factor: factor_id,
+            keys: key_list(factor.keys()),
+        });
+    }
+    let diagonal = is_diagonal(l);
+    whiten_columns(l, diagonal, 1.0, residual, product);
+    let (weight, cost) = weight_and_cost(noise, residual);
+    let sqrt_w = weight.sqrt();
+    if sqrt_w != 1.0 {
+        for x in residual.iter_mut() {
+            *x *= sqrt_w;
         }
     }
-    out
+    whiten_columns(l, diagonal, sqrt_w, jacobians, product);
+    Ok(cost)
+}
+
+/// Cost `ρ(‖L·r‖)` (or `½‖L·r‖²`) of one factor at `values`, its residual
+/// written into `buffers`. Panics if the noise model does not match the
+/// residual (the solver checks that when it linearizes).
+fn factor_cost(factor: &dyn Factor, values: &Values, buffers: &mut FactorBuffers) -> f64 {
+    let noise = factor.noise();
+    let rows = factor.residual_dim();
+    buffers.residual.clear();
+    buffers.residual.resize(rows, 0.0);
+    factor.residual_into(values, &mut buffers.residual);
+    let l = &noise.sqrt_information;
+    assert_eq!(
+        l.shape(),
+        (rows, rows),
+        "noise model of the residual's dimension"
+    );
+    whiten_columns(
+        l,
+        is_diagonal(l),
+        1.0,
+        &mut buffers.residual,
+        &mut buffers.product,
+    );
+    weight_and_cost(noise, &buffers.residual).1
 }
 
 fn key_list(keys: &[Key]) -> String {
@@ -451,6 +499,7 @@ pub fn total_cost<F: Borrow<dyn Factor>>(
     values: &Values,
 ) -> Result<f64, SolverError> {
     let mut cost = 0.0;
+    let mut buffers = FactorBuffers::default();
     for (i, factor) in factors.iter().enumerate() {
         let factor = factor.borrow();
         for key in factor.keys() {
@@ -461,7 +510,11 @@ pub fn total_cost<F: Borrow<dyn Factor>>(
                 });
             }
         }
-        let c = factor.cost(values);
+        let l = &factor.noise().sqrt_information;
+        if l.shape() != (factor.residual_dim(), factor.residual_dim()) {
+            return Err(noise_mismatch(i, factor, &[]));
+        }
+        let c = factor_cost(factor, values, &mut buffers);
         if !c.is_finite() {
             return Err(SolverError::NonFinite {
                 factor: i,
@@ -518,7 +571,7 @@ pub(super) fn linearize<F: Borrow<dyn Factor>>(
     let mut block_values: Vec<f64> = Vec::new();
     let mut gradient = DVector::zeros(index.total_dim());
     let mut cost = 0.0;
-    let mut tangent_dims = Vec::new();
+    let mut buffers = FactorBuffers::default();
     let mut looked_up = Vec::new();
     let mut jac_a_t = Vec::new();
     if let KeyPositions::Record(record) = &mut key_positions {
@@ -528,33 +581,31 @@ pub(super) fn linearize<F: Borrow<dyn Factor>>(
     }
     for (i, factor) in factors.iter().enumerate() {
         let factor = factor.borrow();
-        tangent_dims.clear();
-        let WhitenedLinearization {
-            residual,
-            jacobians,
-            cost: c,
-        } = match &mut key_positions {
+        buffers.cols.clear();
+        let c = match &mut key_positions {
             KeyPositions::Record(record) => {
                 for key in factor.keys() {
                     let value = values.get(key).ok_or(SolverError::MissingKey {
                         factor: i,
                         key: *key,
                     })?;
-                    tangent_dims.push(value.dim());
+                    buffers.cols.push(value.dim());
                 }
-                let lin = whitened_linearization(i, factor, values, &tangent_dims)?;
+                let c = whitened_linearization(i, factor, values, &mut buffers)?;
                 looked_up.clear();
                 for key in factor.keys() {
                     looked_up.push(index.position(key).ok_or(SolverError::UnknownKey(*key))?);
                 }
                 record.flat.extend_from_slice(&looked_up);
                 record.starts.push(record.flat.len());
-                lin
+                c
             }
             KeyPositions::Cached(cached) => {
                 let positions = &cached.flat[cached.starts[i]..cached.starts[i + 1]];
-                tangent_dims.extend(positions.iter().map(|&p| index.dims[p]));
-                whitened_linearization(i, factor, values, &tangent_dims)?
+                buffers
+                    .cols
+                    .extend(positions.iter().map(|&p| index.dims[p]));
+                whitened_linearization(i, factor, values, &mut buffers)?
             }
         };
         cost += c;
@@ -562,19 +613,30 @@ pub(super) fn linearize<F: Borrow<dyn Factor>>(
             KeyPositions::Record(record) => &record.flat[record.starts[i]..record.starts[i + 1]],
             KeyPositions::Cached(cached) => &cached.flat[cached.starts[i]..cached.starts[i + 1]],
         };
-        for (a, jac_a) in jacobians.iter().enumerate() {
-            let pa = positions[a];
+        let rows = buffers.residual.len();
+        let residual = &buffers.residual;
+        let mut start_a = 0;
+        for &pa in positions {
             let (oa, da) = (index.offsets[pa], index.dims[pa]);
-            let mut g = gradient.rows_mut(oa, da);
-            g.gemv_tr(1.0, jac_a, &residual, 1.0);
-            transpose_into(jac_a, &mut jac_a_t);
-            for (b, jac_b) in jacobians.iter().enumerate() {
-                let pb = positions[b];
+            let jac_a = &buffers.jacobians[start_a..start_a + rows * da];
+            start_a += rows * da;
+            // g_a += J_aᵀ·r
+            for (g, col) in gradient.as_mut_slice()[oa..oa + da]
+                .iter_mut()
+                .zip(jac_a.chunks_exact(rows.max(1)))
+            {
+                *g += col.iter().zip(residual).map(|(j, r)| j * r).sum::<f64>();
+            }
+            transpose_into(jac_a, rows, da, &mut jac_a_t);
+            let mut start_b = 0;
+            for &pb in positions {
+                let db = index.dims[pb];
+                let jac_b = &buffers.jacobians[start_b..start_b + rows * db];
+                start_b += rows * db;
                 // Keep the lower triangle only (row position ≥ col position).
                 if pa < pb {
                     continue;
                 }
-                let db = index.dims[pb];
                 let offset = *blocks.entry((pa, pb)).or_insert_with(|| {
                     let offset = block_values.len();
                     block_values.resize(offset + da * db, 0.0);
@@ -582,7 +644,12 @@ pub(super) fn linearize<F: Borrow<dyn Factor>>(
                 });
                 // A key repeated within one factor lands here for both
                 // (a, b) and (b, a), so the diagonal block stays symmetric.
-                add_jacobian_product(&mut block_values[offset..offset + da * db], &jac_a_t, jac_b);
+                add_jacobian_product(
+                    &mut block_values[offset..offset + da * db],
+                    &jac_a_t,
+                    jac_b,
+                    rows,
+                );
             }
         }
     }
@@ -595,13 +662,15 @@ pub(super) fn linearize<F: Borrow<dyn Factor>>(
     })
 }
 
-/// `a_t` := `Aᵀ` (column-major `A.ncols() × A.nrows()`): row `k` of `A`
+/// `a_t` := `Aᵀ` for `A` column-major `m × n` in `a`: row `k` of `A`
 /// becomes contiguous, for [`add_jacobian_product`].
-fn transpose_into(a: &DMatrix<f64>, a_t: &mut Vec<f64>) {
-    let (m, n) = a.shape();
+fn transpose_into(a: &[f64], m: usize, n: usize, a_t: &mut Vec<f64>) {
     a_t.clear();
     a_t.resize(m * n, 0.0);
-    for (i, a_col) in a.as_slice().chunks_exact(m).enumerate() {
+    if m == 0 {
+        return;
+    }
+    for (i, a_col) in a.chunks_exact(m).enumerate() {
         for (k, &x) in a_col.iter().enumerate() {
             a_t[k * n + i] = x;
         }
@@ -609,23 +678,22 @@ fn transpose_into(a: &DMatrix<f64>, a_t: &mut Vec<f64>) {
 }
 
 /// `block += Aᵀ·B` (column-major `block`, `A.ncols() × B.ncols()`) from
-/// `a_t` = `Aᵀ` ([`transpose_into`]): each block column gathers rows of `A`
-/// scaled by one entry of `B`, independent multiply-adds the compiler
-/// vectorizes (a dot product per entry is one serial chain of additions),
-/// fully unrolled for the common 3- and 6-dimensional tangents.
-fn add_jacobian_product(block: &mut [f64], a_t: &[f64], b: &DMatrix<f64>) {
-    let m = b.nrows();
-    let rows = a_t.len() / m.max(1);
-    debug_assert_eq!(block.len(), rows * b.ncols());
+/// `a_t` = `Aᵀ` ([`transpose_into`]) and `b` column-major with `m` rows:
+/// each block column gathers rows of `A` scaled by one entry of `B`,
+/// independent multiply-adds the compiler vectorizes (a dot product per
+/// entry is one serial chain of additions), fully unrolled for the common
+/// 3- and 6-dimensional tangents.
+fn add_jacobian_product(block: &mut [f64], a_t: &[f64], b: &[f64], m: usize) {
+    if m == 0 {
+        return;
+    }
+    let rows = a_t.len() / m;
+    debug_assert_eq!(block.len(), rows * (b.len() / m));
     match rows {
-        3 => add_jacobian_product_fixed::<3>(block, a_t, b),
-        6 => add_jacobian_product_fixed::<6>(block, a_t, b),
+        3 => add_jacobian_product_fixed::<3>(block, a_t, b, m),
+        6 => add_jacobian_product_fixed::<6>(block, a_t, b, m),
         _ => {
-            for (b_col, block_col) in b
-                .as_slice()
-                .chunks_exact(m)
-                .zip(block.chunks_exact_mut(rows))
-            {
+            for (b_col, block_col) in b.chunks_exact(m).zip(block.chunks_exact_mut(rows)) {
                 for (&bk, a_row) in b_col.iter().zip(a_t.chunks_exact(rows)) {
                     for (out, &x) in block_col.iter_mut().zip(a_row) {
                         *out += x * bk;
@@ -636,9 +704,8 @@ fn add_jacobian_product(block: &mut [f64], a_t: &[f64], b: &DMatrix<f64>) {
     }
 }
 
-fn add_jacobian_product_fixed<const R: usize>(block: &mut [f64], a_t: &[f64], b: &DMatrix<f64>) {
-    let m = b.nrows();
-    for (b_col, block_col) in b.as_slice().chunks_exact(m).zip(block.chunks_exact_mut(R)) {
+fn add_jacobian_product_fixed<const R: usize>(block: &mut [f64], a_t: &[f64], b: &[f64], m: usize) {
+    for (b_col, block_col) in b.chunks_exact(m).zip(block.chunks_exact_mut(R)) {
         let mut acc = [0.0; R];
         acc.copy_from_slice(block_col);
         for (&bk, a_row) in b_col.iter().zip(a_t.chunks_exact(R)) {
@@ -657,9 +724,10 @@ pub(super) fn cost_of_checked<F: Borrow<dyn Factor>>(
     values: &Values,
 ) -> Result<f64, SolverError> {
     let mut cost = 0.0;
+    let mut buffers = FactorBuffers::default();
     for (i, factor) in factors.iter().enumerate() {
         let factor = factor.borrow();
-        let c = factor.cost(values);
+        let c = factor_cost(factor, values, &mut buffers);
         if !c.is_finite() {
             return Err(SolverError::NonFinite {
                 factor: i,

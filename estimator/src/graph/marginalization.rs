@@ -4,7 +4,7 @@
 //! Gaussian prior on the connected kept variables, stored as a linear factor
 //! around their linearization points. Factors are replaced, never dropped.
 
-use super::factor::{Factor, Linearization};
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
 use super::linearization::linearize_normal_equations;
 use super::noise::NoiseModel;
@@ -12,7 +12,7 @@ use super::optimizer::SolverError;
 use super::values::{Values, Variable};
 use super::variable_index::VariableIndex;
 use crate::lie;
-use nalgebra::{DMatrix, DVector, SymmetricEigen, Vector6};
+use nalgebra::{DMatrix, DVector, DVectorView, DVectorViewMut, SymmetricEigen, Vector6};
 use std::borrow::Borrow;
 use std::collections::BTreeSet;
 
@@ -83,29 +83,42 @@ impl MarginalPriorFactor {
         self.jacobian.transpose() * &self.jacobian
     }
 
-    /// Stacked `x ⊖ x₀` and, per key, `∂(x ⊖ x₀)/∂δ`.
-    fn local_deltas(&self, values: &Values) -> (DVector<f64>, Vec<DMatrix<f64>>) {
-        let n = self.jacobian.ncols();
-        let mut delta = DVector::zeros(n);
-        let mut d_local = Vec::with_capacity(self.keys.len());
+    /// `r_p + J_p·(x ⊖ x₀)` into `residual`, and, when `jacobians` is
+    /// given, each key's block `J_p[:, key]·∂(x ⊖ x₀)/∂δ` (a key's local
+    /// coordinates are at most 6-dimensional: no allocation).
+    fn evaluate(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        mut jacobians: Option<&mut JacobiansMut<'_>>,
+    ) {
+        let mut r = DVectorViewMut::from_slice(residual, self.jacobian.nrows());
+        r.copy_from(&self.residual_at_linearization);
         for (i, key) in self.keys.iter().enumerate() {
             let x = values
                 .get(key)
                 .unwrap_or_else(|| panic!("no value for {key}"));
-            let d = x.local(&self.linearization_points[i]);
-            let dim = d.len();
-            delta.rows_mut(self.offsets[i], dim).copy_from(&d);
-            d_local.push(match x {
-                Variable::Pose(_) => DMatrix::from_column_slice(
-                    6,
-                    6,
-                    lie::se3_right_jacobian_inv(&Vector6::from_column_slice(d.as_slice()))
-                        .as_slice(),
-                ),
-                _ => DMatrix::identity(dim, dim),
-            });
+            let dim = x.dim();
+            let mut local = [0.0; 6];
+            x.local_into(&self.linearization_points[i], &mut local[..dim]);
+            let columns = self.jacobian.columns(self.offsets[i], dim);
+            r.gemv(
+                1.0,
+                &columns,
+                &DVectorView::from_slice(&local[..dim], dim),
+                1.0,
+            );
+            if let Some(jacobians) = jacobians.as_deref_mut() {
+                match x {
+                    Variable::Pose(_) => {
+                        let d_local =
+                            lie::se3_right_jacobian_inv(&Vector6::from_column_slice(&local));
+                        jacobians.block(i).gemm(1.0, &columns, &d_local, 0.0);
+                    }
+                    _ => jacobians.set(i, &columns),
+                }
+            }
         }
-        (delta, d_local)
     }
 }
 
@@ -114,27 +127,25 @@ impl Factor for MarginalPriorFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
-        let (delta, d_local) = self.local_deltas(values);
-        let residual = &self.residual_at_linearization + &self.jacobian * delta;
-        let jacobians = d_local
-            .iter()
-            .enumerate()
-            .map(|(i, d)| self.jacobian.columns(self.offsets[i], d.nrows()) * d)
-            .collect();
-        Linearization {
-            residual,
-            jacobians,
-        }
+    fn residual_dim(&self) -> usize {
+        self.jacobian.nrows()
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        self.evaluate(values, residual, Some(jacobians));
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
-        let (delta, _) = self.local_deltas(values);
-        &self.residual_at_linearization + &self.jacobian * delta
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        self.evaluate(values, residual, None);
     }
 }
 
@@ -384,15 +395,27 @@ mod rank_tests {
         fn keys(&self) -> &[Key] {
             &self.keys
         }
-        fn linearize(&self, values: &Values) -> Linearization {
-            let mut residual = DVector::from_element(self.a[0].nrows(), -1.0);
+
+        fn residual_dim(&self) -> usize {
+            self.a[0].nrows()
+        }
+        fn linearize_into(
+            &self,
+            values: &Values,
+            residual: &mut [f64],
+            jacobians: &mut JacobiansMut<'_>,
+        ) {
+            self.residual_into(values, residual);
+            for (i, a) in self.a.iter().enumerate() {
+                jacobians.set(i, a);
+            }
+        }
+        fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+            let mut r = DVector::from_element(self.a[0].nrows(), -1.0);
             for (key, a) in self.keys.iter().zip(&self.a) {
-                residual += a * DVector::from_column_slice(values.vector3(key).as_slice());
+                r += a * DVector::from_column_slice(values.vector3(key).as_slice());
             }
-            Linearization {
-                residual,
-                jacobians: self.a.clone(),
-            }
+            residual.copy_from_slice(r.as_slice());
         }
         fn noise(&self) -> &NoiseModel {
             &self.noise
@@ -475,7 +498,7 @@ mod rank_tests {
         let h00_inv = h00.try_inverse().unwrap();
         let h_star = &h11 - &h10 * &h00_inv * h10.transpose();
         let g_star = &g1 - &h10 * &h00_inv * &g0;
-        let lin = prior.linearize(&values);
+        let lin = crate::graph::Linearization::of(&prior, &values);
         assert!((prior.information() - &h_star).amax() < 1e-9);
         assert!((lin.jacobians[0].transpose() * &lin.residual - &g_star).amax() < 1e-9);
     }

@@ -21,8 +21,8 @@
 //! * Poses are [`Isometry3`](nalgebra::Isometry3) with the right perturbation
 //!   `T ⊕ ξ = T·Exp(ξ)`, tangent `ξ = (ρ, φ)` (see [`crate::lie`]).
 //! * Velocities and biases are Euclidean: `x ⊕ δ = x + δ`.
-//! * A factor returns its *unwhitened* residual and Jacobians (one per key,
-//!   with respect to that key's tangent); the [`NoiseModel`] whitens them and
+//! * A factor writes its *unwhitened* residual and Jacobians (one per key,
+//!   with respect to that key's tangent) into the caller's buffers; the [`NoiseModel`] whitens them and
 //!   applies the robust kernel, so factors never do.
 
 mod between_factor;
@@ -45,7 +45,7 @@ mod variable_index;
 pub use between_factor::BetweenFactor;
 pub use conditioned_factor::ConditionedFactor;
 pub use elimination::SolverWorkspace;
-pub use factor::{Factor, FactorError, Linearization, check_factor_jacobians};
+pub use factor::{Factor, FactorError, JacobiansMut, Linearization, check_factor_jacobians};
 pub use imu_factor::{BiasRandomWalkFactor, ImuFactor, ImuFactorJacobians, Vector9};
 pub use key::Key;
 pub use linearization::{NormalEquations, linearize_normal_equations, total_cost};

@@ -13,20 +13,12 @@
 //! decoupled, so a diagonal `(σ_t, σ_t, σ_t, σ_r, σ_r, σ_r)` noise model is
 //! meaningful: translation sigmas are along the object's own axes.
 
-use super::factor::{Factor, Linearization};
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::Values;
 use crate::lie;
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix6, Vector6};
-
-fn dvector(v: &Vector6<f64>) -> DVector<f64> {
-    DVector::from_column_slice(v.as_slice())
-}
-
-fn dmatrix(m: &Matrix6<f64>) -> DMatrix<f64> {
-    DMatrix::from_column_slice(6, 6, m.as_slice())
-}
+use nalgebra::Isometry3;
 
 fn is_object_pose(key: &Key) -> bool {
     matches!(key, Key::ObjectPose { .. } | Key::StaticObjectPose { .. })
@@ -103,7 +95,16 @@ impl Factor for ObjectObservationFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
+    fn residual_dim(&self) -> usize {
+        6
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
         let t_world_imu = values.pose(&self.keys[0]);
         let t_world_object = values.pose(&self.keys[1]);
         // E = Z⁻¹·C⁻¹·X⁻¹·O. A right perturbation of O enters on the right:
@@ -113,18 +114,17 @@ impl Factor for ObjectObservationFactor {
         let (r, jr_inv) = lie::se3_log_with_jacobian(&error);
         let d_object = jr_inv;
         let d_ego = -jr_inv * lie::se3_adjoint(&lie::between(t_world_object, t_world_imu));
-        Linearization {
-            residual: dvector(&r),
-            jacobians: vec![dmatrix(&d_ego), dmatrix(&d_object)],
-        }
+        residual.copy_from_slice(r.as_slice());
+        jacobians.set(0, &d_ego);
+        jacobians.set(1, &d_object);
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
-        dvector(&lie::se3_log(&self.error(values)))
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        residual.copy_from_slice(lie::se3_log(&self.error(values)).as_slice());
     }
 }
 
@@ -185,7 +185,16 @@ impl Factor for ObjectMotionFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
+    fn residual_dim(&self) -> usize {
+        6
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
         let t_prev = values.pose(&self.keys[0]);
         let t_next = values.pose(&self.keys[1]);
         // E = M⁻¹·P⁻¹·N. Right perturbations: of N → E·Exp(ξ); of P →
@@ -195,18 +204,18 @@ impl Factor for ObjectMotionFactor {
         let d_next = jr_inv;
         let d_prev = -jr_inv * lie::se3_adjoint(&lie::between(t_next, t_prev));
         let d_motion = -jr_inv * lie::se3_adjoint(&error.inverse());
-        Linearization {
-            residual: dvector(&r),
-            jacobians: vec![dmatrix(&d_prev), dmatrix(&d_next), dmatrix(&d_motion)],
-        }
+        residual.copy_from_slice(r.as_slice());
+        jacobians.set(0, &d_prev);
+        jacobians.set(1, &d_next);
+        jacobians.set(2, &d_motion);
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
-        dvector(&lie::se3_log(&self.error(values)))
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
+        residual.copy_from_slice(lie::se3_log(&self.error(values)).as_slice());
     }
 }
 
@@ -248,22 +257,30 @@ impl Factor for SmoothMotionFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
+    fn residual_dim(&self) -> usize {
+        6
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
         let (r, d_prev, d_next) =
             lie::between_with_jacobians(values.pose(&self.keys[0]), values.pose(&self.keys[1]));
-        Linearization {
-            residual: dvector(&r),
-            jacobians: vec![dmatrix(&d_prev), dmatrix(&d_next)],
-        }
+        residual.copy_from_slice(r.as_slice());
+        jacobians.set(0, &d_prev);
+        jacobians.set(1, &d_next);
     }
 
     fn noise(&self) -> &NoiseModel {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
         let between = lie::between(values.pose(&self.keys[0]), values.pose(&self.keys[1]));
-        dvector(&lie::se3_log(&between))
+        residual.copy_from_slice(lie::se3_log(&between).as_slice());
     }
 }
 
@@ -271,7 +288,7 @@ impl Factor for SmoothMotionFactor {
 mod tests {
     use super::*;
     use crate::graph::{Variable, check_factor_jacobians};
-    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+    use nalgebra::{DVector, Translation3, UnitQuaternion, Vector3, Vector6};
 
     const EGO: Key = Key::EgoPose(4);
     const OBJ_PREV: Key = Key::ObjectPose { id: 7, frame: 3 };
@@ -295,7 +312,7 @@ mod tests {
     }
 
     fn assert_close(actual: &DVector<f64>, expected: &Vector6<f64>, tol: f64) {
-        let diff = (actual - dvector(expected)).amax();
+        let diff = (actual - DVector::from_column_slice(expected.as_slice())).amax();
         assert!(
             diff < tol,
             "residual {actual} != {expected} (diff {diff:e})"

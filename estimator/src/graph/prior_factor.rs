@@ -1,11 +1,11 @@
 //! Unary prior on one variable: `r = x ⊖ prior`.
 
-use super::factor::{Factor, Linearization};
+use super::factor::{Factor, JacobiansMut};
 use super::key::Key;
 use super::noise::NoiseModel;
 use super::values::{Values, Variable};
 use crate::lie;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::Vector6;
 
 /// `r = x ⊖ prior`: `Log(prior⁻¹·x)` for poses (Jacobian `J_r⁻¹(r)`),
 /// `x - prior` for velocities and biases (Jacobian identity).
@@ -37,21 +37,23 @@ impl Factor for PriorFactor {
         &self.keys
     }
 
-    fn linearize(&self, values: &Values) -> Linearization {
-        let x = values
-            .get(&self.keys[0])
-            .unwrap_or_else(|| panic!("no value for {}", self.keys[0]));
-        let residual = x.local(&self.prior);
-        let jacobian = match x {
-            Variable::Pose(_) => {
-                let r = nalgebra::Vector6::from_column_slice(residual.as_slice());
-                DMatrix::from_column_slice(6, 6, lie::se3_right_jacobian_inv(&r).as_slice())
+    fn residual_dim(&self) -> usize {
+        self.prior.dim()
+    }
+
+    fn linearize_into(
+        &self,
+        values: &Values,
+        residual: &mut [f64],
+        jacobians: &mut JacobiansMut<'_>,
+    ) {
+        self.residual_into(values, residual);
+        match values.get(&self.keys[0]) {
+            Some(Variable::Pose(_)) => {
+                let r = Vector6::from_column_slice(residual);
+                jacobians.set(0, &lie::se3_right_jacobian_inv(&r));
             }
-            _ => DMatrix::identity(x.dim(), x.dim()),
-        };
-        Linearization {
-            residual,
-            jacobians: vec![jacobian],
+            _ => jacobians.set_scaled_identity(0, 1.0),
         }
     }
 
@@ -59,11 +61,11 @@ impl Factor for PriorFactor {
         &self.noise
     }
 
-    fn residual(&self, values: &Values) -> DVector<f64> {
+    fn residual_into(&self, values: &Values, residual: &mut [f64]) {
         values
             .get(&self.keys[0])
             .unwrap_or_else(|| panic!("no value for {}", self.keys[0]))
-            .local(&self.prior)
+            .local_into(&self.prior, residual);
     }
 }
 

@@ -42,15 +42,22 @@ impl Variable {
     /// `self ⊖ other`, the tangent vector `δ` with `other ⊕ δ = self`.
     /// Panics if the kinds differ (a programming error, not bad input).
     pub fn local(&self, other: &Variable) -> DVector<f64> {
+        let mut delta = DVector::zeros(self.dim());
+        self.local_into(other, delta.as_mut_slice());
+        delta
+    }
+
+    /// [`Variable::local`] into `delta` (of length [`Variable::dim`]).
+    pub fn local_into(&self, other: &Variable, delta: &mut [f64]) {
         match (self, other) {
             (Variable::Pose(a), Variable::Pose(b)) => {
-                DVector::from_column_slice(lie::ominus(a, b).as_slice())
+                delta.copy_from_slice(lie::ominus(a, b).as_slice());
             }
             (Variable::Vector3(a), Variable::Vector3(b)) => {
-                DVector::from_column_slice((a - b).as_slice())
+                delta.copy_from_slice((a - b).as_slice());
             }
             (Variable::Bias(a), Variable::Bias(b)) => {
-                DVector::from_column_slice((a.to_vector6() - b.to_vector6()).as_slice())
+                delta.copy_from_slice((a.to_vector6() - b.to_vector6()).as_slice());
             }
             _ => panic!("Variable::local between different kinds"),
         }
