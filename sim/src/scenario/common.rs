@@ -375,8 +375,7 @@ pub(crate) fn box_center_lidar_m(ego: &EgoSpec) -> Vector3<f64> {
 /// with d the new origin in the body frame; the attitude is unchanged.
 pub(crate) fn shift_body_origin(traj: &Trajectory, d_body: &Vector3<f64>) -> Trajectory {
     let knots = traj
-        .knots
-        .iter()
+        .knots()
         .enumerate()
         .map(|(i, knot)| {
             let t = traj.t0_s + i as f64 * traj.dt_s;
@@ -425,9 +424,10 @@ pub(crate) fn run_traffic(
     let tracks = simulate_traffic(traffic).map_err(|e| super::traffic_error(spec, e))?;
     let mut agents = Vec::with_capacity(tracks.len());
     let mut ego_scene = None;
-    for (vehicle, track) in traffic.vehicles.iter().zip(&tracks) {
+    // each planar track is dropped once lifted
+    for (vehicle, track) in traffic.vehicles.iter().zip(tracks) {
         let trajectory = lift_onto(
-            track,
+            &track,
             ground,
             raised,
             &vehicle.size_lwh_m,

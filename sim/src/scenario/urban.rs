@@ -441,17 +441,18 @@ fn simulate_agents(
     traffic: &TrafficSpec,
 ) -> Result<Vec<Agent>, ScenarioError> {
     let tracks = simulate_traffic(traffic).map_err(|e| traffic_error(spec, e))?;
+    // each planar track is dropped once lifted
     Ok(traffic
         .vehicles
         .iter()
-        .zip(&tracks)
+        .zip(tracks)
         .map(|(vehicle, track)| Agent {
             id: vehicle.id,
             class: vehicle.class,
             size_lwh_m: vehicle.size_lwh_m,
             parked: false,
             trajectory: lift_to_ground(
-                track,
+                &track,
                 ground,
                 &vehicle.size_lwh_m,
                 Suspension::for_class(vehicle.class).as_ref(),

@@ -4,7 +4,7 @@
 use super::suspension::{self, BodyAttitude, RideInput, Suspension};
 use super::{PlanarSample, PlanarTrack};
 use crate::scene::Ground;
-use crate::trajectory::{Jet, Knot, Trajectory};
+use crate::trajectory::{Knot, Trajectory};
 use nalgebra::{Vector2, Vector3};
 
 /// Wheel track as a fraction of the body width.
@@ -22,7 +22,8 @@ const WHEELBASE_OVER_LENGTH: f64 = 0.6;
 /// bicycles do not rattle with the asphalt).
 ///
 /// Every knot's rate and acceleration are finite differences of the sampled
-/// values themselves (x, y, yaw, z, pitch, roll), not the model's instantaneous
+/// values themselves (x, y, yaw, z, pitch, roll; [`Trajectory::sampled`],
+/// which stores the values alone), not the model's instantaneous
 /// derivatives: the 1 kHz integrator's steps differ from those by O(a dt), and
 /// a quintic piece forced through inconsistent end data over 10 ms swings its
 /// acceleration by ~1 m/s^2 at 100 Hz, which no car does and which IMU
@@ -103,60 +104,20 @@ pub fn lift_onto(
             })
             .collect(),
     };
-    let channels: [Vec<f64>; 6] = {
-        let mut c: [Vec<f64>; 6] = Default::default();
-        for (s, b) in track.samples.iter().zip(&body) {
-            let values = [
+    let values = track
+        .samples
+        .iter()
+        .zip(&body)
+        .map(|(s, b)| {
+            [
                 s.x,
                 s.y,
                 b.heave_m + centre_height,
                 s.yaw,
                 b.pitch_rad,
                 b.roll_rad,
-            ];
-            for (channel, value) in c.iter_mut().zip(values) {
-                channel.push(value);
-            }
-        }
-        c
-    };
-    let jets = channels.map(|values| differentiate(&values, dt_s));
-    let knots = (0..track.samples.len())
-        .map(|k| Knot {
-            position: [jets[0][k], jets[1][k], jets[2][k]],
-            euler: [jets[3][k], jets[4][k], jets[5][k]],
+            ]
         })
         .collect();
-    Trajectory::new(track.t0_s, dt_s, knots)
-}
-
-/// Value, rate and acceleration of evenly spaced samples: second-order
-/// central differences inside, second-order one-sided ones at the ends.
-fn differentiate(values: &[f64], h: f64) -> Vec<Jet> {
-    let n = values.len();
-    (0..n)
-        .map(|k| {
-            let p = |i: usize| values[i];
-            let (rate, accel) = if n < 4 {
-                // too short to difference: hold still (a hand-made stub track)
-                (0.0, 0.0)
-            } else if k == 0 {
-                (
-                    (-3.0 * p(0) + 4.0 * p(1) - p(2)) / (2.0 * h),
-                    (2.0 * p(0) - 5.0 * p(1) + 4.0 * p(2) - p(3)) / (h * h),
-                )
-            } else if k == n - 1 {
-                (
-                    (3.0 * p(k) - 4.0 * p(k - 1) + p(k - 2)) / (2.0 * h),
-                    (2.0 * p(k) - 5.0 * p(k - 1) + 4.0 * p(k - 2) - p(k - 3)) / (h * h),
-                )
-            } else {
-                (
-                    (p(k + 1) - p(k - 1)) / (2.0 * h),
-                    (p(k + 1) - 2.0 * p(k) + p(k - 1)) / (h * h),
-                )
-            };
-            Jet::new(values[k], rate, accel)
-        })
-        .collect()
+    Trajectory::sampled(track.t0_s, dt_s, values)
 }

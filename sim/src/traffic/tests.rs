@@ -416,6 +416,33 @@ fn lifted_trajectory_follows_the_dense_samples() {
     assert!(roll.abs() + pitch.abs() > 1e-3);
 }
 
+/// The lifted trajectories of a drive are what the simulator keeps of it,
+/// for every agent: they store the sampled values alone (six f64 a sample),
+/// not a knot with its derivatives, and a scene's world shares them.
+#[test]
+fn lifted_trajectories_store_six_values_a_sample() {
+    let s = spec(
+        vec![straight(400.0, 0.0)],
+        vec![car(1, 0, 5.0, 3.0, 14.0)],
+        10.0,
+    );
+    let tracks = simulate(&s, RECORD_EVERY).unwrap();
+    let size = s.vehicles[0].size_lwh_m;
+    let traj = lift_to_ground(&tracks[0], &Ground::flat(0.0), &size, None);
+    let samples = tracks[0].samples.len();
+    assert_eq!(traj.knot_count(), samples);
+    assert_eq!(traj.knot_bytes(), samples * 6 * std::mem::size_of::<f64>());
+    // the derived knots are the finite differences of the values
+    let h = traj.dt_s;
+    let (a, b, c) = (traj.knot(99), traj.knot(100), traj.knot(101));
+    let x = |k: &Knot| k.position[0].value;
+    assert_eq!(b.position[0].rate, (x(&c) - x(&a)) / (2.0 * h));
+    assert_eq!(b.position[0].accel, (x(&c) - 2.0 * x(&b) + x(&a)) / (h * h));
+    let scene = scene_of(&s, &tracks);
+    let world = crate::world::World::new(&scene);
+    assert!(world.shares_trajectories_with(&scene));
+}
+
 #[test]
 fn invalid_specs_are_reported() {
     let lane = straight(500.0, 0.0);
