@@ -6,7 +6,7 @@ use crate::roughness::Roughness;
 use crate::scene::{Agent, Crown, Ego, Ground, Shape, StaticKind, StaticObject, Undulation};
 use crate::traffic::{
     DriverParams, LanePath, PlanarSample, PlanarTrack, Suspension, TrafficSpec, VehicleSpec,
-    lift_onto, lift_to_ground, simulate_traffic,
+    lift_to_ground, simulate_traffic_lifted,
 };
 use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
@@ -421,18 +421,11 @@ pub(crate) fn run_traffic(
     raised: &dyn Fn(f64, f64) -> f64,
     traffic: &TrafficSpec,
 ) -> Result<(Vec<Agent>, Ego), ScenarioError> {
-    let tracks = simulate_traffic(traffic).map_err(|e| super::traffic_error(spec, e))?;
-    let mut agents = Vec::with_capacity(tracks.len());
+    let trajectories = simulate_traffic_lifted(traffic, ground, raised)
+        .map_err(|e| super::traffic_error(spec, e))?;
+    let mut agents = Vec::with_capacity(trajectories.len());
     let mut ego_scene = None;
-    // each planar track is dropped once lifted
-    for (vehicle, track) in traffic.vehicles.iter().zip(tracks) {
-        let trajectory = lift_onto(
-            &track,
-            ground,
-            raised,
-            &vehicle.size_lwh_m,
-            Suspension::for_class(vehicle.class).as_ref(),
-        );
+    for (vehicle, trajectory) in traffic.vehicles.iter().zip(trajectories) {
         if vehicle.id == EGO_TRAFFIC_ID {
             ego_scene = Some(make_ego(&spec.ego, &trajectory));
         } else {

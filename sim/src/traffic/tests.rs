@@ -443,6 +443,39 @@ fn lifted_trajectories_store_six_values_a_sample() {
     assert!(world.shares_trajectories_with(&scene));
 }
 
+/// Lifting as the traffic is simulated gives the trajectories of lifting
+/// the finished tracks, bit for bit, sprung or rigid, on raised ground.
+#[test]
+fn tracks_lifted_as_they_are_recorded_are_those_lifted_afterwards() {
+    let mut cyclist = car(2, 1, 30.0, 4.0, 6.0);
+    cyclist.class = ObjectClass::Cyclist;
+    cyclist.size_lwh_m = Vector3::new(1.8, 0.6, 1.7);
+    let mut truck = car(3, 0, 40.0, 8.0, 12.0);
+    truck.class = ObjectClass::Truck;
+    truck.size_lwh_m = Vector3::new(10.0, 2.5, 3.5);
+    let s = spec(
+        vec![straight(400.0, 0.0), straight(400.0, 3.5)],
+        vec![car(1, 0, 5.0, 3.0, 14.0), cyclist, truck],
+        6.0,
+    );
+    let ground = Ground {
+        undulations: vec![Undulation {
+            amplitude_m: 0.3,
+            wave_vector: Vector2::new(0.2, 0.1),
+            phase_rad: 0.1,
+        }],
+        ..Ground::flat(0.5)
+    };
+    let raised = |x: f64, y: f64| if y > 2.0 { 0.15 + 1e-3 * x } else { 0.0 };
+    let lifted = simulate_traffic_lifted(&s, &ground, &raised).unwrap();
+    let tracks = simulate_traffic(&s).unwrap();
+    for ((vs, track), streamed) in s.vehicles.iter().zip(&tracks).zip(&lifted) {
+        let suspension = Suspension::for_class(vs.class);
+        let afterwards = lift_onto(track, &ground, &raised, &vs.size_lwh_m, suspension.as_ref());
+        assert_eq!(streamed, &afterwards, "vehicle {}", vs.id);
+    }
+}
+
 #[test]
 fn invalid_specs_are_reported() {
     let lane = straight(500.0, 0.0);
