@@ -754,6 +754,23 @@ mod tests {
     }
 
     #[test]
+    fn streamed_tables_are_renamed_when_finished_and_removed_when_not() {
+        let dir = tiny_dataset("streamed");
+        for name in ["detections.csv", "gt/boxes.csv"] {
+            assert!(dir.join(name).is_file(), "{name}");
+            assert!(!dir.join(format!("{name}.partial")).exists(), "{name}");
+        }
+        let dir = ScratchDir::new("record-unfinished");
+        let writer = DatasetWriter::begin(&dir, "").unwrap();
+        assert!(dir.join("gt/boxes.csv.partial").is_file());
+        drop(writer);
+        for name in ["detections.csv", "gt/boxes.csv"] {
+            assert!(!dir.join(name).exists(), "{name}");
+            assert!(!dir.join(format!("{name}.partial")).exists(), "{name}");
+        }
+    }
+
+    #[test]
     fn meta_values_are_checked_with_their_line() {
         let dir = tiny_dataset("meta-nan");
         replace_in(

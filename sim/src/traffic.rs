@@ -39,6 +39,7 @@ mod spec;
 mod suspension;
 
 pub use lane_path::{LanePath, PathPiece};
+use lift::Lifting;
 pub use lift::{lift_onto, lift_to_ground};
 pub use overlap::{Body, Overlap, first_overlap};
 pub use suspension::{BodyAttitude, RideInput, Suspension, ride};
@@ -80,6 +81,48 @@ const INTERACTION_RANGE_M: f64 = 250.0;
 /// (2 max_decel) + v_f * accel_lag, and for a diverging state.
 pub fn simulate_traffic(spec: &TrafficSpec) -> Result<Vec<PlanarTrack>, TrafficError> {
     simulate(spec, RECORD_EVERY)
+}
+
+/// [`simulate_traffic`] with every track lifted as it is recorded
+/// ([`lift_onto`] the ground raised by `raised(x, y)`, each vehicle with its
+/// class's [`Suspension`]): the same trajectories, bit for bit, without
+/// ever holding the planar tracks.
+///
+/// # Errors
+/// As [`simulate_traffic`].
+pub(crate) fn simulate_traffic_lifted(
+    spec: &TrafficSpec,
+    ground: &crate::scene::Ground,
+    raised: &dyn Fn(f64, f64) -> f64,
+) -> Result<Vec<crate::trajectory::Trajectory>, TrafficError> {
+    // before the tracks' room is taken: the duration is checked there
+    validate(spec)?;
+    let record_dt = SIM_DT_S * RECORD_EVERY as f64;
+    let samples = sample_count(spec, record_dt);
+    let mut lifting: Vec<Lifting> = spec
+        .vehicles
+        .iter()
+        .map(|vs| {
+            let suspension = Suspension::for_class(vs.class);
+            Lifting::new(
+                0.0,
+                record_dt,
+                samples,
+                ground,
+                raised,
+                &vs.size_lwh_m,
+                suspension.as_ref(),
+            )
+        })
+        .collect();
+    run(spec, RECORD_EVERY, |i, sample| lifting[i].push(sample))?;
+    Ok(lifting.into_iter().map(Lifting::finish).collect())
+}
+
+/// Samples of each track over `[0, duration_s]`, one every `record_dt_s`,
+/// the end included.
+fn sample_count(spec: &TrafficSpec, record_dt_s: f64) -> usize {
+    (spec.duration_s / record_dt_s).round() as usize + 1
 }
 
 /// Lateral transition of a lane change: reference offset fades from `d0_m` to 0.
@@ -643,16 +686,41 @@ fn check_start_gaps(sim: &Sim) -> Result<(), TrafficError> {
     Ok(())
 }
 
-/// The simulation loop; records one sample every `record_every` 1 ms steps.
+/// The simulation loop into tracks: one sample every `record_every` 1 ms
+/// steps.
 fn simulate(spec: &TrafficSpec, record_every: usize) -> Result<Vec<PlanarTrack>, TrafficError> {
+    validate(spec)?;
+    let record_dt = SIM_DT_S * record_every as f64;
+    let n_samples = sample_count(spec, record_dt);
+    let mut samples: Vec<Vec<PlanarSample>> =
+        vec![Vec::with_capacity(n_samples); spec.vehicles.len()];
+    run(spec, record_every, |i, sample| samples[i].push(*sample))?;
+    Ok(spec
+        .vehicles
+        .iter()
+        .zip(samples)
+        .map(|(vs, samples)| PlanarTrack {
+            id: vs.id,
+            t0_s: 0.0,
+            dt_s: record_dt,
+            samples,
+        })
+        .collect())
+}
+
+/// The simulation loop; hands `record(vehicle index, sample)` one sample
+/// of every vehicle (in spec order) every `record_every` 1 ms steps.
+fn run(
+    spec: &TrafficSpec,
+    record_every: usize,
+    mut record: impl FnMut(usize, &PlanarSample),
+) -> Result<(), TrafficError> {
     validate(spec)?;
     let mut sim = Sim::new(spec);
     check_start_gaps(&sim)?;
     let record_dt = SIM_DT_S * record_every as f64;
-    let n_samples = (spec.duration_s / record_dt).round() as usize + 1;
+    let n_samples = sample_count(spec, record_dt);
     let n_steps = (n_samples - 1) * record_every;
-    let mut samples: Vec<Vec<PlanarSample>> =
-        vec![Vec::with_capacity(n_samples); spec.vehicles.len()];
     for k in 0..=n_steps {
         let t_s = k as f64 * SIM_DT_S;
         if k % PLAN_EVERY == 0 {
@@ -686,25 +754,15 @@ fn simulate(spec: &TrafficSpec, record_every: usize) -> Result<Vec<PlanarTrack>,
             }
         }
         if k % record_every == 0 {
-            for (i, out) in samples.iter_mut().enumerate() {
-                out.push(sim.sample(i));
+            for i in 0..sim.vehicles.len() {
+                record(i, &sim.sample(i));
             }
         }
         if k < n_steps {
             sim.integrate(t_s)?;
         }
     }
-    Ok(spec
-        .vehicles
-        .iter()
-        .zip(samples)
-        .map(|(vs, samples)| PlanarTrack {
-            id: vs.id,
-            t0_s: 0.0,
-            dt_s: record_dt,
-            samples,
-        })
-        .collect())
+    Ok(())
 }
 
 #[cfg(test)]

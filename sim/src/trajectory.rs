@@ -3,9 +3,12 @@
 //! Every scalar channel (x, y, z, yaw, pitch, roll) is stored at each knot with
 //! its first and second time derivatives and interpolated by quintic Hermite
 //! polynomials, so position, velocity and acceleration are continuous and the
-//! IMU can be derived analytically at any time.
+//! IMU can be derived analytically at any time. A trajectory lifted from
+//! samples stores their values alone and derives the knots' derivatives by
+//! finite differences when they are read.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use std::sync::Arc;
 
 /// A scalar value with its first and second time derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -47,7 +50,8 @@ pub struct KinematicState {
 }
 
 /// A trajectory over `[t0_s, t0_s + (n - 1) * dt_s]`; queries outside are
-/// clamped to the end knots (the body holds still there).
+/// clamped to the end knots (the body holds still there). Clones share the
+/// knots.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     /// Time of the first knot, s.
@@ -55,7 +59,18 @@ pub struct Trajectory {
     /// Knot spacing, s.
     pub dt_s: f64,
     /// The knots at `t0_s + k dt_s`.
-    pub knots: Vec<Knot>,
+    knots: Knots,
+}
+
+/// How a [`Trajectory`] stores its knots.
+#[derive(Debug, Clone, PartialEq)]
+enum Knots {
+    /// Every knot with its derivatives, as given.
+    Jets(Arc<[Knot]>),
+    /// Per knot the values alone, `[x, y, z, yaw, pitch, roll]`: the rates
+    /// and accelerations are finite differences of them
+    /// ([`differentiated`]), derived when a knot is read.
+    Values(Arc<[[f64; 6]]>),
 }
 
 impl Trajectory {
@@ -65,7 +80,30 @@ impl Trajectory {
     /// If `dt_s <= 0` or `knots` is empty.
     pub fn new(t0_s: f64, dt_s: f64, knots: Vec<Knot>) -> Trajectory {
         assert!(dt_s > 0.0 && !knots.is_empty());
-        Trajectory { t0_s, dt_s, knots }
+        Trajectory {
+            t0_s,
+            dt_s,
+            knots: Knots::Jets(knots.into()),
+        }
+    }
+
+    /// A trajectory through sampled values, `[x, y, z, yaw, pitch, roll]`
+    /// every `dt_s`, whose knots' rates and accelerations are the values'
+    /// finite differences: second-order central ones inside, second-order
+    /// one-sided ones at the ends, none (at rest) with fewer than four
+    /// samples. Only the values are stored (48 bytes a knot instead of a
+    /// [`Knot`]'s 144); the knots are those of [`Trajectory::new`] with the
+    /// differences computed up front, bit for bit.
+    ///
+    /// # Panics
+    /// If `dt_s <= 0` or `values` is empty.
+    pub fn sampled(t0_s: f64, dt_s: f64, values: Vec<[f64; 6]>) -> Trajectory {
+        assert!(dt_s > 0.0 && !values.is_empty());
+        Trajectory {
+            t0_s,
+            dt_s,
+            knots: Knots::Values(values.into()),
+        }
     }
 
     /// A body at rest at one pose.
@@ -94,31 +132,79 @@ impl Trajectory {
 
     /// Time of the last knot, s.
     pub fn end_s(&self) -> f64 {
-        self.t0_s + (self.knots.len() - 1) as f64 * self.dt_s
+        self.t0_s + (self.knot_count() - 1) as f64 * self.dt_s
+    }
+
+    /// Number of knots.
+    pub fn knot_count(&self) -> usize {
+        match &self.knots {
+            Knots::Jets(knots) => knots.len(),
+            Knots::Values(values) => values.len(),
+        }
+    }
+
+    /// Knot `index` (at `t0_s + index * dt_s`), values and derivatives.
+    ///
+    /// # Panics
+    /// If `index >= knot_count()`.
+    pub fn knot(&self, index: usize) -> Knot {
+        match &self.knots {
+            Knots::Jets(knots) => knots[index],
+            Knots::Values(values) => {
+                let jet = |c: usize| differentiated(values, c, index, self.dt_s);
+                Knot {
+                    position: [jet(0), jet(1), jet(2)],
+                    euler: [jet(3), jet(4), jet(5)],
+                }
+            }
+        }
+    }
+
+    /// The knots in time order.
+    pub fn knots(&self) -> impl ExactSizeIterator<Item = Knot> + '_ {
+        (0..self.knot_count()).map(|index| self.knot(index))
+    }
+
+    /// Bytes the knots take in memory (shared by clones).
+    pub fn knot_bytes(&self) -> usize {
+        match &self.knots {
+            Knots::Jets(knots) => std::mem::size_of_val(&**knots),
+            Knots::Values(values) => std::mem::size_of_val(&**values),
+        }
+    }
+
+    /// Whether `self` and `other` share one store of knots (one is a clone
+    /// of the other).
+    pub fn shares_knots_with(&self, other: &Trajectory) -> bool {
+        match (&self.knots, &other.knots) {
+            (Knots::Jets(a), Knots::Jets(b)) => Arc::ptr_eq(a, b),
+            (Knots::Values(a), Knots::Values(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
     }
 
     /// Where `t_s` falls: before the first or after the last knot (at
-    /// rest there), or on the segment between two knots at the normalised
-    /// parameter `s`.
-    fn place(&self, t_s: f64) -> Place<'_> {
-        let n = self.knots.len();
+    /// rest there), or on the segment between knot `i` and `i + 1` at the
+    /// normalised parameter `s`.
+    fn place(&self, t_s: f64) -> Place {
+        let n = self.knot_count();
         // strictly outside: a query exactly at an end knot keeps its motion
         if n == 1 || t_s < self.t0_s {
-            return Place::Rest(&self.knots[0]);
+            return Place::Rest(0);
         }
         if t_s > self.end_s() {
-            return Place::Rest(&self.knots[n - 1]);
+            return Place::Rest(n - 1);
         }
         let u = (t_s - self.t0_s) / self.dt_s;
         let i = (u.floor() as usize).min(n - 2);
-        Place::Between(&self.knots[i], &self.knots[i + 1], u - i as f64)
+        Place::Between(i, u - i as f64)
     }
 
     /// Interpolated knot (values and derivatives) at time `t_s`.
     pub fn knot_at(&self, t_s: f64) -> Knot {
         let (a, b, s) = match self.place(t_s) {
-            Place::Rest(k) => return at_rest(k),
-            Place::Between(a, b, s) => (a, b, s),
+            Place::Rest(k) => return at_rest(&self.knot(k)),
+            Place::Between(i, s) => (self.knot(i), self.knot(i + 1), s),
         };
         let h = self.dt_s;
         let mut out = Knot::default();
@@ -133,8 +219,9 @@ impl Trajectory {
     /// that of [`Trajectory::knot_at`], from the values alone.
     pub fn pose_at(&self, t_s: f64) -> Isometry3<f64> {
         match self.place(t_s) {
-            Place::Rest(k) => knot_pose(k),
-            Place::Between(a, b, s) => {
+            Place::Rest(k) => knot_pose(&self.knot(k)),
+            Place::Between(i, s) => {
+                let (a, b) = (&self.knot(i), &self.knot(i + 1));
                 let h = self.dt_s;
                 let at = |c: usize, jets: fn(&Knot) -> &[Jet; 3]| {
                     quintic_hermite_value(&jets(a)[c], &jets(b)[c], s, h)
@@ -182,11 +269,40 @@ fn at_rest(k: &Knot) -> Knot {
 }
 
 /// Where [`Trajectory::place`] puts a time.
-enum Place<'a> {
+enum Place {
     /// Outside the knots: at rest at this one.
-    Rest(&'a Knot),
-    /// Between two knots, at the normalised parameter in [0, 1].
-    Between(&'a Knot, &'a Knot, f64),
+    Rest(usize),
+    /// Between this knot and the next, at the normalised parameter in [0, 1].
+    Between(usize, f64),
+}
+
+/// Channel `c` of sample `k` of evenly spaced samples (spacing `h`) with its
+/// rate and acceleration: second-order central differences inside,
+/// second-order one-sided ones at the ends, none with fewer than four
+/// samples.
+fn differentiated(values: &[[f64; 6]], c: usize, k: usize, h: f64) -> Jet {
+    let n = values.len();
+    let p = |i: usize| values[i][c];
+    let (rate, accel) = if n < 4 {
+        // too short to difference: hold still (a hand-made stub track)
+        (0.0, 0.0)
+    } else if k == 0 {
+        (
+            (-3.0 * p(0) + 4.0 * p(1) - p(2)) / (2.0 * h),
+            (2.0 * p(0) - 5.0 * p(1) + 4.0 * p(2) - p(3)) / (h * h),
+        )
+    } else if k == n - 1 {
+        (
+            (3.0 * p(k) - 4.0 * p(k - 1) + p(k - 2)) / (2.0 * h),
+            (2.0 * p(k) - 5.0 * p(k - 1) + 4.0 * p(k - 2) - p(k - 3)) / (h * h),
+        )
+    } else {
+        (
+            (p(k + 1) - p(k - 1)) / (2.0 * h),
+            (p(k + 1) - 2.0 * p(k) + p(k - 1)) / (h * h),
+        )
+    };
+    Jet::new(p(k), rate, accel)
 }
 
 /// The pose of a knot (its values).
@@ -349,6 +465,42 @@ mod tests {
                 assert!((got.accel - want.accel).abs() < 1e-8);
             }
         }
+    }
+
+    #[test]
+    fn sampled_knots_are_the_values_finite_differences() {
+        let h = 0.01;
+        let values: Vec<[f64; 6]> = (0..50)
+            .map(|i| {
+                let t = i as f64 * h;
+                let v = jet_of_cubic(t).value;
+                [v, 2.0 * v, -v, 0.1 * v, 0.01 * t, -0.02 * t]
+            })
+            .collect();
+        let sampled = Trajectory::sampled(0.0, h, values.clone());
+        assert_eq!(sampled.knot_bytes(), 50 * 48);
+        // exact for a quadratic inside, second order at the ends
+        for k in [0, 1, 25, 48, 49] {
+            let want = jet_of_cubic(k as f64 * h);
+            let got = sampled.knot(k).position[0];
+            assert_eq!(got.value, values[k][0]);
+            assert!((got.rate - want.rate).abs() < 1e-3, "{k}: {got:?} {want:?}");
+            assert!(
+                (got.accel - want.accel).abs() < 2e-2,
+                "{k}: {got:?} {want:?}"
+            );
+        }
+        // the same trajectory as its knots stored whole, bit for bit
+        let whole = Trajectory::new(0.0, h, sampled.knots().collect());
+        for t in [0.0, 0.123, 0.25, 0.4901, 0.49] {
+            assert_eq!(sampled.pose_at(t), whole.pose_at(t));
+            assert_eq!(sampled.state_at(t), whole.state_at(t));
+        }
+        assert!(sampled.clone().shares_knots_with(&sampled));
+        assert!(!whole.shares_knots_with(&sampled));
+        // too few samples to difference: at rest
+        let stub = Trajectory::sampled(0.0, h, values[..3].to_vec());
+        assert_eq!(stub.knot(1).position[0].rate, 0.0);
     }
 
     #[test]

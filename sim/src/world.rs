@@ -163,6 +163,18 @@ fn to_glam_pose(pose: &Isometry3<f64>) -> rapier3d::math::Pose {
 }
 
 impl World {
+    /// Whether every agent's trajectory is the scene's own (shared, not
+    /// copied).
+    #[cfg(test)]
+    pub(crate) fn shares_trajectories_with(&self, scene: &Scene) -> bool {
+        self.agents.len() == scene.agents.len()
+            && self
+                .agents
+                .iter()
+                .zip(&scene.agents)
+                .all(|(body, agent)| body.trajectory.shares_knots_with(&agent.trajectory))
+    }
+
     /// The ray-cast world of `scene`, at time 0.
     pub fn new(scene: &Scene) -> World {
         let mut bodies = RigidBodySet::new();
@@ -240,6 +252,7 @@ impl World {
                     class: agent.class,
                     half_extents_m: half,
                     bounding_radius_m: half.norm(),
+                    // a clone shares the knots
                     trajectory: agent.trajectory.clone(),
                     presence: agent.presence,
                     body,

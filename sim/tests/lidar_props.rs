@@ -169,7 +169,7 @@ proptest! {
             .enumerate()
             .map(|(i, b)| {
                 let size = Vector3::new(b.size.0, b.size.1, b.size.2);
-                let mut trajectory = moving(
+                let along_heading = moving(
                     Vector3::new(b.x, b.y, ground.height(b.x, b.y) + size.z / 2.0),
                     b.heading,
                     b.speed_mps,
@@ -177,9 +177,14 @@ proptest! {
                     (0.0, 0.0),
                 );
                 // boxes face their own yaw, not their direction of travel
-                for k in &mut trajectory.knots {
-                    k.euler[0].value = b.yaw;
-                }
+                let knots = along_heading
+                    .knots()
+                    .map(|mut k| {
+                        k.euler[0].value = b.yaw;
+                        k
+                    })
+                    .collect();
+                let trajectory = Trajectory::new(along_heading.t0_s, along_heading.dt_s, knots);
                 Agent {
                     id: i as u32 + 1,
                     class: ObjectClass::Car,

@@ -6,19 +6,79 @@ use super::{
 };
 use limot_estimator::input::ImuSample;
 use std::fmt::Write as _;
-use std::fs;
+use std::fs::{self, File};
+use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
 /// Writes a dataset directory incrementally: `begin`, then frames in order,
-/// then `finish` with the streams known only at the end. Every file is
-/// written whole by a [`FileWriter`] (one write per file, nothing partial
-/// left behind on an error).
+/// then `finish` with the streams known only at the end. Scans and the
+/// end-of-run files are written whole by a [`FileWriter`] (one write per
+/// file, nothing partial left behind on an error); the per-frame tables
+/// (`detections.csv`, `gt/boxes.csv`) are streamed to `NAME.partial` as the
+/// frames come and renamed by `finish` (removed if the writer is dropped
+/// before), so memory does not grow with the run.
 pub struct DatasetWriter {
     dir: PathBuf,
     files: FileWriter,
-    detections_csv: String,
-    boxes_csv: String,
+    detections_csv: StreamedCsv,
+    boxes_csv: StreamedCsv,
+    /// One frame's rows, formatted before they are streamed (reused).
+    rows: String,
     frames_written: usize,
+}
+
+/// A CSV file written row by row as `NAME.partial`, renamed to `NAME` by
+/// [`StreamedCsv::finish`]; dropped unfinished, the partial file is removed.
+struct StreamedCsv {
+    path: PathBuf,
+    partial: PathBuf,
+    out: Option<BufWriter<File>>,
+}
+
+impl StreamedCsv {
+    /// Creates `path.partial` with the header line `header`.
+    fn create(path: PathBuf, header: &str) -> Result<StreamedCsv, RecordError> {
+        let mut partial = path.as_os_str().to_owned();
+        partial.push(".partial");
+        let partial = PathBuf::from(partial);
+        let file = File::create(&partial).map_err(io_err(&partial))?;
+        let mut csv = StreamedCsv {
+            path,
+            partial,
+            out: Some(BufWriter::new(file)),
+        };
+        csv.append(header)?;
+        Ok(csv)
+    }
+
+    /// Appends `text` (whole lines).
+    fn append(&mut self, text: &str) -> Result<(), RecordError> {
+        let out = self
+            .out
+            .as_mut()
+            .expect("a streamed CSV is open until finished");
+        out.write_all(text.as_bytes())
+            .map_err(io_err(&self.partial))
+    }
+
+    /// Flushes the file and gives it its final name.
+    fn finish(mut self) -> Result<(), RecordError> {
+        let out = self.out.take().expect("a streamed CSV is finished once");
+        let file = out
+            .into_inner()
+            .map_err(|e| io_err(&self.partial)(e.into_error()))?;
+        drop(file);
+        fs::rename(&self.partial, &self.path).map_err(io_err(&self.path))
+    }
+}
+
+impl Drop for StreamedCsv {
+    fn drop(&mut self) {
+        if self.out.take().is_some() {
+            // best effort: an unfinished table is not part of a dataset
+            let _ = fs::remove_file(&self.partial);
+        }
+    }
 }
 
 impl DatasetWriter {
@@ -49,8 +109,15 @@ impl DatasetWriter {
         Ok(DatasetWriter {
             dir: dir.to_path_buf(),
             files,
-            detections_csv: "frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id\n".into(),
-            boxes_csv: "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked\n".into(),
+            detections_csv: StreamedCsv::create(
+                dir.join("detections.csv"),
+                "frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id\n",
+            )?,
+            boxes_csv: StreamedCsv::create(
+                dir.join("gt/boxes.csv"),
+                "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked\n",
+            )?,
+            rows: String::new(),
             frames_written: 0,
         })
     }
@@ -63,7 +130,8 @@ impl DatasetWriter {
     /// Appends the next frame with its ground-truth boxes.
     ///
     /// # Errors
-    /// [`RecordError::Io`] if the scan file cannot be written.
+    /// [`RecordError::Io`] if the scan file or the frame's table rows cannot
+    /// be written.
     pub fn write_frame(
         &mut self,
         frame: &RecordedFrame,
@@ -74,13 +142,14 @@ impl DatasetWriter {
         self.files.write_with(&path, |out| {
             encode_scan_into(&frame.scan, &frame.labels, out);
         })?;
+        self.rows.clear();
         for d in &frame.detections {
             let det = &d.detection;
             let c = det.box_lidar.center;
             let s = det.box_lidar.size_lwh;
             let truth = d.truth_id.map_or(-1, i64::from);
             let _ = writeln!(
-                self.detections_csv,
+                self.rows,
                 "{index},{},{},{},{},{},{},{},{},{},{},{truth}",
                 det.time_offset_s,
                 det.class,
@@ -94,15 +163,18 @@ impl DatasetWriter {
                 det.score
             );
         }
+        self.detections_csv.append(&self.rows)?;
+        self.rows.clear();
         for b in boxes {
             let [x, y, z, qx, qy, qz, qw] = pose_to_array(&b.t_world_box);
             let (s, v) = (b.size_lwh_m, b.velocity_world_mps);
             let _ = writeln!(
-                self.boxes_csv,
+                self.rows,
                 "{index},{},{},{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{},{},{},{},{}",
                 b.t_s, b.id, b.class, s.x, s.y, s.z, v.x, v.y, v.z, b.parked as u8
             );
         }
+        self.boxes_csv.append(&self.rows)?;
         self.frames_written += 1;
         Ok(())
     }
@@ -150,10 +222,10 @@ impl DatasetWriter {
         }
         let meta_toml = toml::to_string(&meta)
             .map_err(|e| format_err(&self.dir.join("meta.toml"), 0, "meta", e.to_string()))?;
+        self.detections_csv.finish()?;
+        self.boxes_csv.finish()?;
         let files = [
             ("imu.csv", imu_csv),
-            ("detections.csv", self.detections_csv),
-            ("gt/boxes.csv", self.boxes_csv),
             ("gt/imu_bias.csv", bias_csv),
             ("gt/ego.csv", ego_csv),
             ("meta.toml", meta_toml),

@@ -6,7 +6,7 @@ use crate::roughness::Roughness;
 use crate::scene::{Agent, Crown, Ego, Ground, Shape, StaticKind, StaticObject, Undulation};
 use crate::traffic::{
     DriverParams, LanePath, PlanarSample, PlanarTrack, Suspension, TrafficSpec, VehicleSpec,
-    lift_onto, lift_to_ground, simulate_traffic,
+    lift_to_ground, simulate_traffic_lifted,
 };
 use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
@@ -375,8 +375,7 @@ pub(crate) fn box_center_lidar_m(ego: &EgoSpec) -> Vector3<f64> {
 /// with d the new origin in the body frame; the attitude is unchanged.
 pub(crate) fn shift_body_origin(traj: &Trajectory, d_body: &Vector3<f64>) -> Trajectory {
     let knots = traj
-        .knots
-        .iter()
+        .knots()
         .enumerate()
         .map(|(i, knot)| {
             let t = traj.t0_s + i as f64 * traj.dt_s;
@@ -422,17 +421,11 @@ pub(crate) fn run_traffic(
     raised: &dyn Fn(f64, f64) -> f64,
     traffic: &TrafficSpec,
 ) -> Result<(Vec<Agent>, Ego), ScenarioError> {
-    let tracks = simulate_traffic(traffic).map_err(|e| super::traffic_error(spec, e))?;
-    let mut agents = Vec::with_capacity(tracks.len());
+    let trajectories = simulate_traffic_lifted(traffic, ground, raised)
+        .map_err(|e| super::traffic_error(spec, e))?;
+    let mut agents = Vec::with_capacity(trajectories.len());
     let mut ego_scene = None;
-    for (vehicle, track) in traffic.vehicles.iter().zip(&tracks) {
-        let trajectory = lift_onto(
-            track,
-            ground,
-            raised,
-            &vehicle.size_lwh_m,
-            Suspension::for_class(vehicle.class).as_ref(),
-        );
+    for (vehicle, trajectory) in traffic.vehicles.iter().zip(trajectories) {
         if vehicle.id == EGO_TRAFFIC_ID {
             ego_scene = Some(make_ego(&spec.ego, &trajectory));
         } else {

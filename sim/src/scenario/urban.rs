@@ -38,8 +38,7 @@ use super::{
 };
 use crate::scene::{Agent, Ground, Scene};
 use crate::traffic::{
-    LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec, lift_to_ground,
-    simulate_traffic,
+    LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec, simulate_traffic_lifted,
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry2, Point2};
@@ -440,22 +439,18 @@ fn simulate_agents(
     ground: &Ground,
     traffic: &TrafficSpec,
 ) -> Result<Vec<Agent>, ScenarioError> {
-    let tracks = simulate_traffic(traffic).map_err(|e| traffic_error(spec, e))?;
+    let trajectories = simulate_traffic_lifted(traffic, ground, &|_, _| 0.0)
+        .map_err(|e| traffic_error(spec, e))?;
     Ok(traffic
         .vehicles
         .iter()
-        .zip(&tracks)
-        .map(|(vehicle, track)| Agent {
+        .zip(trajectories)
+        .map(|(vehicle, trajectory)| Agent {
             id: vehicle.id,
             class: vehicle.class,
             size_lwh_m: vehicle.size_lwh_m,
             parked: false,
-            trajectory: lift_to_ground(
-                track,
-                ground,
-                &vehicle.size_lwh_m,
-                Suspension::for_class(vehicle.class).as_ref(),
-            ),
+            trajectory,
             presence: crate::scene::Presence::ALWAYS,
         })
         .collect())
@@ -776,6 +771,7 @@ mod tests {
     use super::*;
     use crate::scenario::URBAN_ALL_RED_S;
     use crate::scene::Shape;
+    use crate::traffic::simulate_traffic;
     use rand::SeedableRng;
 
     fn is_red(intervals: &[(f64, f64)], t_s: f64) -> bool {

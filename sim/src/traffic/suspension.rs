@@ -140,61 +140,119 @@ impl Mode {
 /// The body's response to `inputs` sampled every `dt_s`, starting in the
 /// steady state of the first sample; one output per input.
 pub fn ride(suspension: &Suspension, inputs: &[RideInput], dt_s: f64) -> Vec<BodyAttitude> {
-    let Some(first) = inputs.first() else {
-        return Vec::new();
-    };
-    let s = suspension;
-    let pitch_load =
-        |i: &RideInput| i.pitch_rad - s.pitch_per_decel_rad_per_mps2 * i.longitudinal_mps2;
-    let roll_load = |i: &RideInput| i.roll_rad + s.roll_per_lateral_rad_per_mps2 * i.lateral_mps2;
-    let rate = |k: usize, f: &dyn Fn(&RideInput) -> f64| {
-        if inputs.len() < 2 {
-            0.0
-        } else {
-            let k = k.min(inputs.len() - 2);
-            (f(&inputs[k + 1]) - f(&inputs[k])) / dt_s
-        }
-    };
-    let heave = |i: &RideInput| i.heave_m;
-    let pitch_road = |i: &RideInput| i.pitch_rad;
-    let roll_road = |i: &RideInput| i.roll_rad;
-    let z = s.damping_ratio;
-    let mut modes = [
-        Mode::at_rest(s.heave_hz, z, first.heave_m, rate(0, &heave)),
-        Mode::at_rest(s.pitch_hz, z, pitch_load(first), rate(0, &pitch_road)),
-        Mode::at_rest(s.roll_hz, z, roll_load(first), rate(0, &roll_road)),
-    ];
-    let substeps = ((dt_s / SUBSTEP_S).ceil() as usize).clamp(1, MAX_SUBSTEPS);
-    let h = dt_s / substeps as f64;
     let mut out = Vec::with_capacity(inputs.len());
-    let attitude = |m: &[Mode; 3]| BodyAttitude {
-        heave_m: m[0].x,
-        pitch_rad: m[1].x,
-        roll_rad: m[2].x,
-    };
-    out.push(attitude(&modes));
-    for pair in inputs.windows(2) {
-        let (a, b) = (&pair[0], &pair[1]);
+    let mut riding = Riding::new(suspension, dt_s);
+    for input in inputs {
+        riding.push(input, |attitude| out.push(attitude));
+    }
+    riding.finish(|attitude| out.push(attitude));
+    out
+}
+
+/// [`ride`] one input at a time: the attitude of a sample is known once
+/// the next one has come (the start rests on the first two inputs' rate),
+/// the last one's at [`Riding::finish`] if there was only one.
+#[derive(Debug, Clone)]
+pub(crate) struct Riding {
+    suspension: Suspension,
+    dt_s: f64,
+    substeps: usize,
+    /// The first input, until the second comes.
+    first: Option<RideInput>,
+    /// The previous input and the modes there, from the second input on.
+    state: Option<(RideInput, [Mode; 3])>,
+}
+
+impl Riding {
+    /// Ready for the first input.
+    pub(crate) fn new(suspension: &Suspension, dt_s: f64) -> Riding {
+        Riding {
+            suspension: *suspension,
+            dt_s,
+            substeps: ((dt_s / SUBSTEP_S).ceil() as usize).clamp(1, MAX_SUBSTEPS),
+            first: None,
+            state: None,
+        }
+    }
+
+    fn pitch_load(&self, i: &RideInput) -> f64 {
+        i.pitch_rad - self.suspension.pitch_per_decel_rad_per_mps2 * i.longitudinal_mps2
+    }
+
+    fn roll_load(&self, i: &RideInput) -> f64 {
+        i.roll_rad + self.suspension.roll_per_lateral_rad_per_mps2 * i.lateral_mps2
+    }
+
+    /// The modes at rest at `first`, moving with the road's rate towards
+    /// `second` (none without a second input).
+    fn at_rest(&self, first: &RideInput, second: Option<&RideInput>) -> [Mode; 3] {
+        let s = &self.suspension;
+        let rate = |f: fn(&RideInput) -> f64| match second {
+            Some(second) => (f(second) - f(first)) / self.dt_s,
+            None => 0.0,
+        };
+        let z = s.damping_ratio;
+        [
+            Mode::at_rest(s.heave_hz, z, first.heave_m, rate(|i| i.heave_m)),
+            Mode::at_rest(s.pitch_hz, z, self.pitch_load(first), rate(|i| i.pitch_rad)),
+            Mode::at_rest(s.roll_hz, z, self.roll_load(first), rate(|i| i.roll_rad)),
+        ]
+    }
+
+    /// Takes the next input; `out` gets the attitudes it completes (none
+    /// for the first input, two for the second, one after).
+    pub(crate) fn push(&mut self, input: &RideInput, mut out: impl FnMut(BodyAttitude)) {
+        let (a, mut modes) = match (self.state.take(), self.first.take()) {
+            (Some(state), _) => state,
+            (None, None) => {
+                self.first = Some(*input);
+                return;
+            }
+            (None, Some(first)) => {
+                let modes = self.at_rest(&first, Some(input));
+                out(attitude(&modes));
+                (first, modes)
+            }
+        };
+        let b = input;
         let targets = [
             (a.heave_m, b.heave_m),
-            (pitch_load(a), pitch_load(b)),
-            (roll_load(a), roll_load(b)),
+            (self.pitch_load(&a), self.pitch_load(b)),
+            (self.roll_load(&a), self.roll_load(b)),
         ];
         // the damper sees the road's rate, not the load's
+        let dt_s = self.dt_s;
         let road_rates = [
             (b.heave_m - a.heave_m) / dt_s,
             (b.pitch_rad - a.pitch_rad) / dt_s,
             (b.roll_rad - a.roll_rad) / dt_s,
         ];
+        let substeps = self.substeps;
+        let h = dt_s / substeps as f64;
         for j in 1..=substeps {
             let f = j as f64 / substeps as f64;
             for (m, ((t0, t1), u_rate)) in modes.iter_mut().zip(targets.iter().zip(road_rates)) {
                 m.step(t0 + (t1 - t0) * f, u_rate, h);
             }
         }
-        out.push(attitude(&modes));
+        out(attitude(&modes));
+        self.state = Some((*b, modes));
     }
-    out
+
+    /// Ends the inputs: `out` gets the attitude of a lone first input.
+    pub(crate) fn finish(self, mut out: impl FnMut(BodyAttitude)) {
+        if let Some(first) = self.first {
+            out(attitude(&self.at_rest(&first, None)));
+        }
+    }
+}
+
+fn attitude(m: &[Mode; 3]) -> BodyAttitude {
+    BodyAttitude {
+        heave_m: m[0].x,
+        pitch_rad: m[1].x,
+        roll_rad: m[2].x,
+    }
 }
 
 #[cfg(test)]

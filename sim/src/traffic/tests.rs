@@ -416,6 +416,66 @@ fn lifted_trajectory_follows_the_dense_samples() {
     assert!(roll.abs() + pitch.abs() > 1e-3);
 }
 
+/// The lifted trajectories of a drive are what the simulator keeps of it,
+/// for every agent: they store the sampled values alone (six f64 a sample),
+/// not a knot with its derivatives, and a scene's world shares them.
+#[test]
+fn lifted_trajectories_store_six_values_a_sample() {
+    let s = spec(
+        vec![straight(400.0, 0.0)],
+        vec![car(1, 0, 5.0, 3.0, 14.0)],
+        10.0,
+    );
+    let tracks = simulate(&s, RECORD_EVERY).unwrap();
+    let size = s.vehicles[0].size_lwh_m;
+    let traj = lift_to_ground(&tracks[0], &Ground::flat(0.0), &size, None);
+    let samples = tracks[0].samples.len();
+    assert_eq!(traj.knot_count(), samples);
+    assert_eq!(traj.knot_bytes(), samples * 6 * std::mem::size_of::<f64>());
+    // the derived knots are the finite differences of the values
+    let h = traj.dt_s;
+    let (a, b, c) = (traj.knot(99), traj.knot(100), traj.knot(101));
+    let x = |k: &Knot| k.position[0].value;
+    assert_eq!(b.position[0].rate, (x(&c) - x(&a)) / (2.0 * h));
+    assert_eq!(b.position[0].accel, (x(&c) - 2.0 * x(&b) + x(&a)) / (h * h));
+    let scene = scene_of(&s, &tracks);
+    let world = crate::world::World::new(&scene);
+    assert!(world.shares_trajectories_with(&scene));
+}
+
+/// Lifting as the traffic is simulated gives the trajectories of lifting
+/// the finished tracks, bit for bit, sprung or rigid, on raised ground.
+#[test]
+fn tracks_lifted_as_they_are_recorded_are_those_lifted_afterwards() {
+    let mut cyclist = car(2, 1, 30.0, 4.0, 6.0);
+    cyclist.class = ObjectClass::Cyclist;
+    cyclist.size_lwh_m = Vector3::new(1.8, 0.6, 1.7);
+    let mut truck = car(3, 0, 40.0, 8.0, 12.0);
+    truck.class = ObjectClass::Truck;
+    truck.size_lwh_m = Vector3::new(10.0, 2.5, 3.5);
+    let s = spec(
+        vec![straight(400.0, 0.0), straight(400.0, 3.5)],
+        vec![car(1, 0, 5.0, 3.0, 14.0), cyclist, truck],
+        6.0,
+    );
+    let ground = Ground {
+        undulations: vec![Undulation {
+            amplitude_m: 0.3,
+            wave_vector: Vector2::new(0.2, 0.1),
+            phase_rad: 0.1,
+        }],
+        ..Ground::flat(0.5)
+    };
+    let raised = |x: f64, y: f64| if y > 2.0 { 0.15 + 1e-3 * x } else { 0.0 };
+    let lifted = simulate_traffic_lifted(&s, &ground, &raised).unwrap();
+    let tracks = simulate_traffic(&s).unwrap();
+    for ((vs, track), streamed) in s.vehicles.iter().zip(&tracks).zip(&lifted) {
+        let suspension = Suspension::for_class(vs.class);
+        let afterwards = lift_onto(track, &ground, &raised, &vs.size_lwh_m, suspension.as_ref());
+        assert_eq!(streamed, &afterwards, "vehicle {}", vs.id);
+    }
+}
+
 #[test]
 fn invalid_specs_are_reported() {
     let lane = straight(500.0, 0.0);
