@@ -10,7 +10,7 @@
 
 pub(crate) mod common;
 mod highway;
-mod roadside;
+pub(crate) mod roadside;
 mod streetscape;
 mod urban;
 

@@ -28,13 +28,16 @@
 //! x and are not used; the object helpers they share are.
 
 use super::ReplayInput;
+use crate::scenario::HighwayParams;
 use crate::scenario::common::{beside, cuboid_between, tree, uniform, upright_static};
+use crate::scenario::roadside::{CrossSection, roadside};
 use crate::scene::{
     Agent, Ground, Roughness, Shape, StaticKind, StaticObject, Trajectory, Undulation,
 };
 use crate::traffic::LanePath;
 use limot_estimator::input::ObjectClass;
 use nalgebra::{DMatrix, DVector, Point2, Point3, Vector2, Vector3};
+use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
@@ -47,7 +50,9 @@ pub enum Corridor {
     Residential,
     /// Continuous building fronts close to the road, street lights, a few trees.
     City,
-    /// Guard rails, light poles, trees and bushes beyond them, stretches of noise wall.
+    /// Guard rails and light poles; beyond them the highway family's roadside
+    /// (rail posts, delineators, noise walls, cuttings, vegetation, overpasses,
+    /// signs, gantries).
     Highway,
 }
 
@@ -91,6 +96,10 @@ const SETBACK_STEP_M: f64 = 1.5;
 /// A building that is not clear at any set-back is split in two halves, each
 /// placed alike, while the halves are at least this long, m.
 const MIN_BUILDING_LENGTH_M: f64 = 5.0;
+/// Highway guard rails: the beam's centre beyond the road edge and its
+/// width, m.
+const HIGHWAY_RAIL_OFFSET_M: f64 = 1.0;
+const HIGHWAY_RAIL_WIDTH_M: f64 = 0.3;
 
 impl Corridor {
     /// The corridor of a drive with no corridor named: highway when the ego's
@@ -268,6 +277,24 @@ enum Footprint {
 }
 
 impl Footprint {
+    /// An object's footprint: its rectangle for a box, its disc otherwise.
+    fn of(object: &StaticObject) -> Footprint {
+        let centre = Point2::from(object.t_world_object.translation.vector.xy());
+        match object.shape {
+            Shape::Cuboid { half_extents_m } => {
+                let x_axis = object.t_world_object.rotation * Vector3::x();
+                Footprint::Rectangle {
+                    centre,
+                    yaw_rad: x_axis.y.atan2(x_axis.x),
+                    half_extents_m: half_extents_m.xy(),
+                }
+            }
+            Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => {
+                Footprint::Circle { centre, radius_m }
+            }
+        }
+    }
+
     /// The rectangle `width_m` wide from `p0` to `p1` (a [`cuboid_between`]'s).
     fn between(p0: Point2<f64>, p1: Point2<f64>, width_m: f64) -> Footprint {
         let d = p1 - p0;
@@ -455,7 +482,39 @@ pub(super) fn statics(
             Corridor::Highway => lining.highway(rng, &mut out),
         }
     }
+    if corridor == Corridor::Highway {
+        out.extend(highway_roadside(&path, ground, &clearance, rng));
+    }
     out
+}
+
+/// Beyond a highway corridor's rails, the highway family's roadside: rail
+/// posts, delineators, noise walls, cuttings, bushes and trees, overpasses,
+/// signs and gantries. Overpass decks and gantry beams span the road above
+/// the traffic; every other object is kept only where it is clear.
+fn highway_roadside(
+    path: &LanePath,
+    ground: &Ground,
+    clearance: &Clearance,
+    rng: &mut ChaCha8Rng,
+) -> Vec<StaticObject> {
+    let rail_face_m = HIGHWAY_RAIL_OFFSET_M + 0.5 * HIGHWAY_RAIL_WIDTH_M;
+    let section = CrossSection {
+        right_rail_m: -(clearance.edge_m[0] + rail_face_m),
+        left_rail_m: clearance.edge_m[1] + rail_face_m,
+    };
+    let seed: u64 = rng.random();
+    roadside(
+        &HighwayParams::default(),
+        path,
+        ground,
+        &section,
+        (0.0, path.length_m()),
+        seed,
+    )
+    .into_iter()
+    .filter(|o| o.kind == StaticKind::Bridge || clearance.free(&Footprint::of(o)))
+    .collect()
 }
 
 /// One side of the corridor being lined.
@@ -611,11 +670,11 @@ impl Lining<'_> {
         });
     }
 
+    /// The rails and light poles; the rest of the roadside is the highway
+    /// family's (see [`statics`]).
     fn highway(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
         const RAIL_SEGMENT_M: f64 = 4.0;
-        const RAIL_WIDTH_M: f64 = 0.3;
-        const WALL_WIDTH_M: f64 = 0.3;
-        let rail_offset = 1.0;
+        let rail_offset = HIGHWAY_RAIL_OFFSET_M;
         let mut s = 0.0;
         while s + RAIL_SEGMENT_M <= self.path.length_m() {
             let (p0, p1) = (
@@ -624,51 +683,20 @@ impl Lining<'_> {
             );
             if self
                 .clearance
-                .free(&Footprint::between(p0, p1, RAIL_WIDTH_M))
+                .free(&Footprint::between(p0, p1, HIGHWAY_RAIL_WIDTH_M))
             {
                 out.push(cuboid_between(
                     self.ground,
                     StaticKind::GuardRail,
                     p0,
                     p1,
-                    RAIL_WIDTH_M,
+                    HIGHWAY_RAIL_WIDTH_M,
                     (0.45, 0.8),
                 ));
             }
             s += RAIL_SEGMENT_M;
         }
         self.walk(rng, (45.0, 60.0), |s, _| self.pole(s, 2.0, 10.0, out));
-        self.walk(rng, (12.0, 30.0), |s, rng| {
-            let offset = uniform(rng, 5.0, 12.0);
-            self.tree(s, offset, rng, out);
-        });
-        // stretches of noise wall: 60-200 m long, on about a third of the way
-        let mut s = uniform(rng, 0.0, 100.0);
-        while s < self.path.length_m() {
-            let length = uniform(rng, 60.0, 200.0);
-            if uniform(rng, 0.0, 1.0) < 0.35 {
-                let height = uniform(rng, 3.0, 4.5);
-                let mut u = s;
-                while u + 5.0 <= (s + length).min(self.path.length_m()) {
-                    let (p0, p1) = (self.at(u, 3.5), self.at(u + 5.0, 3.5));
-                    if self
-                        .clearance
-                        .free(&Footprint::between(p0, p1, WALL_WIDTH_M))
-                    {
-                        out.push(cuboid_between(
-                            self.ground,
-                            StaticKind::Wall,
-                            p0,
-                            p1,
-                            WALL_WIDTH_M,
-                            (-0.3, height),
-                        ));
-                    }
-                    u += 5.0;
-                }
-            }
-            s += length + uniform(rng, 50.0, 300.0);
-        }
     }
 }
 
@@ -840,5 +868,57 @@ mod tests {
         let (crowded_kept, crowded_next) = draws_after(crowded);
         assert!(crowded_kept < empty_kept);
         assert_eq!(empty_next, crowded_next);
+    }
+
+    #[test]
+    fn a_highway_roadside_stays_off_the_road_and_clear_of_the_agents() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(600.0, 0.0)]).unwrap();
+        let ground = flat();
+        // a broken-down car on the right verge, 4 m beyond the edge
+        let car = (Point2::new(300.0, -(DEFAULT_EDGE_M + 4.0)), 2.2);
+        let clearance = Clearance {
+            path: &path,
+            agents: vec![car],
+            edge_m: [DEFAULT_EDGE_M, DEFAULT_EDGE_M + 3.0],
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let out = highway_roadside(&path, &ground, &clearance, &mut rng);
+        let count = |kind| out.iter().filter(|o| o.kind == kind).count();
+        // posts every 2 m under both rails, delineators, vegetation
+        assert!(
+            count(StaticKind::GuardRail) > 400,
+            "{}",
+            count(StaticKind::GuardRail)
+        );
+        assert!(count(StaticKind::Pole) >= 10);
+        assert!(count(StaticKind::Shrub) + count(StaticKind::TreeCrown) > 20);
+        for object in out.iter().filter(|o| o.kind != StaticKind::Bridge) {
+            let centre = object.t_world_object.translation.vector.xy();
+            let (gap_m, nearest_to_path_m) = match object.shape {
+                Shape::Cuboid { .. } => (
+                    distance_to_static_m(object, &car.0),
+                    corners(object)
+                        .iter()
+                        .map(|c| c.y.abs())
+                        .fold(f64::INFINITY, f64::min),
+                ),
+                Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => (
+                    (centre - car.0.coords).norm() - radius_m,
+                    centre.y.abs() - radius_m,
+                ),
+            };
+            assert!(
+                gap_m - car.1 >= AGENT_CLEARANCE_M - 1e-9,
+                "{:?} at {centre:?}: {gap_m} m from the car",
+                object.kind
+            );
+            let edge = clearance.edge_m[usize::from(centre.y > 0.0)];
+            assert!(
+                nearest_to_path_m >= edge - EDGE_TOLERANCE_M - 1e-9,
+                "{:?} at {centre:?} on the road",
+                object.kind
+            );
+        }
     }
 }
