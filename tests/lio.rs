@@ -298,7 +298,11 @@ fn a_degenerate_moving_start_is_not_taken_for_a_standstill() {
         .find(|e| e.velocity_world_mps.norm() > 15.0)
         .unwrap();
     let first_frame = (at_speed.t_s * 10.0).ceil() as usize;
-    assert!(first_frame + 40 <= 160, "at speed only at {} s", at_speed.t_s);
+    assert!(
+        first_frame + 40 <= 160,
+        "at speed only at {} s",
+        at_speed.t_s
+    );
     let options = RunOptions {
         first_frame,
         ..RunOptions::default()

@@ -410,9 +410,10 @@ impl Dataset {
         let columns = [
             "t_s", "x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz",
         ];
-        let csv = Csv::open(self.dir.join("gt/ego.csv"), &columns.join(","))?;
+        let mut csv = Csv::open(self.dir.join("gt/ego.csv"), &columns.join(","))?;
         let mut out: Vec<EgoTruth> = Vec::new();
-        for r in csv.rows(&columns)? {
+        for r in csv.rows(&columns) {
+            let r = r?;
             let t_s = r.increasing_time(0, out.last().map(|e| e.t_s))?;
             out.push(EgoTruth {
                 t_s,
@@ -429,9 +430,10 @@ impl Dataset {
     /// [`RecordError`] for a missing file or invalid contents.
     pub fn bias_truth(&self) -> Result<Vec<BiasTruth>, RecordError> {
         let columns = ["t_s", "bax", "bay", "baz", "bgx", "bgy", "bgz"];
-        let csv = Csv::open(self.dir.join("gt/imu_bias.csv"), &columns.join(","))?;
+        let mut csv = Csv::open(self.dir.join("gt/imu_bias.csv"), &columns.join(","))?;
         let mut out: Vec<BiasTruth> = Vec::new();
-        for r in csv.rows(&columns)? {
+        for r in csv.rows(&columns) {
+            let r = r?;
             let t_s = r.increasing_time(0, out.last().map(|b| b.t_s))?;
             out.push(BiasTruth {
                 t_s,
@@ -451,9 +453,10 @@ impl Dataset {
             "frame", "t_s", "id", "class", "x", "y", "z", "qx", "qy", "qz", "qw", "l", "w", "h",
             "vx", "vy", "vz", "parked",
         ];
-        let csv = Csv::open(self.dir.join("gt/boxes.csv"), &columns.join(","))?;
+        let mut csv = Csv::open(self.dir.join("gt/boxes.csv"), &columns.join(","))?;
         let mut out = vec![Vec::new(); self.meta.frame_count];
-        for r in csv.rows(&columns)? {
+        for r in csv.rows(&columns) {
+            let r = r?;
             let frame: usize = r.int(0)?;
             if frame >= out.len() {
                 return Err(r.error(
@@ -461,7 +464,7 @@ impl Dataset {
                     format!("frame {frame} but the dataset has {}", out.len()),
                 ));
             }
-            let parked = match r.fields[17] {
+            let parked = match r.field(17) {
                 "0" => false,
                 "1" => true,
                 other => return Err(r.error(17, format!("`{other}` is neither 0 nor 1"))),
@@ -483,9 +486,10 @@ impl Dataset {
 
 fn read_imu(path: &Path) -> Result<Vec<ImuSample>, RecordError> {
     let columns = ["t_s", "ax", "ay", "az", "gx", "gy", "gz"];
-    let csv = Csv::open(path.to_path_buf(), &columns.join(","))?;
+    let mut csv = Csv::open(path.to_path_buf(), &columns.join(","))?;
     let mut out: Vec<ImuSample> = Vec::new();
-    for r in csv.rows(&columns)? {
+    for r in csv.rows(&columns) {
+        let r = r?;
         let t_s = r.increasing_time(0, out.last().map(|s| s.t_s))?;
         out.push(ImuSample {
             t_s,
@@ -512,9 +516,10 @@ fn read_detections(path: &Path, meta: &Meta) -> Result<Vec<Vec<DetectionWithTrut
         "score",
         "truth_id",
     ];
-    let csv = Csv::open(path.to_path_buf(), &columns.join(","))?;
+    let mut csv = Csv::open(path.to_path_buf(), &columns.join(","))?;
     let mut out = vec![Vec::new(); frame_count];
-    for r in csv.rows(&columns)? {
+    for r in csv.rows(&columns) {
+        let r = r?;
         let frame: usize = r.int(0)?;
         if frame >= frame_count {
             return Err(r.error(

@@ -5,78 +5,123 @@
 use super::{RecordError, format_err, io_err, pose_from_array};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry3, Vector3};
-use std::fs;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-/// A CSV file split into numbered rows with a checked header.
+/// A CSV file with a checked header, read row by row: a long drive's
+/// ground truth is never held as text.
 pub(super) struct Csv {
     path: PathBuf,
-    text: String,
+    reader: BufReader<File>,
 }
 
 impl Csv {
     pub(super) fn open(path: PathBuf, header: &str) -> Result<Csv, RecordError> {
-        let text = fs::read_to_string(&path).map_err(io_err(&path))?;
-        let first = text.lines().next().unwrap_or("");
+        let file = File::open(&path).map_err(io_err(&path))?;
+        let mut reader = BufReader::with_capacity(1 << 16, file);
+        let mut first = String::new();
+        reader.read_line(&mut first).map_err(io_err(&path))?;
         if first.trim() != header {
             return Err(format_err(
                 &path,
                 1,
                 "header",
-                format!("expected `{header}`, found `{first}`"),
+                format!("expected `{header}`, found `{}`", first.trim_end()),
             ));
         }
-        Ok(Csv { path, text })
+        Ok(Csv { path, reader })
     }
 
-    /// Rows after the header as (1-based line, fields), each with exactly
-    /// `columns` fields.
-    pub(super) fn rows<'a>(&'a self, columns: &[&'a str]) -> Result<Vec<Row<'a>>, RecordError> {
-        let mut rows = Vec::new();
-        for (i, line) in self.text.lines().enumerate().skip(1) {
-            if line.trim().is_empty() {
+    /// The rows after the header, in order, as (1-based line, fields), each
+    /// with exactly `columns` fields; blank lines are skipped.
+    pub(super) fn rows<'a>(&'a mut self, columns: &'a [&'a str]) -> Rows<'a> {
+        Rows {
+            path: &self.path,
+            reader: &mut self.reader,
+            line: 1,
+            columns,
+        }
+    }
+}
+
+/// The iterator of [`Csv::rows`].
+pub(super) struct Rows<'a> {
+    path: &'a Path,
+    reader: &'a mut BufReader<File>,
+    line: usize,
+    columns: &'a [&'a str],
+}
+
+impl<'a> Iterator for Rows<'a> {
+    type Item = Result<Row<'a>, RecordError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            let mut text = String::new();
+            match self.reader.read_line(&mut text) {
+                Ok(0) => return None,
+                Ok(_) => {}
+                Err(e) => return Some(Err(io_err(self.path)(e))),
+            }
+            self.line += 1;
+            let body = text.trim_end_matches(['\n', '\r']);
+            if body.trim().is_empty() {
                 continue;
             }
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            if fields.len() != columns.len() {
-                return Err(format_err(
-                    &self.path,
-                    i + 1,
+            let mut spans = Vec::with_capacity(self.columns.len());
+            let mut start = 0;
+            for piece in body.split(',') {
+                let lead = piece.len() - piece.trim_start().len();
+                spans.push((start + lead, start + lead + piece.trim().len()));
+                start += piece.len() + 1;
+            }
+            if spans.len() != self.columns.len() {
+                return Some(Err(format_err(
+                    self.path,
+                    self.line,
                     "columns",
                     format!(
                         "{} fields, expected {} ({})",
-                        fields.len(),
-                        columns.len(),
-                        columns.join(",")
+                        spans.len(),
+                        self.columns.len(),
+                        self.columns.join(",")
                     ),
-                ));
+                )));
             }
-            rows.push(Row {
-                path: &self.path,
-                line: i + 1,
-                fields,
-                columns: columns.to_vec(),
-            });
+            return Some(Ok(Row {
+                path: self.path,
+                line: self.line,
+                text,
+                spans,
+                columns: self.columns,
+            }));
         }
-        Ok(rows)
     }
 }
 
 pub(super) struct Row<'a> {
     path: &'a Path,
     line: usize,
-    pub(super) fields: Vec<&'a str>,
-    columns: Vec<&'a str>,
+    text: String,
+    spans: Vec<(usize, usize)>,
+    columns: &'a [&'a str],
 }
 
 impl Row<'_> {
+    /// Field `i`, trimmed.
+    pub(super) fn field(&self, i: usize) -> &str {
+        let (from, to) = self.spans[i];
+        &self.text[from..to]
+    }
+
     pub(super) fn f64(&self, i: usize) -> Result<f64, RecordError> {
-        let v: f64 = self.fields[i].parse().map_err(|_| {
+        let v: f64 = self.field(i).parse().map_err(|_| {
             format_err(
                 self.path,
                 self.line,
                 self.columns[i],
-                format!("`{}` is not a number", self.fields[i]),
+                format!("`{}` is not a number", self.field(i)),
             )
         })?;
         if !v.is_finite() {
@@ -91,12 +136,12 @@ impl Row<'_> {
     }
 
     pub(super) fn int<T: std::str::FromStr>(&self, i: usize) -> Result<T, RecordError> {
-        self.fields[i].parse().map_err(|_| {
+        self.field(i).parse().map_err(|_| {
             format_err(
                 self.path,
                 self.line,
                 self.columns[i],
-                format!("`{}` is not a valid integer", self.fields[i]),
+                format!("`{}` is not a valid integer", self.field(i)),
             )
         })
     }
@@ -151,12 +196,12 @@ impl Row<'_> {
     }
 
     pub(super) fn class(&self, i: usize) -> Result<ObjectClass, RecordError> {
-        ObjectClass::parse(self.fields[i]).ok_or_else(|| {
+        ObjectClass::parse(self.field(i)).ok_or_else(|| {
             format_err(
                 self.path,
                 self.line,
                 self.columns[i],
-                format!("unknown class `{}`", self.fields[i]),
+                format!("unknown class `{}`", self.field(i)),
             )
         })
     }
