@@ -56,9 +56,7 @@ impl Estimator {
         if !covered || self.bootstrap_mids.len() < 3 {
             return Ok(Vec::new());
         }
-        // A degenerate match cannot tell standing still from driving along
-        // the corridor, so it cannot confirm a standstill either.
-        let lidar_still = self.bootstrap_mids.len() >= self.bootstrap_usable_from + 3 && {
+        let lidar_still = {
             let recent = &self.bootstrap_mids[self.bootstrap_mids.len() - 3..];
             let moved = (recent[2].1.translation.vector - recent[0].1.translation.vector).norm();
             moved < self.config.init_max_lidar_motion_m
