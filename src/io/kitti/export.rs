@@ -3,7 +3,7 @@
 //!
 //! Layout (one sequence, `0000`, as in `training/`):
 //! ```text
-//! velodyne/0000/NNNNNN.bin   raw sweeps (x, y, z, intensity as f32), not de-skewed, like KITTI
+//! velodyne/0000/NNNNNN.bin   raw sweeps (x, y, z, intensity as f32), not de-skewed, laser by laser like KITTI
 //! oxts/0000.txt              30-field OXTS lines of the IMU at each sweep start (noise-free: an INS)
 //! calib/0000.txt             P0..P3, R_rect, Tr_velo_cam (a KITTI-like ideal camera), Tr_imu_velo
 //! label_02/0000.txt          ground-truth boxes at the sweep start, camera-visible ones only (as KITTI)
@@ -26,8 +26,9 @@ use crate::io::kitti::oxts::{
 use crate::io::kitti::poses::write_kitti_poses;
 use crate::io::kitti::raw::ELEVATION_CORRECTION_FILE;
 use crate::io::kitti::results::{ImageSize, TrackBox, image_box, track_to_label};
-use crate::io::kitti::velodyne::encode_bin_into;
+use crate::io::kitti::velodyne::{encode_bin_into, in_kitti_order};
 use limot_estimator::geometry::OrientedBox;
+use limot_estimator::input::LidarPoint;
 use limot_sim::record::{
     BoxTruth, Dataset, FileWriter, RecordError, RecordedFrame, WriteMode, points_per_instance,
     pose_from_array, pose_to_array,
@@ -194,6 +195,8 @@ pub struct KittiCopyWriter {
     poses: Vec<Isometry3<f64>>,
     labels: Vec<TrackingLabel>,
     detections: Vec<CameraDetection>,
+    /// The current scan in KITTI's point order.
+    ordered: Vec<LidarPoint>,
 }
 
 impl KittiCopyWriter {
@@ -222,6 +225,7 @@ impl KittiCopyWriter {
             poses: Vec::new(),
             labels: Vec::new(),
             detections: Vec::new(),
+            ordered: Vec::new(),
         })
     }
 
@@ -243,8 +247,12 @@ impl KittiCopyWriter {
         let t_s = frame.scan.t_s;
         let t_world_lidar = scene.ego.trajectory.pose_at(t_s);
         let bin = self.velodyne_dir.join(format!("{index:06}.bin"));
+        // KITTI's laser-by-laser order, so that the reader takes the rings
+        // from the scan lines exactly as on KITTI's own scans
+        in_kitti_order(&frame.scan.points, &mut self.ordered);
+        let ordered = &self.ordered;
         self.files
-            .write_with(&bin, |out| encode_bin_into(&frame.scan.points, out))?;
+            .write_with(&bin, |out| encode_bin_into(ordered, out))?;
         let points_on = points_per_instance(&frame.labels);
         for b in boxes {
             let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;

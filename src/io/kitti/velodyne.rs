@@ -160,6 +160,26 @@ fn scan_lines_of_azimuths(azimuths_rad: &[f64]) -> (Vec<u16>, usize) {
     (lines, count)
 }
 
+/// `points` in KITTI's storage order (see the module docs): laser by laser,
+/// top ring first, each laser by azimuth in [0, 2π), ties in input order.
+/// Written so, a scan's rings come back exactly from [`scan_lines`] whenever
+/// every one of the 64 lasers has a point and each laser's first azimuth
+/// lies more than π below the one before's last (as on a full revolution);
+/// otherwise the reader falls back to [`ring_from_elevation`].
+pub fn in_kitti_order(points: &[LidarPoint], out: &mut Vec<LidarPoint>) {
+    let mut keyed: Vec<(u16, f64, usize)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let az = (p.y as f64).atan2(p.x as f64).rem_euclid(TAU);
+            (u16::MAX - p.ring, az, i)
+        })
+        .collect();
+    keyed.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+    out.clear();
+    out.extend(keyed.iter().map(|&(_, _, i)| points[i]));
+}
+
 /// Rings for the points (see the module docs).
 pub fn estimate_rings(positions: &[Vector3<f64>]) -> (Vec<u16>, RingSource) {
     let azimuths: Vec<f64> = positions.iter().map(azimuth_rad).collect();
@@ -347,6 +367,48 @@ mod tests {
         for (a, b) in points.iter().zip(&scan.scan.points) {
             assert_eq!(a.ring, b.ring);
         }
+    }
+
+    #[test]
+    fn points_put_in_kitti_order_give_their_rings_back_from_the_scan_lines() {
+        let original = synthetic_points();
+        // a simulator's storage: column by column (time order), rings mixed,
+        // elevations off the KITTI table so that elevation bins would merge rings
+        let mut columns: Vec<LidarPoint> = (0..100)
+            .flat_map(|k| original.iter().skip(k).step_by(100).copied())
+            .map(|mut p| {
+                p.z *= 1.3;
+                p
+            })
+            .collect();
+        columns.rotate_left(1234);
+        let mut ordered = Vec::new();
+        in_kitti_order(&columns, &mut ordered);
+        let scan = parse_bin(&encode_bin(&ordered), Path::new("s.bin"), 0.0).unwrap();
+        assert_eq!(scan.ring_source, RingSource::ScanLines);
+        for (a, b) in ordered.iter().zip(&scan.scan.points) {
+            assert_eq!((a.x, a.y, a.z, a.ring), (b.x, b.y, b.z, b.ring));
+        }
+        let sorted = |points: &[LidarPoint]| {
+            let mut v: Vec<_> = points
+                .iter()
+                .map(|p| (p.ring, p.x.to_bits(), p.y.to_bits()))
+                .collect();
+            v.sort_unstable();
+            v
+        };
+        assert_eq!(sorted(&ordered), sorted(&columns));
+        // the same scan read from the column order bins elevations: rings merge
+        let mixed = parse_bin(&encode_bin(&columns), Path::new("s.bin"), 0.0).unwrap();
+        assert_eq!(mixed.ring_source, RingSource::ElevationBins);
+        assert!(
+            mixed
+                .scan
+                .points
+                .iter()
+                .zip(&columns)
+                .any(|(b, a)| a.ring != b.ring)
+        );
     }
 
     #[test]
