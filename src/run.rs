@@ -13,8 +13,8 @@ use crate::io::kitti::poses::StampedPose;
 use crate::io::kitti::velodyne::raise_elevation;
 use crate::io::mcap::{McapError, McapRecorder, McapRequest, McapStats};
 use crate::io::{
-    ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, imu_resolves_gravity,
-    write_run_files,
+    ImuFeed, Source, SourceError, WriteError, imu_gap_limit_s, imu_noise_for_rate,
+    imu_resolves_gravity, write_run_files,
 };
 use limot_estimator::input::{Extrinsics, Frame, ImuSample};
 use limot_estimator::pipeline::{
@@ -290,8 +290,10 @@ pub fn run_observed(
 }
 
 /// `config` (or the default) for `variant`: LiDAR-only without an IMU, an
-/// IMU-gap limit fitted to the rate of `imu_samples`, and gravity held along
-/// -z for an IMU too slow to estimate it ([`imu_resolves_gravity`]).
+/// IMU-gap limit fitted to the rate of `imu_samples`, and for an IMU too
+/// slow to resolve a sweep gravity held along -z ([`imu_resolves_gravity`])
+/// and noise densities widened by what its samples miss
+/// ([`imu_noise_for_rate`]).
 fn estimator_config(
     config: Option<EstimatorConfig>,
     variant: Variant,
@@ -305,6 +307,7 @@ fn estimator_config(
     }
     config.max_imu_gap_s = imu_gap_limit_s(imu_samples, config.max_imu_gap_s);
     config.estimate_gravity &= imu_resolves_gravity(imu_samples);
+    config.imu_noise = imu_noise_for_rate(imu_samples, config.imu_noise);
     config
 }
 

@@ -81,13 +81,18 @@ fn every_variant_runs_and_scores_on_real_sequence_0000() {
         assert_eq!(e.poses, FRAMES - 1);
         assert_eq!(e.truth_frames_gated, 0);
         // Measured over frames 0-153 (SE(3) ATE_T / ATE_R, Sim(3) ATE_T and
-        // scale, RPE): 0.915-0.926 m / 0.0189-0.0191 rad, 0.322-0.323 m at
-        // 0.955, 1 frame 0.0310 m / 0.00075 rad, 10 m 0.587 m. The scale (the
+        // scale, RPE): 0.919-0.921 m / 0.0191-0.0192 rad, 0.346-0.347 m at
+        // 0.955, 1 frame 0.0311 m / 0.00078 rad, 10 m 0.593 m (the 10 Hz
+        // OXTS's densities widened, io::imu_noise_for_rate; before:
+        // 0.916-0.926 m, Sim(3) 0.322-0.323 m, 10 m 0.587 m, against the
+        // velocity-integrated truth of docs/kitti-real-data.md lio 0.277 ->
+        // 0.284 m and 10 m RPE 0.317 -> 0.304 m: within that truth's error,
+        // while the twins gain 2-3x). The scale (the
         // OXTS positions are ~3 % short of the OXTS's own velocity) is most
         // of the SE(3) ATE: see docs/kitti-real-data.md.
         assert!(e.ate_t_m < 0.93, "{variant:?}: {}", e.ate_t_m);
         assert!(e.ate_r_rad < 0.021, "{variant:?}: {}", e.ate_r_rad);
-        assert!(e.sim3_ate_t_m < 0.33, "{variant:?}: {}", e.sim3_ate_t_m);
+        assert!(e.sim3_ate_t_m < 0.36, "{variant:?}: {}", e.sim3_ate_t_m);
         assert!(
             (0.94..0.97).contains(&e.sim3_scale),
             "{variant:?}: {}",

@@ -20,5 +20,6 @@ mod source;
 pub use run_files::{WriteError, write_run_files};
 pub use source::{
     GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S, IMU_GAP_PERIODS, IMU_LOOKBACK_S, ImuFeed,
-    SWEEP_END_TOLERANCE_S, Source, SourceError, imu_gap_limit_s, imu_resolves_gravity,
+    SWEEP_END_TOLERANCE_S, Source, SourceError, imu_gap_limit_s, imu_noise_for_rate,
+    imu_resolves_gravity,
 };

@@ -13,6 +13,7 @@ use crate::io::kitti::detections::{ScoreMap, detections_by_frame, read_ab3dmot_c
 use crate::io::kitti::raw::{RawCalib, RawDrive, nominal_period_s};
 use crate::io::kitti::velodyne::{raise_elevation, sweep_time_offset_s};
 use crate::io::rosbag::{BagError, BagOptions, RosBag};
+use limot_estimator::imu::ImuNoise;
 use limot_estimator::input::{Detection, Extrinsics, Frame, ImuSample};
 use limot_sim::record::{Dataset, RecordError};
 use std::fs;
@@ -339,6 +340,77 @@ pub const GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S: f64 = 0.02;
 pub fn imu_resolves_gravity(samples: &[ImuSample]) -> bool {
     let times: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
     nominal_period_s(&times).is_some_and(|period_s| period_s <= GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S)
+}
+
+/// `noise` widened for an IMU too slow to resolve a sweep's motion (samples
+/// more than [`GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S`] apart, e.g. KITTI
+/// tracking's 10 Hz OXTS records); `noise` unchanged otherwise.
+///
+/// Preintegration treats the samples as linear in time between them. At 10
+/// Hz a vehicle's vibration and manoeuvres change the signal between two
+/// samples by far more than a sensor's white noise, so the preintegrated
+/// deltas are less certain than the densities say and the IMU factors would
+/// outweigh the LiDAR. That error is measured from the samples themselves:
+/// per axis, half the mean square difference of consecutive samples is the
+/// variance `σ²` of what a sample misses of its interval; as a density over
+/// the period `dt` it adds `σ²·dt` to the density squared, for the
+/// accelerometer and the gyroscope alike (each with the mean of its axes'
+/// `σ²`). Bias random walks are kept.
+///
+/// ```
+/// use limot::io::imu_noise_for_rate;
+/// use limot_estimator::imu::ImuNoise;
+/// use limot_estimator::input::ImuSample;
+/// use nalgebra::Vector3;
+/// // specific force alternating by ±0.2 m/s² on every axis
+/// let at = |rate_hz: f64| -> Vec<ImuSample> {
+///     (0..50)
+///         .map(|i| ImuSample {
+///             t_s: i as f64 / rate_hz,
+///             accel_mps2: Vector3::new(0.0, 0.0, 9.81).add_scalar(if i % 2 == 0 { 0.2 } else { -0.2 }),
+///             gyro_radps: Vector3::zeros(),
+///         })
+///         .collect()
+/// };
+/// let noise = ImuNoise::default();
+/// assert_eq!(imu_noise_for_rate(&at(100.0), noise), noise);
+/// let slow = imu_noise_for_rate(&at(10.0), noise);
+/// // σ² = 0.4² / 2 = 0.08 (m/s²)², over 0.1 s
+/// let expected = (noise.accel_noise_density.powi(2) + 0.08 * 0.1).sqrt();
+/// assert!((slow.accel_noise_density - expected).abs() < 1e-12);
+/// assert_eq!(slow.gyro_noise_density, noise.gyro_noise_density);
+/// assert_eq!(slow.accel_bias_random_walk, noise.accel_bias_random_walk);
+/// ```
+pub fn imu_noise_for_rate(samples: &[ImuSample], noise: ImuNoise) -> ImuNoise {
+    let times: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    let Some(period_s) = nominal_period_s(&times) else {
+        return noise;
+    };
+    if period_s <= GRAVITY_ESTIMATION_MAX_IMU_PERIOD_S || samples.len() < 2 {
+        return noise;
+    }
+    let pairs = (samples.len() - 1) as f64;
+    let (mut accel_sq, mut gyro_sq) = (0.0, 0.0);
+    for pair in samples.windows(2) {
+        accel_sq += (pair[1].accel_mps2 - pair[0].accel_mps2).norm_squared();
+        gyro_sq += (pair[1].gyro_radps - pair[0].gyro_radps).norm_squared();
+    }
+    // per axis: half the mean square difference, averaged over the 3 axes
+    let accel_var = accel_sq / (pairs * 6.0);
+    let gyro_var = gyro_sq / (pairs * 6.0);
+    let widen = |density: f64, var: f64| {
+        let widened = (density * density + var * period_s).sqrt();
+        if widened.is_finite() {
+            widened
+        } else {
+            density
+        }
+    };
+    ImuNoise {
+        accel_noise_density: widen(noise.accel_noise_density, accel_var),
+        gyro_noise_density: widen(noise.gyro_noise_density, gyro_var),
+        ..noise
+    }
 }
 
 /// Hands out the IMU samples of a source in time order, the ones due before
