@@ -167,17 +167,66 @@ fn scan_lines_of_azimuths(azimuths_rad: &[f64]) -> (Vec<u16>, usize) {
 /// lies more than π below the one before's last (as on a full revolution);
 /// otherwise the reader falls back to [`ring_from_elevation`].
 pub fn in_kitti_order(points: &[LidarPoint], out: &mut Vec<LidarPoint>) {
-    let mut keyed: Vec<(u16, f64, usize)> = points
+    // counting sort by ring, top ring first, stable
+    let rings = points
         .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let az = (p.y as f64).atan2(p.x as f64).rem_euclid(TAU);
-            (u16::MAX - p.ring, az, i)
-        })
-        .collect();
-    keyed.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        .map(|p| usize::from(p.ring) + 1)
+        .max()
+        .unwrap_or(0);
+    let mut start = vec![0usize; rings + 1];
+    for p in points {
+        start[rings - usize::from(p.ring)] += 1;
+    }
+    for k in 1..=rings {
+        start[k] += start[k - 1];
+    }
+    let mut keyed = vec![(0.0f64, 0u32); points.len()];
+    let mut cursor = start.clone();
+    for (i, p) in points.iter().enumerate() {
+        let slot = &mut cursor[rings - 1 - usize::from(p.ring)];
+        let az = (p.y as f64).atan2(p.x as f64).rem_euclid(TAU);
+        keyed[*slot] = (az, i as u32);
+        *slot += 1;
+    }
+    for k in 0..rings {
+        sort_by_azimuth(&mut keyed[start[k]..start[k + 1]]);
+    }
     out.clear();
-    out.extend(keyed.iter().map(|&(_, _, i)| points[i]));
+    out.extend(keyed.iter().map(|&(_, i)| points[i as usize]));
+}
+
+/// Sorts one laser's `(azimuth, index)` pairs by azimuth, ties by index. A
+/// spinning sensor stores a laser in time order, which is the azimuth
+/// order rotated (and reversed, as the head spins clockwise): undone in
+/// linear passes when the azimuths are distinct; anything else is sorted.
+fn sort_by_azimuth(laser: &mut [(f64, u32)]) {
+    if let Some(at) = rotated_ascending_start(laser) {
+        laser.rotate_left(at);
+        return;
+    }
+    laser.reverse();
+    if let Some(at) = rotated_ascending_start(laser) {
+        laser.rotate_left(at);
+        return;
+    }
+    laser.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+}
+
+/// Where `laser` starts if it is a strictly ascending run of azimuths
+/// rotated (at most one descent, and then the last below the first).
+fn rotated_ascending_start(laser: &[(f64, u32)]) -> Option<usize> {
+    let mut start = None;
+    for (i, pair) in laser.windows(2).enumerate() {
+        match pair[0].0.partial_cmp(&pair[1].0) {
+            Some(std::cmp::Ordering::Less) => {}
+            Some(std::cmp::Ordering::Greater) if start.is_none() => start = Some(i + 1),
+            _ => return None,
+        }
+    }
+    match start {
+        None => Some(0),
+        Some(i) => (laser[laser.len() - 1].0 < laser[0].0).then_some(i),
+    }
 }
 
 /// Rings for the points (see the module docs).
@@ -398,6 +447,32 @@ mod tests {
             v
         };
         assert_eq!(sorted(&ordered), sorted(&columns));
+        // the linear passes give exactly the plain sort's order, for the
+        // column order, a shuffled one (sorted) and one with ties
+        let plain = |points: &[LidarPoint]| {
+            let mut keyed: Vec<(u16, f64, usize)> = points
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let az = (p.y as f64).atan2(p.x as f64).rem_euclid(TAU);
+                    (u16::MAX - p.ring, az, i)
+                })
+                .collect();
+            keyed.sort_unstable_by(|a, b| {
+                a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2))
+            });
+            keyed.iter().map(|&(_, _, i)| points[i]).collect::<Vec<_>>()
+        };
+        let mut shuffled = columns.clone();
+        for i in 0..shuffled.len() {
+            shuffled.swap(i, (i * 7919 + 13) % columns.len());
+        }
+        let mut with_ties = columns.clone();
+        with_ties.extend_from_slice(&columns[..500]);
+        for input in [&columns, &shuffled, &with_ties] {
+            in_kitti_order(input, &mut ordered);
+            assert_eq!(ordered, plain(input));
+        }
         // the same scan read from the column order bins elevations: rings merge
         let mixed = parse_bin(&encode_bin(&columns), Path::new("s.bin"), 0.0).unwrap();
         assert_eq!(mixed.ring_source, RingSource::ElevationBins);
