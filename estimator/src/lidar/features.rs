@@ -210,32 +210,38 @@ struct OrderedPoint {
     y: f32,
 }
 
-/// Sorts one ring by key. The storage is usually the time order rotated,
+/// Sorts one ring by key (see [`sort_ring_by`]).
+fn sort_ring(slice: &mut [OrderedPoint]) {
+    sort_ring_by(slice, |a, b| a.key.cmp(&b.key));
+}
+
+/// Sorts one ring of a spinning sensor by `cmp`, a total order (no two
+/// elements equal). The storage is usually the time order rotated,
 /// ascending (simulator: sweep from the rear) or descending (KITTI: each
 /// laser stored counter-clockwise while the head spins clockwise): a
 /// reversal and a rotation sort those in three linear passes; anything
-/// else goes to the stable sort (the keys are unique, so every route gives
-/// the same order).
-fn sort_ring(slice: &mut [OrderedPoint]) {
-    if let Some(start) = rotated_start(slice) {
+/// else goes to a sort (with a total order every route gives the same
+/// order).
+pub fn sort_ring_by<T>(slice: &mut [T], mut cmp: impl FnMut(&T, &T) -> Ordering) {
+    if let Some(start) = rotated_start(slice, &mut cmp) {
         slice.rotate_left(start);
         return;
     }
     slice.reverse();
-    if let Some(start) = rotated_start(slice) {
+    if let Some(start) = rotated_start(slice, &mut cmp) {
         slice.rotate_left(start);
         return;
     }
-    slice.sort_by_key(|o| o.key);
+    slice.sort_by(cmp);
 }
 
 /// If `slice` is an ascending sequence rotated (at most one descent, and
-/// the last key below the first when there is one), the index where it
+/// the last element below the first when there is one), the index where it
 /// starts.
-fn rotated_start(slice: &[OrderedPoint]) -> Option<usize> {
+fn rotated_start<T>(slice: &[T], cmp: &mut impl FnMut(&T, &T) -> Ordering) -> Option<usize> {
     let mut start = None;
     for (i, pair) in slice.windows(2).enumerate() {
-        if pair[0].key > pair[1].key {
+        if cmp(&pair[0], &pair[1]) == Ordering::Greater {
             if start.is_some() {
                 return None;
             }
@@ -244,7 +250,7 @@ fn rotated_start(slice: &[OrderedPoint]) -> Option<usize> {
     }
     match start {
         None => Some(0),
-        Some(i) => (slice[slice.len() - 1].key < slice[0].key).then_some(i),
+        Some(i) => (cmp(&slice[slice.len() - 1], &slice[0]) == Ordering::Less).then_some(i),
     }
 }
 

@@ -12,6 +12,7 @@
 pub use deskew::{DESKEW_RELATIVE_TOLERANCE, DeskewError, Deskewer, SweepMotion, deskew};
 pub use features::{
     FeatureConfig, FeatureConfigError, FeatureExtractor, ScanFeatures, extract_features,
+    sort_ring_by,
 };
 pub use local_map::{LocalMap, LocalMapConfig, LocalMapError, MapCloud, Neighbour};
 pub use scan_matching::{

@@ -22,6 +22,7 @@
 
 use super::{KittiError, Result};
 use limot_estimator::input::{LidarPoint, LidarScan};
+use limot_estimator::lidar::sort_ring_by;
 use nalgebra::Vector3;
 use std::f64::consts::{PI, TAU};
 use std::path::Path;
@@ -189,44 +190,13 @@ pub fn in_kitti_order(points: &[LidarPoint], out: &mut Vec<LidarPoint>) {
         *slot += 1;
     }
     for k in 0..rings {
-        sort_by_azimuth(&mut keyed[start[k]..start[k + 1]]);
+        // ties in azimuth by input order: a total order
+        sort_ring_by(&mut keyed[start[k]..start[k + 1]], |a, b| {
+            a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+        });
     }
     out.clear();
     out.extend(keyed.iter().map(|&(_, i)| points[i as usize]));
-}
-
-/// Sorts one laser's `(azimuth, index)` pairs by azimuth, ties by index. A
-/// spinning sensor stores a laser in time order, which is the azimuth
-/// order rotated (and reversed, as the head spins clockwise): undone in
-/// linear passes when the azimuths are distinct; anything else is sorted.
-fn sort_by_azimuth(laser: &mut [(f64, u32)]) {
-    if let Some(at) = rotated_ascending_start(laser) {
-        laser.rotate_left(at);
-        return;
-    }
-    laser.reverse();
-    if let Some(at) = rotated_ascending_start(laser) {
-        laser.rotate_left(at);
-        return;
-    }
-    laser.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-}
-
-/// Where `laser` starts if it is a strictly ascending run of azimuths
-/// rotated (at most one descent, and then the last below the first).
-fn rotated_ascending_start(laser: &[(f64, u32)]) -> Option<usize> {
-    let mut start = None;
-    for (i, pair) in laser.windows(2).enumerate() {
-        match pair[0].0.partial_cmp(&pair[1].0) {
-            Some(std::cmp::Ordering::Less) => {}
-            Some(std::cmp::Ordering::Greater) if start.is_none() => start = Some(i + 1),
-            _ => return None,
-        }
-    }
-    match start {
-        None => Some(0),
-        Some(i) => (laser[laser.len() - 1].0 < laser[0].0).then_some(i),
-    }
 }
 
 /// Rings for the points (see the module docs).
