@@ -35,7 +35,7 @@ use limot_estimator::input::{
 };
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -46,7 +46,7 @@ mod writer;
 
 use csv::Csv;
 pub use file::{DIRECT_MIN_BYTES, FileWriter, WriteMode};
-pub use scan::{decode_scan, encode_scan, encode_scan_into, scan_path};
+pub use scan::{decode_labels, decode_scan, encode_scan, encode_scan_into, scan_path};
 pub use writer::DatasetWriter;
 
 /// Version of the dataset format written to `meta.toml` and every scan header.
@@ -231,6 +231,12 @@ pub fn points_per_instance(labels: &[u32]) -> BTreeMap<u32, usize> {
     counts
 }
 
+/// The ground-truth instance ids that a sweep's labels contain.
+pub fn instances_hit(labels: &[u32]) -> BTreeSet<u32> {
+    // by runs, as above
+    labels.chunk_by(|a, b| a == b).map(|run| run[0]).collect()
+}
+
 /// A pose as `[x, y, z, qx, qy, qz, qw]`, the dataset's pose layout.
 pub fn pose_to_array(pose: &Isometry3<f64>) -> [f64; 7] {
     let t = pose.translation.vector;
@@ -335,6 +341,19 @@ impl Dataset {
             labels,
             detections: self.detections.get(index).cloned().unwrap_or_default(),
         })
+    }
+
+    /// The ground-truth instance id of every point of frame `index` (same
+    /// order as [`Dataset::frame`]'s), without decoding the points.
+    ///
+    /// # Errors
+    /// As [`Dataset::frame`], for the file and its header.
+    pub fn frame_labels(&self, index: usize) -> Result<Vec<u32>, RecordError> {
+        let path = scan_path(&self.dir, index);
+        let bytes = fs::read(&path).map_err(io_err(&path))?;
+        let (header, labels) = decode_labels(&bytes, &path)?;
+        self.check_scan_header(index, &header, &path)?;
+        Ok(labels)
     }
 
     /// Frame `index` as the estimator sees it: the sweep and the detections,
@@ -615,6 +634,11 @@ mod tests {
         let (back, back_labels) = decode_scan(&bytes, Path::new("x.bin")).unwrap();
         assert_eq!(back, scan);
         assert_eq!(back_labels, labels);
+        let (header, labels_alone) = decode_labels(&bytes, Path::new("x.bin")).unwrap();
+        assert_eq!(labels_alone, labels);
+        assert_eq!((header.t_s, header.num_rings), (scan.t_s, scan.num_rings));
+        assert!(header.points.is_empty());
+        assert_eq!(instances_hit(&labels), BTreeSet::from([0, 3]));
     }
 
     #[test]
@@ -632,7 +656,14 @@ mod tests {
         assert!(err.to_string().contains("`y`"), "{err}");
         for cut in 0..SCAN_HEADER_BYTES {
             assert!(decode_scan(&bytes[..cut], Path::new("s.bin")).is_err());
+            assert!(decode_labels(&bytes[..cut], Path::new("s.bin")).is_err());
         }
+        let err = decode_labels(&bytes[..bytes.len() - 3], Path::new("s.bin")).unwrap_err();
+        assert!(err.to_string().contains("point_count"), "{err}");
+        let mut ring = bytes.clone();
+        ring[SCAN_HEADER_BYTES + 24..SCAN_HEADER_BYTES + 26].copy_from_slice(&64u16.to_le_bytes());
+        let err = decode_scan(&ring, Path::new("s.bin")).unwrap_err();
+        assert!(err.to_string().contains("`ring`"), "{err}");
     }
 
     /// A 2-frame dataset written by [`DatasetWriter`] into a fresh scratch
@@ -754,6 +785,10 @@ mod tests {
         let dataset = Dataset::open(&dir).unwrap();
         assert_eq!(dataset.frame_count(), 2);
         assert_eq!(dataset.frame(1).unwrap().scan.t_s, 0.1);
+        assert_eq!(
+            dataset.frame_labels(1).unwrap(),
+            dataset.frame(1).unwrap().labels
+        );
         assert_eq!(dataset.box_truth().unwrap()[1][0].size_lwh_m.x, 4.0);
         read_everything(&dir).unwrap();
     }

@@ -16,9 +16,10 @@ use crate::io::kitti::results::{ImageSize, image_box};
 use crate::metrics::{MotFrame, TrackedBox};
 use limot_estimator::geometry::OrientedBox;
 use limot_sim::SimulatedFrame;
+use limot_sim::record::instances_hit;
 use limot_sim::scene::Scene;
 use limot_sim::sensors::{Detector, LidarConfig};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 /// Id offset of false-positive detections (they have no ground-truth id).
 const FALSE_POSITIVE_ID_BASE: u64 = 1 << 40;
@@ -37,7 +38,7 @@ pub struct DetectorFrame {
 impl DetectorFrame {
     /// What the detector saw of `frame` of the scene.
     pub fn new(scene: &Scene, lidar: &LidarConfig, frame: &SimulatedFrame) -> Self {
-        let hit: BTreeSet<u32> = frame.recorded.labels.iter().copied().collect();
+        let hit = instances_hit(&frame.recorded.labels);
         let sighted = scene
             .agents
             .iter()

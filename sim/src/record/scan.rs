@@ -47,12 +47,9 @@ pub fn encode_scan_into(scan: &LidarScan, labels: &[u32], out: &mut Vec<u8>) {
     }
 }
 
-/// Decodes [`encode_scan`]'s bytes; `path` only names the file in errors.
-/// Rejects short files, a wrong magic or version, and non-finite values.
-///
-/// # Errors
-/// [`RecordError::Format`] (line 0) naming the field at fault.
-pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), RecordError> {
+/// The header of [`encode_scan`]'s bytes as a sweep without points, and the
+/// point count, checked against the file's length.
+fn decode_header(bytes: &[u8], path: &Path) -> Result<(LidarScan, usize), RecordError> {
     let bad = |field: &str, message: String| format_err(path, 0, field, message);
     if bytes.len() < SCAN_HEADER_BYTES {
         return Err(bad(
@@ -68,7 +65,6 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
     }
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let f64_at = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let u16_at = |o: usize| u16::from_le_bytes(bytes[o..o + 2].try_into().expect("2 bytes"));
     let version = u32_at(4);
     if version != FORMAT_VERSION {
@@ -100,21 +96,53 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
             ),
         ));
     }
+    Ok((
+        LidarScan {
+            t_s,
+            sweep_duration_s,
+            num_rings,
+            points: Vec::new(),
+        },
+        count,
+    ))
+}
+
+/// Decodes [`encode_scan`]'s bytes; `path` only names the file in errors.
+/// Rejects short files, a wrong magic or version, and non-finite values.
+///
+/// # Errors
+/// [`RecordError::Format`] (line 0) naming the field at fault.
+pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), RecordError> {
+    let bad = |field: &str, message: String| format_err(path, 0, field, message);
+    let (mut scan, count) = decode_header(bytes, path)?;
+    let (sweep_duration_s, num_rings) = (scan.sweep_duration_s, scan.num_rings);
     let mut points = Vec::with_capacity(count);
     let mut labels = Vec::with_capacity(count);
-    for i in 0..count {
-        let o = SCAN_HEADER_BYTES + i * POINT_BYTES;
-        let [x, y, z, intensity, time_offset_s] = [0, 4, 8, 12, 16].map(|d| f32_at(o + d));
-        for (name, v) in [
-            ("x", x),
-            ("y", y),
-            ("z", z),
-            ("intensity", intensity),
-            ("time_offset_s", time_offset_s),
-        ] {
-            if !v.is_finite() {
-                return Err(bad(name, format!("point {i}: {v} is not finite")));
-            }
+    for (i, record) in bytes[SCAN_HEADER_BYTES..]
+        .chunks_exact(POINT_BYTES)
+        .enumerate()
+    {
+        let f32_at = |o: usize| f32::from_le_bytes(record[o..o + 4].try_into().expect("4 bytes"));
+        let (x, y, z, intensity, time_offset_s) =
+            (f32_at(0), f32_at(4), f32_at(8), f32_at(12), f32_at(16));
+        // One test for the common case; the field is named only on failure.
+        if !(x.is_finite()
+            && y.is_finite()
+            && z.is_finite()
+            && intensity.is_finite()
+            && time_offset_s.is_finite())
+        {
+            let (name, v) = [
+                ("x", x),
+                ("y", y),
+                ("z", z),
+                ("intensity", intensity),
+                ("time_offset_s", time_offset_s),
+            ]
+            .into_iter()
+            .find(|(_, v)| !v.is_finite())
+            .expect("one field is not finite");
+            return Err(bad(name, format!("point {i}: {v} is not finite")));
         }
         // f32 rounding of an offset near the sweep end may exceed it slightly
         if time_offset_s < 0.0 || f64::from(time_offset_s) > sweep_duration_s * (1.0 + 1e-6) {
@@ -123,7 +151,7 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
                 format!("point {i}: {time_offset_s} s is outside the {sweep_duration_s} s sweep"),
             ));
         }
-        let ring = u16_at(o + 24);
+        let ring = u16::from_le_bytes([record[24], record[25]]);
         if ring >= num_rings {
             return Err(bad(
                 "ring",
@@ -138,13 +166,26 @@ pub fn decode_scan(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), R
             ring,
             time_offset_s,
         });
-        labels.push(u32_at(o + 20));
+        labels.push(u32::from_le_bytes(
+            record[20..24].try_into().expect("4 bytes"),
+        ));
     }
-    let scan = LidarScan {
-        t_s,
-        sweep_duration_s,
-        num_rings,
-        points,
-    };
+    scan.points = points;
+    Ok((scan, labels))
+}
+
+/// The header of [`encode_scan`]'s bytes (a sweep without points) and the
+/// per-point labels alone, for readers of the ground truth that do not need
+/// the points; same header checks as [`decode_scan`], the points' fields
+/// are not read.
+///
+/// # Errors
+/// [`RecordError::Format`] (line 0) naming the header field at fault.
+pub fn decode_labels(bytes: &[u8], path: &Path) -> Result<(LidarScan, Vec<u32>), RecordError> {
+    let (scan, _) = decode_header(bytes, path)?;
+    let labels = bytes[SCAN_HEADER_BYTES..]
+        .chunks_exact(POINT_BYTES)
+        .map(|record| u32::from_le_bytes(record[20..24].try_into().expect("4 bytes")))
+        .collect();
     Ok((scan, labels))
 }

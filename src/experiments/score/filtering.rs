@@ -126,7 +126,7 @@ pub fn evaluate_filtering(
         }
         any = true;
         let frame = e.frame_index as usize;
-        let labels = dataset.frame(frame)?.labels;
+        let labels = dataset.frame_labels(frame)?;
         let frame_boxes = boxes.get(frame).map_or(&[][..], |b| &b[..]);
         let moving: BTreeSet<u32> = frame_boxes
             .iter()

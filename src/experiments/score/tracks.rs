@@ -42,7 +42,7 @@ use crate::metrics::{ObjectScore, object_scores};
 use crate::report::{Cell, Table};
 use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
-use limot_sim::record::{Dataset, EgoTruth};
+use limot_sim::record::{Dataset, EgoTruth, instances_hit};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -295,7 +295,7 @@ impl ScoredTruth {
             let t_world_lidar = ego_pose_at(&ego, *t_s, &ego_path)?;
             let hit: BTreeSet<u32> = match opts.gt_filter {
                 GtFilter::All => BTreeSet::new(),
-                GtFilter::CameraVisible => dataset.frame(index)?.labels.into_iter().collect(),
+                GtFilter::CameraVisible => instances_hit(&dataset.frame_labels(index)?),
             };
             let mut gt = Vec::new();
             for b in boxes.get(index).into_iter().flatten() {
