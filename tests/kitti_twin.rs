@@ -18,6 +18,7 @@ use limot::simulate::{kitti_scenario, simulation_of};
 use limot_sim::replay::{PARKED_SPREAD_M, ReplayInput, ReplayReport};
 use limot_sim::scenario::ScenarioSpec;
 use limot_sim::sensors::{ImuConfig, ImuSimulator};
+use limot_sim::traffic::first_overlap;
 use limot_sim::{Dataset, Simulation};
 use nalgebra::{UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
@@ -122,16 +123,33 @@ fn labelled_objects_are_where_the_labels_put_them() {
         checked[0], worst_m[0], checked[1], worst_m[1]
     );
     assert!(checked[0] > 100 && checked[1] > 100, "{checked:?}");
-    // present only while labelled: nothing before the first labelled frame,
-    // nor after the sweep of the last
-    for (id, frames) in &labelled_frames {
-        let (first, last) = (frames[0], frames[frames.len() - 1]);
+    // Moving agents are present only while labelled: nothing before the
+    // first labelled frame, nor after the sweep of the last. Parked ones stay
+    // for the whole drive (labels end where the camera's view does, the
+    // LiDAR sees them on), and then never overlap the ego's box.
+    let report = sim.replay_report().unwrap();
+    let frames = poses.len();
+    let mut parked_for_the_drive = 0;
+    for (id, labelled) in &labelled_frames {
+        let (first, last) = (labelled[0], labelled[labelled.len() - 1]);
         let agent = agents[id];
+        if agent.parked {
+            assert!(
+                (0..frames).all(|k| agent.is_present(k as f64 * 0.1)),
+                "{id}"
+            );
+            parked_for_the_drive += 1;
+            continue;
+        }
         if first > 0 {
             assert!(!agent.is_present((first as f64 - 0.5) * 0.1), "{id}");
         }
         assert!(!agent.is_present((last + 1) as f64 * 0.1 + 1e-9), "{id}");
     }
+    assert_eq!(parked_for_the_drive, report.tracks.parked_for_the_drive);
+    assert!(parked_for_the_drive > 5, "{parked_for_the_drive}");
+    // nothing overlaps: ego, agents (parked ones over the whole drive), statics
+    assert_eq!(first_overlap(scene, 0.1), None);
 }
 
 #[test]

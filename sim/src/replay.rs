@@ -7,7 +7,9 @@
 //!   the simulated IMU is that of a physically smooth motion;
 //! - every track becomes an [`Agent`] present while it was labelled
 //!   ([`tracks`]: interpolated between labelled frames, parked when its own
-//!   motion stays within a few decimetres);
+//!   motion stays within a few decimetres); parked ones stay for the whole
+//!   drive where that overlaps nothing (labels end with the camera's view,
+//!   the car does not);
 //! - the ground follows the road height under the ego and a seeded static
 //!   scene lines the driven corridor ([`corridor`]).
 //!
@@ -25,7 +27,7 @@ pub use tracks::{MAX_GAP_FRAMES, PARKED_SPREAD_M, TrackSummary};
 use crate::scenario::{ScenarioError, ScenarioSpec, common};
 use crate::scene::{Ego, Scene, Trajectory};
 use limot_estimator::input::{Detection, ObjectClass};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Translation3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -95,7 +97,8 @@ impl std::fmt::Display for ReplayReport {
             f,
             "ego fit residual rms {:.3} m / max {:.3} m, {:.4} / {:.4} rad, peak accel {:.2} m/s^2; \
              ground under the ego rms {:.3} m / max {:.3} m; corridor {}, {} statics; \
-             agents {} moving, {} parked ({} splits, {} bridged frames, {} duplicate boxes)",
+             agents {} moving, {} parked ({} of them for the whole drive; {} splits, {} bridged frames, \
+             {} duplicate boxes)",
             e.position_rms_m,
             e.position_max_m,
             e.rotation_rms_rad,
@@ -107,6 +110,7 @@ impl std::fmt::Display for ReplayReport {
             self.statics,
             t.moving,
             t.parked,
+            t.parked_for_the_drive,
             t.splits,
             t.bridged_frames,
             t.duplicates,
@@ -220,7 +224,20 @@ pub fn build_scene(
         &SmoothingConfig::EGO,
     );
     let duration_s = input.duration_s().min(spec.duration_s);
-    let (agents, track_summary) = tracks::agents(&input.tracks, dt);
+    let (mut agents, mut track_summary) = tracks::agents(&input.tracks, dt);
+    let ego_size_lwh_m = Vector3::from(spec.ego.size_lwh_m);
+    let box_center_lidar_m = common::box_center_lidar_m(&spec.ego);
+    track_summary.parked_for_the_drive = tracks::park_for_the_drive(
+        &mut agents,
+        |t| {
+            let t_world_lidar = ego_trajectory.pose_at(t);
+            (
+                t_world_lidar * Translation3::from(box_center_lidar_m),
+                ego_size_lwh_m,
+            )
+        },
+        duration_s,
+    );
     let corridor_choice = spec
         .kitti
         .as_ref()

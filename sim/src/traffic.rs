@@ -34,7 +34,7 @@
 
 mod lane_path;
 mod lift;
-mod overlap;
+pub(crate) mod overlap;
 mod spec;
 mod suspension;
 

@@ -46,7 +46,9 @@ use std::f64::consts::TAU;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Corridor {
-    /// Detached houses set back behind front gardens, trees, street lights, hedges.
+    /// A raised sidewalk, plot fronts (fences, hedges, low walls, with
+    /// driveway gaps), detached houses set back behind front gardens, trees,
+    /// street lights, shrubs.
     Residential,
     /// Continuous building fronts close to the road, street lights, a few trees.
     City,
@@ -96,6 +98,16 @@ const SETBACK_STEP_M: f64 = 1.5;
 /// A building that is not clear at any set-back is split in two halves, each
 /// placed alike, while the halves are at least this long, m.
 const MIN_BUILDING_LENGTH_M: f64 = 5.0;
+/// Residential sidewalks: width beyond the road edge and kerb height, m,
+/// laid in slabs of this length along the path, m.
+const SIDEWALK_WIDTH_M: f64 = 2.0;
+const KERB_HEIGHT_M: f64 = 0.12;
+const KERB_SEGMENT_M: f64 = 4.0;
+/// Residential plots' front boundaries (fences, hedges, low walls): their
+/// line beyond the road edge, behind the sidewalk and the trees, in front of
+/// the houses (set 4-9 m back), m; laid in pieces of this length, m.
+const PLOT_LINE_M: f64 = 3.8;
+const PLOT_FRONT_SEGMENT_M: f64 = 3.0;
 /// Highway guard rails: the beam's centre beyond the road edge and its
 /// width, m.
 const HIGHWAY_RAIL_OFFSET_M: f64 = 1.0;
@@ -619,21 +631,129 @@ impl Lining<'_> {
         }
     }
 
-    fn residential(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
-        self.walk(rng, (14.0, 24.0), |s, rng| {
-            let size = Vector3::new(
-                uniform(rng, 8.0, 12.0),
-                uniform(rng, 8.0, 11.0),
-                uniform(rng, 5.5, 8.5),
-            );
-            let front = uniform(rng, 4.0, 9.0);
-            self.building(s, front, size, out);
+    /// A raised sidewalk along the road edge: slabs of [`KERB_SEGMENT_M`]
+    /// whose road-side face is the kerb, where clear.
+    fn sidewalk(&self, out: &mut Vec<StaticObject>) {
+        let mut s = 0.0;
+        while s < self.path.length_m() {
+            let end = (s + KERB_SEGMENT_M).min(self.path.length_m());
+            let offset = 0.5 * SIDEWALK_WIDTH_M;
+            let (p0, p1) = (self.at(s, offset), self.at(end, offset));
+            if (p1 - p0).norm() > 0.1
+                && self
+                    .clearance
+                    .free(&Footprint::between(p0, p1, SIDEWALK_WIDTH_M))
+            {
+                out.push(cuboid_between(
+                    self.ground,
+                    StaticKind::Kerb,
+                    p0,
+                    p1,
+                    SIDEWALK_WIDTH_M,
+                    (-0.2, KERB_HEIGHT_M),
+                ));
+            }
+            s = end;
+        }
+    }
+
+    /// The front boundaries of the plots along the street, [`PLOT_LINE_M`]
+    /// beyond the edge: per plot (12-25 m along the path) a fence, a hedge, a
+    /// low wall or nothing, with a driveway gap at one end; drawn whether or
+    /// not they are kept, kept piece by piece where clear.
+    fn plot_fronts(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        let mut s = uniform(rng, 0.0, 10.0);
+        while s < self.path.length_m() {
+            let plot_m = uniform(rng, 12.0, 25.0);
+            let gap_m = uniform(rng, 3.0, 4.5);
+            let kind = uniform(rng, 0.0, 1.0);
+            let height_m = uniform(rng, 0.0, 1.0);
+            let (kind, width_m, top_m) = match kind {
+                k if k < 0.35 => (StaticKind::Fence, 0.06, 0.9 + 0.5 * height_m),
+                k if k < 0.7 => (StaticKind::Shrub, 0.8, 1.0 + 0.8 * height_m),
+                k if k < 0.85 => (StaticKind::Wall, 0.25, 0.5 + 0.5 * height_m),
+                _ => {
+                    s += plot_m;
+                    continue;
+                }
+            };
+            let mut a = s + gap_m;
+            let end = (s + plot_m).min(self.path.length_m());
+            while a + 0.5 < end {
+                let b = (a + PLOT_FRONT_SEGMENT_M).min(end);
+                let (p0, p1) = (self.at(a, PLOT_LINE_M), self.at(b, PLOT_LINE_M));
+                if self.clearance.free(&Footprint::between(p0, p1, width_m)) {
+                    out.push(cuboid_between(
+                        self.ground,
+                        kind,
+                        p0,
+                        p1,
+                        width_m,
+                        (-0.1, top_m),
+                    ));
+                }
+                a = b;
+            }
+            s += plot_m;
+        }
+    }
+
+    /// A row of houses, one every `spacing` (m), each drawn with its length,
+    /// depth and height from `size` and its street face `front` beyond the
+    /// edge (ranges, m).
+    fn houses(
+        &self,
+        rng: &mut ChaCha8Rng,
+        spacing: (f64, f64),
+        size: [(f64, f64); 3],
+        front: (f64, f64),
+        out: &mut Vec<StaticObject>,
+    ) {
+        self.walk(rng, spacing, |s, rng| {
+            let [l, d, h] = size.map(|(lo, hi)| uniform(rng, lo, hi));
+            let front = uniform(rng, front.0, front.1);
+            self.building(s, front, Vector3::new(l, d, h), out);
         });
-        self.walk(rng, (8.0, 16.0), |s, rng| {
-            let offset = uniform(rng, 1.0, 3.0);
+    }
+
+    /// A row of trees, one every `spacing`, each `offset` beyond the edge
+    /// (ranges, m).
+    fn trees(
+        &self,
+        rng: &mut ChaCha8Rng,
+        spacing: (f64, f64),
+        offset: (f64, f64),
+        out: &mut Vec<StaticObject>,
+    ) {
+        self.walk(rng, spacing, |s, rng| {
+            let offset = uniform(rng, offset.0, offset.1);
             self.tree(s, offset, rng, out);
         });
+    }
+
+    fn residential(&self, rng: &mut ChaCha8Rng, out: &mut Vec<StaticObject>) {
+        self.sidewalk(out);
+        self.plot_fronts(rng, out);
+        self.houses(
+            rng,
+            (14.0, 24.0),
+            [(8.0, 12.0), (8.0, 11.0), (5.5, 8.5)],
+            (4.0, 9.0),
+            out,
+        );
+        self.trees(rng, (8.0, 16.0), (1.0, 3.0), out);
         self.walk(rng, (30.0, 45.0), |s, _| self.pole(s, 0.6, 7.0, out));
+        // Behind the houses: garden trees and the next row of houses, which
+        // hide the ground beyond the street as a town's blocks do (open
+        // ground to the horizon is what a point-to-point ICP slips on).
+        self.trees(rng, (6.0, 12.0), (13.0, 20.0), out);
+        self.houses(
+            rng,
+            (12.0, 20.0),
+            [(8.0, 14.0), (8.0, 12.0), (5.5, 9.0)],
+            (22.0, 30.0),
+            out,
+        );
         self.walk(rng, (5.0, 10.0), |s, rng| {
             let at = self.at(s, uniform(rng, 2.5, 3.5));
             let r = uniform(rng, 0.5, 1.0);
@@ -712,6 +832,30 @@ mod tests {
             undulations: Vec::new(),
             crown: None,
             roughness: None,
+        }
+    }
+
+    /// The clearance of a street with the default edges on both sides.
+    fn street_clearance(path: &LanePath, agents: Vec<(Point2<f64>, f64)>) -> Clearance<'_> {
+        Clearance {
+            path,
+            agents,
+            edge_m: [DEFAULT_EDGE_M; 2],
+        }
+    }
+
+    /// The lining of the street's left side.
+    fn left_side<'a>(
+        path: &'a LanePath,
+        ground: &'a Ground,
+        clearance: &'a Clearance<'a>,
+    ) -> Lining<'a> {
+        Lining {
+            path,
+            ground,
+            clearance,
+            side: 1.0,
+            edge_m: DEFAULT_EDGE_M,
         }
     }
 
@@ -846,18 +990,8 @@ mod tests {
             .map(|i| (Point2::new(5.0 * i as f64, DEFAULT_EDGE_M + 2.0), 0.4))
             .collect();
         let draws_after = |agents: Vec<(Point2<f64>, f64)>| {
-            let clearance = Clearance {
-                path: &path,
-                agents,
-                edge_m: [DEFAULT_EDGE_M; 2],
-            };
-            let lining = Lining {
-                path: &path,
-                ground: &ground,
-                clearance: &clearance,
-                side: 1.0,
-                edge_m: DEFAULT_EDGE_M,
-            };
+            let clearance = street_clearance(&path, agents);
+            let lining = left_side(&path, &ground, &clearance);
             let mut rng = ChaCha8Rng::seed_from_u64(7);
             let mut out = Vec::new();
             lining.city(&mut rng, &mut out);
@@ -868,6 +1002,64 @@ mod tests {
         let (crowded_kept, crowded_next) = draws_after(crowded);
         assert!(crowded_kept < empty_kept);
         assert_eq!(empty_next, crowded_next);
+    }
+
+    #[test]
+    fn a_residential_street_is_lined_by_sidewalks_and_plot_fronts_clear_of_the_road() {
+        let path =
+            LanePath::from_points(&[Point2::new(0.0, 0.0), Point2::new(300.0, 0.0)]).unwrap();
+        let ground = flat();
+        // a pedestrian on the left sidewalk at x = 150
+        let walker = (Point2::new(150.0, DEFAULT_EDGE_M + 1.0), 0.4);
+        let clearance = street_clearance(&path, vec![walker]);
+        let lining = left_side(&path, &ground, &clearance);
+        let mut out = Vec::new();
+        lining.residential(&mut ChaCha8Rng::seed_from_u64(3), &mut out);
+        let length_of = |kinds: &[StaticKind]| -> f64 {
+            out.iter()
+                .filter(|o| kinds.contains(&o.kind))
+                .map(|o| match o.shape {
+                    Shape::Cuboid { half_extents_m } => 2.0 * half_extents_m.x,
+                    _ => 0.0,
+                })
+                .sum()
+        };
+        // sidewalk slabs along the whole street but where the walker is
+        let kerb_m = length_of(&[StaticKind::Kerb]);
+        assert!(
+            kerb_m > 300.0 - 2.0 * KERB_SEGMENT_M - 0.1 && kerb_m < 300.0,
+            "{kerb_m}"
+        );
+        // plot fronts along most of it (a plot in seven has none, and gaps)
+        let fronts_m = length_of(&[StaticKind::Fence, StaticKind::Shrub, StaticKind::Wall]);
+        assert!(fronts_m > 100.0, "{fronts_m}");
+        for o in &out {
+            // nothing inside the road edge (beyond the kerb's tolerance)
+            for c in corners_or_centre(o) {
+                assert!(
+                    c.y > DEFAULT_EDGE_M - EDGE_TOLERANCE_M,
+                    "{:?} at {c}",
+                    o.kind
+                );
+            }
+            if o.kind == StaticKind::Kerb {
+                assert!(distance_to_static_m(o, &walker.0) > walker.1 + AGENT_CLEARANCE_M - 1e-9);
+                let top = o.t_world_object.translation.z
+                    + match o.shape {
+                        Shape::Cuboid { half_extents_m } => half_extents_m.z,
+                        _ => 0.0,
+                    };
+                assert!((top - KERB_HEIGHT_M).abs() < 1e-9, "{top}");
+            }
+        }
+    }
+
+    /// A box's footprint corners, or a round static's centre.
+    fn corners_or_centre(object: &StaticObject) -> Vec<Point2<f64>> {
+        match object.shape {
+            Shape::Cuboid { .. } => corners(object),
+            _ => vec![object.t_world_object.translation.vector.xy().into()],
+        }
     }
 
     #[test]

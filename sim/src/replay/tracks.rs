@@ -14,10 +14,17 @@
 //! passes through every labelled box exactly: knots at every frame, rates and
 //! accelerations by central differences (see [`super::fit`]). Boxes are
 //! upright: only the labelled heading about the world z is kept.
+//!
+//! Labels exist only in the camera's view, so a parked car the ego drives
+//! past would vanish from the twin the moment it leaves that view, while the
+//! real LiDAR keeps seeing it beside and behind the ego. [`park_for_the_drive`]
+//! keeps such cars where they were labelled for the whole drive wherever
+//! that is physically possible (no overlap with the ego or any other agent).
 
 use super::fit::{euler_channels, extrapolated, jets};
 use super::{ReplayTrack, TrackBox};
 use crate::scene::{Agent, Jet, Knot, Presence, Trajectory};
+use crate::traffic::overlap::boxes_overlap;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Longest run of unlabelled frames bridged inside one track (2 s at 10 Hz).
@@ -25,6 +32,12 @@ pub const MAX_GAP_FRAMES: usize = 20;
 /// A track whose centres stay within this of their mean is parked, m
 /// (KITTI labels of a parked car scatter by ~0.1-0.2 m).
 pub const PARKED_SPREAD_M: f64 = 0.4;
+
+/// Boxes closer than this are taken to overlap in [`park_for_the_drive`], m
+/// (each box grown by half of it on every side).
+pub const PARKED_CLEARANCE_M: f64 = 0.3;
+/// Time step of the overlap tests of [`park_for_the_drive`], s.
+const PARKED_TEST_STEP_S: f64 = 0.1;
 
 /// How the tracks became agents.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -39,6 +52,8 @@ pub struct TrackSummary {
     pub bridged_frames: usize,
     /// Repeated (track, frame) boxes dropped.
     pub duplicates: usize,
+    /// Parked agents kept for the whole drive (see [`park_for_the_drive`]).
+    pub parked_for_the_drive: usize,
 }
 
 /// The agents of `tracks` (frame period `dt_s`), in input order.
@@ -74,6 +89,60 @@ pub(super) fn agents(tracks: &[ReplayTrack], dt_s: f64) -> (Vec<Agent>, TrackSum
         }
     }
     (out, summary)
+}
+
+/// Keeps every parked agent at its place over `[0, until_s)` (its box as
+/// labelled, present at every frame) when that box, grown by
+/// [`PARKED_CLEARANCE_M`], overlaps none of the ego's boxes (`ego_box_at`:
+/// the pose of the box centre and its size, tested every
+/// [`PARKED_TEST_STEP_S`]) and no other agent's box at any time the other
+/// exists; an agent that would overlap keeps its labelled presence (two
+/// pieces of one parked car split at a gap, for instance). Returns how many
+/// were kept for the drive.
+pub(super) fn park_for_the_drive(
+    agents: &mut [Agent],
+    ego_box_at: impl Fn(f64) -> (Isometry3<f64>, Vector3<f64>),
+    until_s: f64,
+) -> usize {
+    let steps = (until_s / PARKED_TEST_STEP_S).ceil().max(0.0) as usize;
+    let times = || (0..=steps).map(|i| (i as f64 * PARKED_TEST_STEP_S).min(until_s));
+    let ego: Vec<(Isometry3<f64>, Vector3<f64>)> = times().map(&ego_box_at).collect();
+    // Every agent's boxes at the test times while it exists, as labelled.
+    let boxes: Vec<Vec<(Isometry3<f64>, Vector3<f64>)>> = agents
+        .iter()
+        .map(|a| {
+            times()
+                .filter(|&t| a.is_present(t))
+                .map(|t| (a.box_at(t).t_world_box, a.size_lwh_m))
+                .collect()
+        })
+        .collect();
+    let mut kept = 0;
+    for i in 0..agents.len() {
+        if !agents[i].parked || boxes[i].is_empty() {
+            continue;
+        }
+        let (pose, size) = boxes[i][0];
+        let grown = size + Vector3::repeat(PARKED_CLEARANCE_M);
+        let clear_of = |(other_pose, other_size): &(Isometry3<f64>, Vector3<f64>)| {
+            !boxes_overlap(&pose, &grown, other_pose, other_size)
+        };
+        let clear = ego.iter().all(clear_of)
+            && boxes
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .all(|(_, other)| other.iter().all(clear_of));
+        if clear {
+            agents[i].presence = Presence {
+                from_s: 0.0,
+                until_s,
+            };
+            agents[i].trajectory = Trajectory::stationary(0.0, until_s, &pose);
+            kept += 1;
+        }
+    }
+    kept
 }
 
 fn agent(
@@ -226,6 +295,57 @@ mod tests {
         assert!(!a.is_present(3.0));
         let v = a.trajectory.state_at(1.25).velocity_world_mps.x;
         assert!((v - 10.0).abs() < 1e-6, "{v}");
+    }
+
+    /// A car at rest at (x, y), labelled at `frames`.
+    fn parked_at(id: u32, x: f64, y: f64, frames: impl Iterator<Item = usize>) -> ReplayTrack {
+        ReplayTrack {
+            id,
+            class: ObjectClass::Car,
+            size_lwh_m: Vector3::new(4.0, 1.8, 1.5),
+            boxes: frames
+                .map(|frame| TrackBox {
+                    frame,
+                    t_world_box: Isometry3::translation(x, y, 0.75),
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn parked_cars_stay_for_the_drive_only_where_nothing_would_hit_them() {
+        // the ego drives along y = 0 at 10 m/s for 10 s
+        let ego_size = Vector3::new(4.8, 1.8, 1.5);
+        let ego = |t: f64| (Isometry3::translation(10.0 * t, 0.0, 0.75), ego_size);
+        let tracks = [
+            // beside the lane, labelled for a second: stays
+            parked_at(1, 50.0, 4.5, 30..40),
+            // in the lane, labelled after the ego has passed its place
+            parked_at(2, 20.0, 0.0, 60..70),
+            // one car in two pieces (a long gap): they would overlap
+            parked_at(3, 80.0, -3.0, (0..10).chain(40..50)),
+            // a moving car in the next lane passes a car parked beside it
+            track(5, (0..100).map(|f| (f, 0.5 * f as f64, 0.0)).collect()),
+        ];
+        let (mut agents, _) = agents(&tracks, 0.1);
+        // parked in the moving car's lane after it has passed
+        agents.extend(super::agents(&[parked_at(9, 30.0, 2.0, 90..95)], 0.1).0);
+        let before: Vec<Presence> = agents.iter().map(|a| a.presence).collect();
+        assert_eq!(park_for_the_drive(&mut agents, ego, 10.0), 1);
+        let by_id = |id: u32| agents.iter().position(|a| a.id == id).unwrap();
+        let kept = &agents[by_id(1)];
+        assert_eq!((kept.presence.from_s, kept.presence.until_s), (0.0, 10.0));
+        assert_eq!(
+            kept.trajectory.pose_at(0.0).translation.vector,
+            Vector3::new(50.0, 4.5, 0.75)
+        );
+        assert!(kept.trajectory.end_s() >= 10.0);
+        // the others keep their labelled presence
+        for (a, was) in agents.iter().zip(&before) {
+            if a.id != 1 {
+                assert_eq!(a.presence, *was, "{}", a.id);
+            }
+        }
     }
 
     #[test]

@@ -97,6 +97,21 @@ fn obb_overlap(a: &Obb, b: &Obb) -> bool {
 }
 
 /// Oriented box against a static shape.
+/// Whether two oriented boxes (their centres' poses and sizes l, w, h)
+/// overlap, both shrunk as in [`first_overlap`] so that touching does not count.
+pub(crate) fn boxes_overlap(
+    pose_a: &Isometry3<f64>,
+    size_a_lwh_m: &Vector3<f64>,
+    pose_b: &Isometry3<f64>,
+    size_b_lwh_m: &Vector3<f64>,
+) -> bool {
+    let (a, b) = (
+        Obb::new(pose_a, size_a_lwh_m),
+        Obb::new(pose_b, size_b_lwh_m),
+    );
+    (a.centre - b.centre).norm() <= a.radius() + b.radius() && obb_overlap(&a, &b)
+}
+
 fn box_vs_shape(a: &Obb, shape: &Shape, pose: &Isometry3<f64>) -> bool {
     match *shape {
         Shape::Cuboid { half_extents_m } => {

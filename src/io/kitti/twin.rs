@@ -32,11 +32,16 @@
 //! the heading). Traffic behind and beside the ego is therefore absent from
 //! a twin unless it was in view at some labelled frame: a car overtaking the
 //! ego appears only once ahead; a car followed by the ego is missing until
-//! then; oncoming cars disappear as they pass. Remedy chosen: none beyond the
-//! presence interval (an agent exists while labelled, so nothing is seen
-//! that the labels did not place); inventing unlabelled traffic would make
-//! the twin's ground truth disagree with the real sequence's. The realism
-//! gap this leaves is part of what the twin-vs-real comparison measures.
+//! then; oncoming cars disappear as they pass. Moving traffic exists while
+//! labelled (nothing is seen that the labels did not place; inventing
+//! unlabelled traffic would make the twin's ground truth disagree with the
+//! real sequence's). Parked cars are the exception: one labelled at rest
+//! stays where it was for the whole drive, as the real one did while the
+//! ego drove past it, wherever that overlaps neither the ego nor another
+//! agent (`limot_sim::replay`, `park_for_the_drive`). Without that the cars
+//! lining a street vanished as the ego passed them, and with them most of
+//! the structure beside the ego (reports/kitti-twins). The moving-traffic
+//! gap left is part of what the twin-vs-real comparison measures.
 
 use super::calib::Calib;
 use super::detections::{ScoreMap, camera_box_to_lidar, detections_by_frame, read_ab3dmot_csv};
