@@ -27,7 +27,7 @@ pub use tracks::{MAX_GAP_FRAMES, PARKED_SPREAD_M, TrackSummary};
 use crate::scenario::{ScenarioError, ScenarioSpec, common};
 use crate::scene::{Ego, Scene, Trajectory};
 use limot_estimator::input::{Detection, ObjectClass};
-use nalgebra::{Isometry3, Translation3, Vector3};
+use nalgebra::{Isometry3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -224,18 +224,11 @@ pub fn build_scene(
         &SmoothingConfig::EGO,
     );
     let duration_s = input.duration_s().min(spec.duration_s);
+    let ego = ego_of(spec, ego_trajectory, input.t_lidar_imu);
     let (mut agents, mut track_summary) = tracks::agents(&input.tracks, dt);
-    let ego_size_lwh_m = Vector3::from(spec.ego.size_lwh_m);
-    let box_center_lidar_m = common::box_center_lidar_m(&spec.ego);
     track_summary.parked_for_the_drive = tracks::park_for_the_drive(
         &mut agents,
-        |t| {
-            let t_world_lidar = ego_trajectory.pose_at(t);
-            (
-                t_world_lidar * Translation3::from(box_center_lidar_m),
-                ego_size_lwh_m,
-            )
-        },
+        |t| (ego.t_world_box_at(t), ego.size_lwh_m),
         duration_s,
     );
     let corridor_choice = spec
@@ -246,20 +239,19 @@ pub fn build_scene(
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let lidar_height_m = spec.ego.lidar_height_m;
     let (ground, ground_fit) = corridor::fit_ground(
-        &ego_trajectory,
+        &ego.trajectory,
         lidar_height_m,
         duration_s,
         common::road_roughness(&spec.ground, spec.seed),
     );
     let statics = corridor::statics(
         corridor_choice,
-        &ego_trajectory,
+        &ego.trajectory,
         duration_s,
         &ground,
         &agents,
         &mut rng,
     );
-    let ego = ego_of(spec, ego_trajectory, input.t_lidar_imu);
     let report = ReplayReport {
         ego_fit,
         ground: ground_fit,

@@ -5,7 +5,7 @@
 pub use crate::roughness::Roughness;
 pub use crate::trajectory::{Jet, Knot, Trajectory};
 use limot_estimator::input::ObjectClass;
-use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Vector2, Vector3};
 
 /// Instance id of everything that is not an agent (ground, buildings, ...).
 pub const STATIC_INSTANCE_ID: u32 = 0;
@@ -338,6 +338,14 @@ pub struct Ego {
     pub box_center_lidar_m: Vector3<f64>,
     /// Maps IMU-frame points into the LiDAR frame.
     pub t_lidar_imu: Isometry3<f64>,
+}
+
+impl Ego {
+    /// The pose of the car body box's centre at `t_s` (box x along the
+    /// heading); its size is [`Ego::size_lwh_m`].
+    pub fn t_world_box_at(&self, t_s: f64) -> Isometry3<f64> {
+        self.trajectory.pose_at(t_s) * Translation3::from(self.box_center_lidar_m)
+    }
 }
 
 /// A generated world: everything the sensors can see, over `[0, duration_s]`.

@@ -631,6 +631,29 @@ impl Lining<'_> {
         }
     }
 
+    /// A straight piece of a strip (rail, kerb, fence, hedge, wall) between
+    /// two ground points, `width_m` wide from `heights_m.0` to `heights_m.1`
+    /// above the ground, kept where clear.
+    fn strip(
+        &self,
+        kind: StaticKind,
+        (p0, p1): (Point2<f64>, Point2<f64>),
+        width_m: f64,
+        heights_m: (f64, f64),
+        out: &mut Vec<StaticObject>,
+    ) {
+        if self.clearance.free(&Footprint::between(p0, p1, width_m)) {
+            out.push(cuboid_between(
+                self.ground,
+                kind,
+                p0,
+                p1,
+                width_m,
+                heights_m,
+            ));
+        }
+    }
+
     /// A raised sidewalk along the road edge: slabs of [`KERB_SEGMENT_M`]
     /// whose road-side face is the kerb, where clear.
     fn sidewalk(&self, out: &mut Vec<StaticObject>) {
@@ -639,19 +662,9 @@ impl Lining<'_> {
             let end = (s + KERB_SEGMENT_M).min(self.path.length_m());
             let offset = 0.5 * SIDEWALK_WIDTH_M;
             let (p0, p1) = (self.at(s, offset), self.at(end, offset));
-            if (p1 - p0).norm() > 0.1
-                && self
-                    .clearance
-                    .free(&Footprint::between(p0, p1, SIDEWALK_WIDTH_M))
-            {
-                out.push(cuboid_between(
-                    self.ground,
-                    StaticKind::Kerb,
-                    p0,
-                    p1,
-                    SIDEWALK_WIDTH_M,
-                    (-0.2, KERB_HEIGHT_M),
-                ));
+            if (p1 - p0).norm() > 0.1 {
+                let heights_m = (-0.2, KERB_HEIGHT_M);
+                self.strip(StaticKind::Kerb, (p0, p1), SIDEWALK_WIDTH_M, heights_m, out);
             }
             s = end;
         }
@@ -681,17 +694,8 @@ impl Lining<'_> {
             let end = (s + plot_m).min(self.path.length_m());
             while a + 0.5 < end {
                 let b = (a + PLOT_FRONT_SEGMENT_M).min(end);
-                let (p0, p1) = (self.at(a, PLOT_LINE_M), self.at(b, PLOT_LINE_M));
-                if self.clearance.free(&Footprint::between(p0, p1, width_m)) {
-                    out.push(cuboid_between(
-                        self.ground,
-                        kind,
-                        p0,
-                        p1,
-                        width_m,
-                        (-0.1, top_m),
-                    ));
-                }
+                let ends = (self.at(a, PLOT_LINE_M), self.at(b, PLOT_LINE_M));
+                self.strip(kind, ends, width_m, (-0.1, top_m), out);
                 a = b;
             }
             s += plot_m;
@@ -797,23 +801,12 @@ impl Lining<'_> {
         let rail_offset = HIGHWAY_RAIL_OFFSET_M;
         let mut s = 0.0;
         while s + RAIL_SEGMENT_M <= self.path.length_m() {
-            let (p0, p1) = (
+            let ends = (
                 self.at(s, rail_offset),
                 self.at(s + RAIL_SEGMENT_M, rail_offset),
             );
-            if self
-                .clearance
-                .free(&Footprint::between(p0, p1, HIGHWAY_RAIL_WIDTH_M))
-            {
-                out.push(cuboid_between(
-                    self.ground,
-                    StaticKind::GuardRail,
-                    p0,
-                    p1,
-                    HIGHWAY_RAIL_WIDTH_M,
-                    (0.45, 0.8),
-                ));
-            }
+            let kind = StaticKind::GuardRail;
+            self.strip(kind, ends, HIGHWAY_RAIL_WIDTH_M, (0.45, 0.8), out);
             s += RAIL_SEGMENT_M;
         }
         self.walk(rng, (45.0, 60.0), |s, _| self.pole(s, 2.0, 10.0, out));

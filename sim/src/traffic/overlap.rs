@@ -96,7 +96,6 @@ fn obb_overlap(a: &Obb, b: &Obb) -> bool {
     true
 }
 
-/// Oriented box against a static shape.
 /// Whether two oriented boxes (their centres' poses and sizes l, w, h)
 /// overlap, both shrunk as in [`first_overlap`] so that touching does not count.
 pub(crate) fn boxes_overlap(
@@ -112,6 +111,7 @@ pub(crate) fn boxes_overlap(
     (a.centre - b.centre).norm() <= a.radius() + b.radius() && obb_overlap(&a, &b)
 }
 
+/// Oriented box against a static shape.
 fn box_vs_shape(a: &Obb, shape: &Shape, pose: &Isometry3<f64>) -> bool {
     match *shape {
         Shape::Cuboid { half_extents_m } => {
@@ -199,8 +199,7 @@ pub fn first_overlap(scene: &Scene, dt_s: f64) -> Option<Overlap> {
     }
     for t in times {
         let mut bodies: Vec<(Body, Obb)> = Vec::with_capacity(scene.agents.len() + 1);
-        let ego_pose =
-            scene.ego.trajectory.pose_at(t) * Translation3::from(scene.ego.box_center_lidar_m);
+        let ego_pose = scene.ego.t_world_box_at(t);
         bodies.push((Body::Ego, Obb::new(&ego_pose, &scene.ego.size_lwh_m)));
         for agent in &scene.agents {
             bodies.push((
