@@ -97,8 +97,8 @@ fn labelled_objects_are_where_the_labels_put_them() {
         let id = u32::try_from(label.track_id + 1).unwrap();
         let agent = agents[&id];
         assert!(
-            agent.is_present(t_s),
-            "track {} absent at frame {k}",
+            agent.is_labelled(t_s),
+            "track {} unlabelled at frame {k}",
             label.track_id
         );
         let centre =
@@ -133,6 +133,11 @@ fn labelled_objects_are_where_the_labels_put_them() {
     for (id, labelled) in &labelled_frames {
         let (first, last) = (labelled[0], labelled[labelled.len() - 1]);
         let agent = agents[id];
+        // the truth is what KITTI labelled, whatever the agent's presence
+        if first > 0 {
+            assert!(!agent.is_labelled((first as f64 - 0.5) * 0.1), "{id}");
+        }
+        assert!(!agent.is_labelled((last + 1) as f64 * 0.1 + 1e-9), "{id}");
         if agent.parked {
             assert!(
                 (0..frames).all(|k| agent.is_present(k as f64 * 0.1)),
@@ -207,7 +212,9 @@ fn read_tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 #[test]
 fn a_twin_is_byte_identical_across_thread_counts() {
     let Some(training) = training() else { return };
-    let spec = kitti_scenario(&training, 0, FIRST_FRAME, Some(12), None, None).unwrap();
+    // 0000 from frame 110: parked cars come into the labels one by one
+    let first = 110;
+    let spec = kitti_scenario(&training, 0, first, Some(12), None, None).unwrap();
     let dirs: Vec<PathBuf> = [1, 2]
         .iter()
         .map(|&threads| {
@@ -225,6 +232,28 @@ fn a_twin_is_byte_identical_across_thread_counts() {
             dir
         })
         .collect();
+    // The tracking truth is KITTI's labels: every labelled box is a track
+    // labelled in that frame, and the boxes left unlabelled are parked cars
+    // kept for the drive outside the frames KITTI labelled them.
+    let labels = read_labels(&sequence_file(&training.join("label_02"), 0)).unwrap();
+    let boxes = Dataset::open(&dirs[0]).unwrap().box_truth().unwrap();
+    let mut unlabelled = 0;
+    for (k, frame) in boxes.iter().enumerate() {
+        let real: std::collections::BTreeSet<u32> = labels
+            .iter()
+            .filter(|l| !l.is_dont_care() && l.frame as usize == first + k)
+            .map(|l| u32::try_from(l.track_id + 1).unwrap())
+            .collect();
+        let labelled: std::collections::BTreeSet<u32> =
+            frame.iter().filter(|b| b.labelled).map(|b| b.id).collect();
+        assert_eq!(labelled, real, "frame {k}");
+        for b in frame.iter().filter(|b| !b.labelled) {
+            assert!(b.parked, "frame {k}: {}", b.id);
+            unlabelled += 1;
+        }
+    }
+    eprintln!("0000 frames {first}+12: {unlabelled} unlabelled boxes");
+    assert!(unlabelled > 10, "{unlabelled}");
     let (a, b) = (read_tree(&dirs[0]), read_tree(&dirs[1]));
     assert!(a.len() > 20, "{} files", a.len());
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());

@@ -10,7 +10,7 @@
 //! detections.csv     frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id   (LiDAR frame)
 //! gt/ego.csv         t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz        (t_world_lidar at the IMU rate)
 //! gt/imu_bias.csv    t_s,bax,bay,baz,bgx,bgy,bgz
-//! gt/boxes.csv       frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked   (world frame, at scan start)
+//! gt/boxes.csv       frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked,labelled   (world frame, at scan start)
 //! ```
 //!
 //! `truth_id` (-1 for a false positive) and per-point `label` are ground truth:
@@ -26,7 +26,14 @@
 //! `index · sweep_duration_s`, or with a point time offset outside the sweep;
 //! time stamps that do not increase in `imu.csv`, `gt/ego.csv` and
 //! `gt/imu_bias.csv`; non-positive box sizes, scores outside [0, 1] and
-//! detection time offsets outside the sweep; `parked` other than 0 or 1.
+//! detection time offsets outside the sweep; `parked` or `labelled` other
+//! than 0 or 1.
+//!
+//! `gt/boxes.csv` has a row for every object that exists at the frame;
+//! `labelled` is 0 for one that is in the world but not in the tracking
+//! ground truth (a KITTI twin's parked car outside the frames KITTI labelled
+//! it): tracking is scored against the labelled rows, the filter against
+//! every row.
 
 use crate::sensors::DetectionWithTruth;
 use limot_estimator::geometry::OrientedBox;
@@ -50,7 +57,7 @@ pub use scan::{decode_labels, decode_scan, encode_scan, encode_scan_into, scan_p
 pub use writer::DatasetWriter;
 
 /// Version of the dataset format written to `meta.toml` and every scan header.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// A problem with a dataset file, naming where it is.
 #[derive(Debug, thiserror::Error)]
@@ -208,6 +215,9 @@ pub struct BoxTruth {
     pub velocity_world_mps: Vector3<f64>,
     /// True for a vehicle that never moves in the scenario.
     pub parked: bool,
+    /// True when the box is part of the tracking ground truth (see the
+    /// module docs).
+    pub labelled: bool,
 }
 
 /// One recorded frame: the sweep with per-point labels and the detections.
@@ -470,7 +480,7 @@ impl Dataset {
     pub fn box_truth(&self) -> Result<Vec<Vec<BoxTruth>>, RecordError> {
         let columns = [
             "frame", "t_s", "id", "class", "x", "y", "z", "qx", "qy", "qz", "qw", "l", "w", "h",
-            "vx", "vy", "vz", "parked",
+            "vx", "vy", "vz", "parked", "labelled",
         ];
         let mut csv = Csv::open(self.dir.join("gt/boxes.csv"), &columns.join(","))?;
         let mut out = vec![Vec::new(); self.meta.frame_count];
@@ -483,11 +493,12 @@ impl Dataset {
                     format!("frame {frame} but the dataset has {}", out.len()),
                 ));
             }
-            let parked = match r.field(17) {
-                "0" => false,
-                "1" => true,
-                other => return Err(r.error(17, format!("`{other}` is neither 0 nor 1"))),
+            let flag = |i: usize| match r.field(i) {
+                "0" => Ok(false),
+                "1" => Ok(true),
+                other => Err(r.error(i, format!("`{other}` is neither 0 nor 1"))),
             };
+            let (parked, labelled) = (flag(17)?, flag(18)?);
             out[frame].push(BoxTruth {
                 frame,
                 t_s: r.f64(1)?,
@@ -497,6 +508,7 @@ impl Dataset {
                 size_lwh_m: r.size(11)?,
                 velocity_world_mps: r.vec3(14)?,
                 parked,
+                labelled,
             });
         }
         Ok(out)
@@ -694,6 +706,7 @@ mod tests {
                 size_lwh_m: size,
                 velocity_world_mps: Vector3::zeros(),
                 parked: false,
+                labelled: true,
             };
             let detections = vec![DetectionWithTruth {
                 detection,
@@ -909,6 +922,11 @@ mod tests {
         set_field(&dir, "gt/boxes.csv", 3, 17, "2");
         let err = error_of(&dir);
         assert!(err.contains("gt/boxes.csv:3: field `parked`"), "{err}");
+
+        let dir = tiny_dataset("box-labelled");
+        set_field(&dir, "gt/boxes.csv", 2, 18, "yes");
+        let err = error_of(&dir);
+        assert!(err.contains("gt/boxes.csv:2: field `labelled`"), "{err}");
     }
 
     #[test]

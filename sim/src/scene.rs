@@ -258,11 +258,17 @@ pub struct Agent {
     /// When the agent exists: outside it the sensors see nothing of it and
     /// the ground truth has no box for it.
     pub presence: Presence,
+    /// When the ground truth labels it, within `presence`: a replayed parked
+    /// car stays in the world for the whole drive but is labelled only where
+    /// its source labelled it, so that the twin is scored against the same
+    /// truth as the real sequence. Generated agents are labelled whenever
+    /// they exist.
+    pub labelled: Presence,
 }
 
-/// The time interval `[from_s, until_s)` in which an agent exists (a
-/// replayed object exists only while it was labelled); generated agents
-/// exist always.
+/// A time interval `[from_s, until_s)`: when an agent exists (a replayed
+/// object exists from its first to its last label, or for the whole drive)
+/// or when it is labelled; generated agents exist always.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Presence {
     /// First instant of existence, s.
@@ -288,6 +294,12 @@ impl Agent {
     /// Whether the agent exists at `t_s` (see [`Presence`]).
     pub fn is_present(&self, t_s: f64) -> bool {
         self.presence.contains(t_s)
+    }
+
+    /// Whether the ground truth has a box for the agent at `t_s` (see
+    /// [`Agent::labelled`]).
+    pub fn is_labelled(&self, t_s: f64) -> bool {
+        self.is_present(t_s) && self.labelled.contains(t_s)
     }
 
     /// The agent's ground-truth box at `t_s`.

@@ -262,6 +262,7 @@ impl Simulation {
                     size_lwh_m: b.size_lwh_m,
                     velocity_world_mps: b.velocity_world_mps,
                     parked: agent.parked,
+                    labelled: agent.is_labelled(t_s),
                 }
             })
             .collect();

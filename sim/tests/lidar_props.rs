@@ -192,6 +192,7 @@ proptest! {
                     parked: b.speed_mps == 0.0,
                     trajectory,
                     presence: limot_sim::scene::Presence::ALWAYS,
+                    labelled: limot_sim::scene::Presence::ALWAYS,
                 }
             })
             .collect();
@@ -217,6 +218,7 @@ proptest! {
                 (0.0, 0.0),
             ),
             presence: limot_sim::scene::Presence::ALWAYS,
+            labelled: limot_sim::scene::Presence::ALWAYS,
         });
         let statics = vec![StaticObject {
             kind: StaticKind::Pole,
@@ -304,6 +306,7 @@ fn busy_scene() -> Scene {
                 (0.0, 0.0),
             ),
             presence: limot_sim::scene::Presence::ALWAYS,
+            labelled: limot_sim::scene::Presence::ALWAYS,
         })
         .collect();
     Scene {

@@ -796,6 +796,7 @@ mod tests {
             size_lwh_m: Vector3::new(8.0, 2.5, 3.0),
             velocity_world_mps: Vector3::zeros(),
             parked: false,
+            labelled: true,
         };
         let b = TrackedBox::from_box_truth(&truth);
         assert_eq!((b.id, b.class), (7, ObjectClass::Truck));

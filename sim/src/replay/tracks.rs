@@ -19,7 +19,9 @@
 //! past would vanish from the twin the moment it leaves that view, while the
 //! real LiDAR keeps seeing it beside and behind the ego. [`park_for_the_drive`]
 //! keeps such cars where they were labelled for the whole drive wherever
-//! that is physically possible (no overlap with the ego or any other agent).
+//! that is physically possible (no overlap with the ego or any other agent);
+//! their ground truth stays what was labelled ([`Agent::labelled`]), as on
+//! the real sequence.
 
 use super::fit::{euler_channels, extrapolated, jets};
 use super::{ReplayTrack, TrackBox};
@@ -97,8 +99,9 @@ pub(super) fn agents(tracks: &[ReplayTrack], dt_s: f64) -> (Vec<Agent>, TrackSum
 /// the pose of the box centre and its size, tested every
 /// [`PARKED_TEST_STEP_S`]) and no other agent's box at any time the other
 /// exists; an agent that would overlap keeps its labelled presence (two
-/// pieces of one parked car split at a gap, for instance). Returns how many
-/// were kept for the drive.
+/// pieces of one parked car split at a gap, for instance). Only the
+/// presence grows: [`Agent::labelled`] keeps the labelled interval. Returns
+/// how many were kept for the drive.
 pub(super) fn park_for_the_drive(
     agents: &mut [Agent],
     ego_box_at: impl Fn(f64) -> (Isometry3<f64>, Vector3<f64>),
@@ -190,6 +193,7 @@ fn agent(
         parked,
         trajectory,
         presence,
+        labelled: presence,
     }
 }
 
@@ -340,8 +344,13 @@ mod tests {
             Vector3::new(50.0, 4.5, 0.75)
         );
         assert!(kept.trajectory.end_s() >= 10.0);
+        // present for the drive, labelled only where it was labelled
+        assert_eq!((kept.labelled.from_s, kept.labelled.until_s), (3.0, 4.0));
+        assert!(kept.is_present(2.0) && !kept.is_labelled(2.0));
+        assert!(kept.is_labelled(3.5) && !kept.is_labelled(4.0));
         // the others keep their labelled presence
         for (a, was) in agents.iter().zip(&before) {
+            assert_eq!(a.labelled, *was, "{}", a.id);
             if a.id != 1 {
                 assert_eq!(a.presence, *was, "{}", a.id);
             }

@@ -18,7 +18,10 @@
 //! image), so by default the truth is restricted the way the KITTI-style copy
 //! labels it (`kitti_export`): within 80 m of the LiDAR in the horizontal
 //! plane, hit by at least one LiDAR point of the sweep, and with a 2D box in
-//! the image. `GtFilter::All` scores against every ground-truth box.
+//! the image. `GtFilter::All` scores against every ground-truth box. Either
+//! way only labelled boxes are truth (`gt/boxes.csv`'s `labelled` column: a
+//! KITTI twin's parked car is in the world for the whole drive, in the truth
+//! only where KITTI labelled it).
 //!
 //! Metrics: class-agnostic and per-class CLEAR-MOT ([`crate::metrics::clear_mot`])
 //! at 3D and BEV IoU ≥ 0.25 and 0.5; per-object TP % and ATE
@@ -54,7 +57,7 @@ pub const KITTI_LABEL_RANGE_M: f64 = 80.0;
 /// Which ground-truth boxes are scored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum GtFilter {
-    /// Every box of `gt/boxes.csv`.
+    /// Every labelled box of `gt/boxes.csv`.
     All,
     /// The boxes the KITTI-style copy labels (see the module docs).
     #[default]
@@ -298,7 +301,13 @@ impl ScoredTruth {
                 GtFilter::CameraVisible => instances_hit(&dataset.frame_labels(index)?),
             };
             let mut gt = Vec::new();
-            for b in boxes.get(index).into_iter().flatten() {
+            // an unlabelled box is in the world, not in the tracking truth
+            for b in boxes
+                .get(index)
+                .into_iter()
+                .flatten()
+                .filter(|b| b.labelled)
+            {
                 let keep = match opts.gt_filter {
                     GtFilter::All => true,
                     GtFilter::CameraVisible => camera_visible(

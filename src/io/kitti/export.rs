@@ -6,7 +6,7 @@
 //! velodyne/0000/NNNNNN.bin   raw sweeps (x, y, z, intensity as f32), not de-skewed, laser by laser like KITTI
 //! oxts/0000.txt              30-field OXTS lines of the IMU at each sweep start (noise-free: an INS)
 //! calib/0000.txt             P0..P3, R_rect, Tr_velo_cam (a KITTI-like ideal camera), Tr_imu_velo
-//! label_02/0000.txt          ground-truth boxes at the sweep start, camera-visible ones only (as KITTI)
+//! label_02/0000.txt          labelled ground-truth boxes at the sweep start, camera-visible ones only (as KITTI)
 //! detections/0000.txt        the simulated detections, AB3DMOT CSV (camera frame, score as stored)
 //! poses/0000.txt             ground-truth t_world_lidar at each sweep start, KITTI pose format
 //! times.txt                  sweep start times, s
@@ -257,7 +257,7 @@ impl KittiCopyWriter {
         for b in boxes {
             let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
             let center = t_lidar_box.translation.vector;
-            if center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
+            if !b.labelled || center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
                 continue;
             }
             let r = t_lidar_box.rotation.to_rotation_matrix();

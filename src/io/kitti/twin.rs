@@ -38,7 +38,9 @@
 //! real sequence's). Parked cars are the exception: one labelled at rest
 //! stays where it was for the whole drive, as the real one did while the
 //! ego drove past it, wherever that overlaps neither the ego nor another
-//! agent (`limot_sim::replay`, `park_for_the_drive`). Without that the cars
+//! agent (`limot_sim::replay`, `park_for_the_drive`); its ground truth stays
+//! the frames KITTI labelled (`gt/boxes.csv`'s `labelled` column), so that a
+//! twin is scored against the same truth as the real sequence. Without that the cars
 //! lining a street vanished as the ego passed them, and with them most of
 //! the structure beside the ego (reports/kitti-twins). The moving-traffic
 //! gap left is part of what the twin-vs-real comparison measures.
