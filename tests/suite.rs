@@ -202,6 +202,64 @@ fn limot_report_re_renders_the_same_readme() {
     }
 }
 
+/// `limot report --baseline`: a suite against itself has no regression and
+/// passes the gate; against a baseline whose lio run was 20 % better, the
+/// gate fails naming that run, and baseline.md lists it.
+#[test]
+fn the_baseline_gate_passes_the_same_results_and_fails_a_worse_ate() {
+    let (results, out) = suite();
+    let report = |baseline: &Path, to: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_limot"))
+            .arg("report")
+            .arg(out.join(RESULTS_FILE))
+            .arg("--out")
+            .arg(to)
+            .arg("--baseline")
+            .arg(baseline)
+            .arg("--fail-on-regression")
+            .output()
+            .unwrap()
+    };
+    let same = scratch("baseline-same");
+    let run = report(&out.join(RESULTS_FILE), &same);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let page = fs::read_to_string(same.join("baseline.md")).unwrap();
+    assert!(page.contains("No regressions."), "{page}");
+
+    let better = scratch("baseline-better");
+    fs::create_dir_all(&better).unwrap();
+    let mut doctored = results.clone();
+    let lio = doctored.sequences[0]
+        .variants
+        .iter_mut()
+        .find(|r| r.variant == Variant::Lio)
+        .and_then(|r| r.metrics.as_mut())
+        .unwrap();
+    let ate = lio.ego.ate_t_m;
+    lio.ego.ate_t_m = (ate / 1.2).min(ate - 0.02);
+    doctored.save(&better).unwrap();
+    let to = scratch("baseline-worse");
+    let run = report(&better.join(RESULTS_FILE), &to);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("1 regression(s)"), "{stderr}");
+    let name = &doctored.sequences[0].name;
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains(&format!(
+            "regression: {name} / {}: ATE_T",
+            Variant::Lio.label()
+        )),
+        "{stdout}"
+    );
+    let page = fs::read_to_string(to.join("baseline.md")).unwrap();
+    assert!(page.contains("1 regression(s)"), "{page}");
+}
+
 #[test]
 fn a_corrupt_dataset_fails_its_runs_without_aborting_the_suite() {
     let (_, main_out) = suite();

@@ -186,6 +186,16 @@ enum Command {
         /// Report directory (default: the suite directory's report/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// A baseline suite (its results.json or directory): the report gains
+        /// baseline.md, ATE_T and 3D MOTA@0.25 per sequence and variant before
+        /// and after, and the regressions (ATE_T up > 5 % and > 1 cm, MOTA
+        /// down > 2 points, a run no longer scored).
+        #[arg(long)]
+        baseline: Option<PathBuf>,
+        /// With --baseline: exit with an error when there is any regression
+        /// (a gate for CI or a merge request).
+        #[arg(long, requires = "baseline")]
+        fail_on_regression: bool,
     },
     /// Realism statistics of a sequence from its scans and ground truth alone (attitude
     /// change, ground-ring displacement, along-track information, range/intensity), written
@@ -558,7 +568,17 @@ impl Cli {
                 results,
                 merge,
                 out,
-            } => report::run_report(&results, merge, out),
+                baseline,
+                fail_on_regression,
+            } => report::run_report(
+                &results,
+                merge,
+                out,
+                baseline.map(|path| report::Baseline {
+                    path,
+                    fail_on_regression,
+                }),
+            ),
             Command::Realism {
                 path,
                 sequence,

@@ -4,12 +4,16 @@
 //! [`write_report`] gathers sections of tables and plots into a directory with a
 //! `README.md`. Everything works on plain data, so the runners in
 //! [`crate::experiments`] only fill the row structs and series.
+mod baseline;
 mod ego_error;
 mod kitti;
 mod plot;
 mod suite;
 mod table;
 
+pub use baseline::{
+    Regression, Tolerance, baseline_markdown, baseline_summary_table, baseline_table, regressions,
+};
 pub use ego_error::{EgoErrorSeries, ego_error_series};
 pub use kitti::{
     DIVERGED_ATE_PER_PATH, STATIC_EGO_PATH_M, ab3dmot_table, ego_table as kitti_ego_table,
