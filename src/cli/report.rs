@@ -78,20 +78,21 @@ fn compare_with_baseline(
     use crate::report::{Tolerance, baseline_markdown, baseline_summary_table, regressions};
     let (before, _) = crate::experiments::SuiteResults::load(&baseline.path)?;
     let tolerance = Tolerance::default();
+    let found = regressions(suite, &before, &tolerance);
     let page = baseline_markdown(
         suite,
         &before,
         &baseline.path.display().to_string(),
         &tolerance,
+        &found,
     )?;
     let file = report_dir.join("baseline.md");
     std::fs::write(&file, page).map_err(|e| format!("{}: {e}", file.display()))?;
     println!();
     print!(
         "{}",
-        baseline_summary_table(suite, &before, &tolerance)?.to_markdown()?
+        baseline_summary_table(suite, &before, &found)?.to_markdown()?
     );
-    let found = regressions(suite, &before, &tolerance);
     for r in &found {
         println!("regression: {r}");
     }

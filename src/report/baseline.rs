@@ -24,8 +24,7 @@ pub struct Tolerance {
 }
 
 impl Default for Tolerance {
-    /// 5 % or 1 cm of ATE_T, 2 points of MOTA: above run-to-run changes of
-    /// unrelated edits on the suites in reports/.
+    /// 5 % or 1 cm of ATE_T (the larger), 2 points of MOTA.
     fn default() -> Tolerance {
         Tolerance {
             ate_fraction: 0.05,
@@ -199,14 +198,14 @@ pub fn baseline_table(
 
 /// Per variant over the sequences both sides scored: mean ATE_T, pooled 3D
 /// MOTA@0.25 (1 - errors / truth summed over sequences) and the number of
-/// regressions.
+/// regressions among `found` ([`regressions`]).
 ///
 /// # Errors
 /// [`ReportError`] when the table cannot be built.
 pub fn baseline_summary_table(
     results: &SuiteResults,
     baseline: &SuiteResults,
-    tolerance: &Tolerance,
+    found: &[Regression],
 ) -> Result<Table, ReportError> {
     let mut table = Table::new(
         "Against the baseline, per variant (sequences scored on both sides)",
@@ -226,7 +225,6 @@ pub fn baseline_summary_table(
         table.set_decimals(column, 1);
     }
     let all = pairs(results, baseline);
-    let found = regressions(results, baseline, tolerance);
     for v in results.variants.iter().copied() {
         let both: Vec<(Figures, Figures)> = all
             .iter()
@@ -300,8 +298,8 @@ pub fn regressions(
     out
 }
 
-/// The baseline comparison as a markdown page: both tables, then the
-/// regressions under `tolerance`.
+/// The baseline comparison as a markdown page: `tolerance` stated, both
+/// tables and the regressions `found` under it ([`regressions`]).
 ///
 /// # Errors
 /// [`ReportError`] when a table cannot be built.
@@ -310,6 +308,7 @@ pub fn baseline_markdown(
     baseline: &SuiteResults,
     baseline_name: &str,
     tolerance: &Tolerance,
+    found: &[Regression],
 ) -> Result<String, ReportError> {
     let mut out = format!(
         "# Against the baseline {baseline_name}\n\nRegression: ATE_T up by more than \
@@ -320,14 +319,13 @@ pub fn baseline_markdown(
         tolerance.ate_m,
         100.0 * tolerance.mota_drop
     );
-    out += &baseline_summary_table(results, baseline, tolerance)?.to_markdown()?;
+    out += &baseline_summary_table(results, baseline, found)?.to_markdown()?;
     out += "\n";
-    let found = regressions(results, baseline, tolerance);
     if found.is_empty() {
         out += "No regressions.\n\n";
     } else {
         out += &format!("{} regression(s):\n\n", found.len());
-        for r in &found {
+        for r in found {
             out += &format!("- {r}\n");
         }
         out += "\n";
@@ -531,7 +529,8 @@ mod tests {
                 ],
             ),
         ]);
-        let table = baseline_summary_table(&after, &baseline(), &Tolerance::default()).unwrap();
+        let found = regressions(&after, &baseline(), &Tolerance::default());
+        let table = baseline_summary_table(&after, &baseline(), &found).unwrap();
         let lio = &table.rows[0];
         assert_eq!(lio[0], Variant::Lio.label().into());
         assert_eq!(lio[1], Cell::Int(2));
