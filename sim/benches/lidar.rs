@@ -112,7 +112,7 @@ fn bench_scene() -> Scene {
                     duration_s,
                 ),
                 presence: limot_sim::scene::Presence::ALWAYS,
-                labelled: limot_sim::scene::Presence::ALWAYS,
+                labelled: limot_sim::scene::Labelling::Seen,
             }
         })
         .collect();

@@ -10,7 +10,7 @@
 //! detections.csv     frame,time_offset_s,class,x,y,z,l,w,h,yaw,score,truth_id   (LiDAR frame)
 //! gt/ego.csv         t_s,x,y,z,qx,qy,qz,qw,vx,vy,vz        (t_world_lidar at the IMU rate)
 //! gt/imu_bias.csv    t_s,bax,bay,baz,bgx,bgy,bgz
-//! gt/boxes.csv       frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked,labelled   (world frame, at scan start)
+//! gt/boxes.csv       frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked,labelled,annotated   (world frame, at scan start)
 //! ```
 //!
 //! `truth_id` (-1 for a false positive) and per-point `label` are ground truth:
@@ -26,14 +26,19 @@
 //! `index · sweep_duration_s`, or with a point time offset outside the sweep;
 //! time stamps that do not increase in `imu.csv`, `gt/ego.csv` and
 //! `gt/imu_bias.csv`; non-positive box sizes, scores outside [0, 1] and
-//! detection time offsets outside the sweep; `parked` or `labelled` other
-//! than 0 or 1.
+//! detection time offsets outside the sweep; `parked`, `labelled` or
+//! `annotated` other than 0 or 1.
 //!
 //! `gt/boxes.csv` has a row for every object that exists at the frame;
 //! `labelled` is 0 for one that is in the world but not in the tracking
 //! ground truth (a KITTI twin's parked car outside the frames KITTI labelled
 //! it): tracking is scored against the labelled rows, the filter against
-//! every row.
+//! every row. `annotated` is 1 for an object whose labels come from a
+//! recording's annotators (a twin's): they judged what was visible, so a
+//! labelled annotated box is truth even where the twin's own scene hides it
+//! from the simulated LiDAR; a generated object's labelled box is truth
+//! where the scoring's visibility tests pass
+//! ([`Labelling`](crate::scene::Labelling)).
 
 use crate::sensors::DetectionWithTruth;
 use limot_estimator::geometry::OrientedBox;
@@ -57,7 +62,7 @@ pub use scan::{decode_labels, decode_scan, encode_scan, encode_scan_into, scan_p
 pub use writer::DatasetWriter;
 
 /// Version of the dataset format written to `meta.toml` and every scan header.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 
 /// A problem with a dataset file, naming where it is.
 #[derive(Debug, thiserror::Error)]
@@ -218,6 +223,10 @@ pub struct BoxTruth {
     /// True when the box is part of the tracking ground truth (see the
     /// module docs).
     pub labelled: bool,
+    /// True when the label comes from a recording's annotation, which
+    /// already judged visibility: scoring keeps such a labelled box whether
+    /// or not the simulated LiDAR hits it (see the module docs).
+    pub annotated: bool,
 }
 
 /// One recorded frame: the sweep with per-point labels and the detections.
@@ -479,8 +488,26 @@ impl Dataset {
     /// [`RecordError`] for a missing file or invalid contents.
     pub fn box_truth(&self) -> Result<Vec<Vec<BoxTruth>>, RecordError> {
         let columns = [
-            "frame", "t_s", "id", "class", "x", "y", "z", "qx", "qy", "qz", "qw", "l", "w", "h",
-            "vx", "vy", "vz", "parked", "labelled",
+            "frame",
+            "t_s",
+            "id",
+            "class",
+            "x",
+            "y",
+            "z",
+            "qx",
+            "qy",
+            "qz",
+            "qw",
+            "l",
+            "w",
+            "h",
+            "vx",
+            "vy",
+            "vz",
+            "parked",
+            "labelled",
+            "annotated",
         ];
         let mut csv = Csv::open(self.dir.join("gt/boxes.csv"), &columns.join(","))?;
         let mut out = vec![Vec::new(); self.meta.frame_count];
@@ -498,7 +525,7 @@ impl Dataset {
                 "1" => Ok(true),
                 other => Err(r.error(i, format!("`{other}` is neither 0 nor 1"))),
             };
-            let (parked, labelled) = (flag(17)?, flag(18)?);
+            let (parked, labelled, annotated) = (flag(17)?, flag(18)?, flag(19)?);
             out[frame].push(BoxTruth {
                 frame,
                 t_s: r.f64(1)?,
@@ -509,6 +536,7 @@ impl Dataset {
                 velocity_world_mps: r.vec3(14)?,
                 parked,
                 labelled,
+                annotated,
             });
         }
         Ok(out)
@@ -707,6 +735,7 @@ mod tests {
                 velocity_world_mps: Vector3::zeros(),
                 parked: false,
                 labelled: true,
+                annotated: false,
             };
             let detections = vec![DetectionWithTruth {
                 detection,
@@ -927,6 +956,11 @@ mod tests {
         set_field(&dir, "gt/boxes.csv", 2, 18, "yes");
         let err = error_of(&dir);
         assert!(err.contains("gt/boxes.csv:2: field `labelled`"), "{err}");
+
+        let dir = tiny_dataset("box-annotated");
+        set_field(&dir, "gt/boxes.csv", 3, 19, "-1");
+        let err = error_of(&dir);
+        assert!(err.contains("gt/boxes.csv:3: field `annotated`"), "{err}");
     }
 
     #[test]

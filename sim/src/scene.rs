@@ -258,17 +258,29 @@ pub struct Agent {
     /// When the agent exists: outside it the sensors see nothing of it and
     /// the ground truth has no box for it.
     pub presence: Presence,
-    /// When the ground truth labels it, within `presence`: a replayed parked
-    /// car stays in the world for the whole drive but is labelled only where
-    /// its source labelled it, so that the twin is scored against the same
-    /// truth as the real sequence. Generated agents are labelled whenever
-    /// they exist.
-    pub labelled: Presence,
+    /// When the ground truth labels it, within `presence` (see [`Labelling`]).
+    pub labelled: Labelling,
+}
+
+/// When an agent is in the tracking ground truth.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Labelling {
+    /// Whenever it exists and the simulated sensors see it (the scoring's
+    /// LiDAR-hit and camera tests decide): a generated agent, labelled as
+    /// an annotator of the simulated scans would label it.
+    Seen,
+    /// During these spans, seen by the simulated sensors or not: an object of
+    /// a recorded drive, whose annotators already judged what was visible.
+    /// A twin is then scored against the real sequence's truth, not against
+    /// the occlusions of its generated scene; a replayed parked car stays in
+    /// the world for the whole drive but is labelled only where its source
+    /// labelled it.
+    Annotated(Vec<Presence>),
 }
 
 /// A time interval `[from_s, until_s)`: when an agent exists (a replayed
-/// object exists from its first to its last label, or for the whole drive)
-/// or when it is labelled; generated agents exist always.
+/// object exists from its first to its last label, or for the whole drive;
+/// generated agents exist always) or one run of its annotated labels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Presence {
     /// First instant of existence, s.
@@ -299,7 +311,17 @@ impl Agent {
     /// Whether the ground truth has a box for the agent at `t_s` (see
     /// [`Agent::labelled`]).
     pub fn is_labelled(&self, t_s: f64) -> bool {
-        self.is_present(t_s) && self.labelled.contains(t_s)
+        self.is_present(t_s)
+            && match &self.labelled {
+                Labelling::Seen => true,
+                Labelling::Annotated(spans) => spans.iter().any(|s| s.contains(t_s)),
+            }
+    }
+
+    /// Whether the agent's labels come from a recording's annotation
+    /// ([`Labelling::Annotated`]).
+    pub fn is_annotated(&self) -> bool {
+        matches!(self.labelled, Labelling::Annotated(_))
     }
 
     /// The agent's ground-truth box at `t_s`.

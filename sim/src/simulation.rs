@@ -263,6 +263,7 @@ impl Simulation {
                     velocity_world_mps: b.velocity_world_mps,
                     parked: agent.parked,
                     labelled: agent.is_labelled(t_s),
+                    annotated: agent.is_annotated(),
                 }
             })
             .collect();

@@ -146,7 +146,7 @@ fn convoy_scene(count: usize, t1_s: f64) -> Scene {
                 parked: false,
                 trajectory: weave.trajectory(&ground, t1_s),
                 presence: limot_sim::scene::Presence::ALWAYS,
-                labelled: limot_sim::scene::Presence::ALWAYS,
+                labelled: limot_sim::scene::Labelling::Seen,
             }
         })
         .collect();
@@ -257,7 +257,7 @@ fn zero_noise_returns_the_true_time_aligned_boxes() {
         parked: true,
         trajectory: Trajectory::stationary(-1.0, 10.0, &parked_pose),
         presence: limot_sim::scene::Presence::ALWAYS,
-        labelled: limot_sim::scene::Presence::ALWAYS,
+        labelled: limot_sim::scene::Labelling::Seen,
     });
     let lidar = LidarConfig::default();
     let detector = Detector::new(config, 5).unwrap();
@@ -411,7 +411,7 @@ fn parked_scene(placements: &[(f64, f64)]) -> Scene {
                 parked: true,
                 trajectory: Trajectory::stationary(-1.0, 1000.0, &pose),
                 presence: limot_sim::scene::Presence::ALWAYS,
-                labelled: limot_sim::scene::Presence::ALWAYS,
+                labelled: limot_sim::scene::Labelling::Seen,
             }
         })
         .collect();

@@ -192,7 +192,7 @@ proptest! {
                     parked: b.speed_mps == 0.0,
                     trajectory,
                     presence: limot_sim::scene::Presence::ALWAYS,
-                    labelled: limot_sim::scene::Presence::ALWAYS,
+                    labelled: limot_sim::scene::Labelling::Seen,
                 }
             })
             .collect();
@@ -218,7 +218,7 @@ proptest! {
                 (0.0, 0.0),
             ),
             presence: limot_sim::scene::Presence::ALWAYS,
-            labelled: limot_sim::scene::Presence::ALWAYS,
+            labelled: limot_sim::scene::Labelling::Seen,
         });
         let statics = vec![StaticObject {
             kind: StaticKind::Pole,
@@ -306,7 +306,7 @@ fn busy_scene() -> Scene {
                 (0.0, 0.0),
             ),
             presence: limot_sim::scene::Presence::ALWAYS,
-            labelled: limot_sim::scene::Presence::ALWAYS,
+            labelled: limot_sim::scene::Labelling::Seen,
         })
         .collect();
     Scene {

@@ -182,7 +182,7 @@ fn scene_of(spec: &TrafficSpec, ground: &Ground) -> Scene {
                     Suspension::for_class(vs.class).as_ref(),
                 ),
                 presence: limot_sim::scene::Presence::ALWAYS,
-                labelled: limot_sim::scene::Presence::ALWAYS,
+                labelled: limot_sim::scene::Labelling::Seen,
             }
         })
         .collect();

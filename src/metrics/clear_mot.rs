@@ -797,6 +797,7 @@ mod tests {
             velocity_world_mps: Vector3::zeros(),
             parked: false,
             labelled: true,
+            annotated: false,
         };
         let b = TrackedBox::from_box_truth(&truth);
         assert_eq!((b.id, b.class), (7, ObjectClass::Truck));

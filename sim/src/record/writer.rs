@@ -115,7 +115,7 @@ impl DatasetWriter {
             )?,
             boxes_csv: StreamedCsv::create(
                 dir.join("gt/boxes.csv"),
-                "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked,labelled\n",
+                "frame,t_s,id,class,x,y,z,qx,qy,qz,qw,l,w,h,vx,vy,vz,parked,labelled,annotated\n",
             )?,
             rows: String::new(),
             frames_written: 0,
@@ -170,7 +170,7 @@ impl DatasetWriter {
             let (s, v) = (b.size_lwh_m, b.velocity_world_mps);
             let _ = writeln!(
                 self.rows,
-                "{index},{},{},{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{},{},{},{},{},{}",
+                "{index},{},{},{},{x},{y},{z},{qx},{qy},{qz},{qw},{},{},{},{},{},{},{},{},{}",
                 b.t_s,
                 b.id,
                 b.class,
@@ -181,7 +181,8 @@ impl DatasetWriter {
                 v.y,
                 v.z,
                 b.parked as u8,
-                b.labelled as u8
+                b.labelled as u8,
+                b.annotated as u8
             );
         }
         self.boxes_csv.append(&self.rows)?;

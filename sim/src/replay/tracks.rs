@@ -20,12 +20,12 @@
 //! real LiDAR keeps seeing it beside and behind the ego. [`park_for_the_drive`]
 //! keeps such cars where they were labelled for the whole drive wherever
 //! that is physically possible (no overlap with the ego or any other agent);
-//! their ground truth stays what was labelled ([`Agent::labelled`]), as on
-//! the real sequence.
+//! their ground truth stays what was labelled ([`Agent::labelled`]: the
+//! labelled frames, not the bridged ones), as on the real sequence.
 
 use super::fit::{euler_channels, extrapolated, jets};
 use super::{ReplayTrack, TrackBox};
-use crate::scene::{Agent, Jet, Knot, Presence, Trajectory};
+use crate::scene::{Agent, Jet, Knot, Labelling, Presence, Trajectory};
 use crate::traffic::overlap::boxes_overlap;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -100,7 +100,7 @@ pub(super) fn agents(tracks: &[ReplayTrack], dt_s: f64) -> (Vec<Agent>, TrackSum
 /// [`PARKED_TEST_STEP_S`]) and no other agent's box at any time the other
 /// exists; an agent that would overlap keeps its labelled presence (two
 /// pieces of one parked car split at a gap, for instance). Only the
-/// presence grows: [`Agent::labelled`] keeps the labelled interval. Returns
+/// presence grows: [`Agent::labelled`] keeps the labelled frames. Returns
 /// how many were kept for the drive.
 pub(super) fn park_for_the_drive(
     agents: &mut [Agent],
@@ -193,8 +193,27 @@ fn agent(
         parked,
         trajectory,
         presence,
-        labelled: presence,
+        labelled: Labelling::Annotated(labelled_spans(boxes, dt_s)),
     }
+}
+
+/// One span per run of consecutive labelled frames, each frame covering one
+/// period: the bridged frames of a gap are in the world, not in the truth.
+fn labelled_spans(boxes: &[TrackBox], dt_s: f64) -> Vec<Presence> {
+    let mut spans: Vec<(usize, usize)> = Vec::new();
+    for b in boxes {
+        match spans.last_mut() {
+            Some((_, end)) if b.frame == *end + 1 => *end = b.frame,
+            _ => spans.push((b.frame, b.frame)),
+        }
+    }
+    spans
+        .into_iter()
+        .map(|(first, last)| Presence {
+            from_s: first as f64 * dt_s,
+            until_s: (last + 1) as f64 * dt_s,
+        })
+        .collect()
 }
 
 /// One pose per frame from the first to the last box: labelled poses as
@@ -297,6 +316,12 @@ mod tests {
         }
         assert!(!a.is_present(0.45) && a.is_present(0.5) && a.is_present(2.95));
         assert!(!a.is_present(3.0));
+        // in the world through the gap, in the truth only where labelled
+        for f in 5..30 {
+            let t = f as f64 * 0.1;
+            assert!(a.is_present(t), "{f}");
+            assert_eq!(a.is_labelled(t), !(12..15).contains(&f), "{f}");
+        }
         let v = a.trajectory.state_at(1.25).velocity_world_mps.x;
         assert!((v - 10.0).abs() < 1e-6, "{v}");
     }
@@ -345,12 +370,18 @@ mod tests {
         );
         assert!(kept.trajectory.end_s() >= 10.0);
         // present for the drive, labelled only where it was labelled
-        assert_eq!((kept.labelled.from_s, kept.labelled.until_s), (3.0, 4.0));
+        assert_eq!(
+            kept.labelled,
+            Labelling::Annotated(vec![Presence {
+                from_s: 3.0,
+                until_s: 4.0
+            }])
+        );
         assert!(kept.is_present(2.0) && !kept.is_labelled(2.0));
         assert!(kept.is_labelled(3.5) && !kept.is_labelled(4.0));
         // the others keep their labelled presence
         for (a, was) in agents.iter().zip(&before) {
-            assert_eq!(a.labelled, *was, "{}", a.id);
+            assert_eq!(a.labelled, Labelling::Annotated(vec![*was]), "{}", a.id);
             if a.id != 1 {
                 assert_eq!(a.presence, *was, "{}", a.id);
             }

@@ -297,7 +297,7 @@ pub(crate) fn parked_agent(
         parked: true,
         trajectory: Trajectory::stationary(0.0, duration_s, &pose),
         presence: crate::scene::Presence::ALWAYS,
-        labelled: crate::scene::Presence::ALWAYS,
+        labelled: crate::scene::Labelling::Seen,
     }
 }
 
@@ -437,7 +437,7 @@ pub(crate) fn run_traffic(
                 parked: false,
                 trajectory,
                 presence: crate::scene::Presence::ALWAYS,
-                labelled: crate::scene::Presence::ALWAYS,
+                labelled: crate::scene::Labelling::Seen,
             });
         }
     }

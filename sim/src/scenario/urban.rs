@@ -452,7 +452,7 @@ fn simulate_agents(
             parked: false,
             trajectory,
             presence: crate::scene::Presence::ALWAYS,
-            labelled: crate::scene::Presence::ALWAYS,
+            labelled: crate::scene::Labelling::Seen,
         })
         .collect())
 }

@@ -52,7 +52,7 @@ fn scene_of(spec: &TrafficSpec, tracks: &[PlanarTrack]) -> Scene {
             parked: false,
             trajectory: lift_to_ground(tr, &ground, &vs.size_lwh_m, None),
             presence: crate::scene::Presence::ALWAYS,
-            labelled: crate::scene::Presence::ALWAYS,
+            labelled: crate::scene::Labelling::Seen,
         })
         .collect();
     Scene {
@@ -537,7 +537,7 @@ fn first_overlap_reports_collisions_with_agents_ego_and_statics() {
         parked: false,
         trajectory,
         presence: crate::scene::Presence::ALWAYS,
-        labelled: crate::scene::Presence::ALWAYS,
+        labelled: crate::scene::Labelling::Seen,
     };
     // two cars crossing at right angles, centres 30 m from the crossing
     scene

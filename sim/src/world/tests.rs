@@ -282,7 +282,7 @@ fn moving_agent(id: u32, x0: f64, speed_mps: f64) -> crate::scene::Agent {
         parked: false,
         trajectory: Trajectory::new(0.0, 0.1, knots),
         presence: crate::scene::Presence::ALWAYS,
-        labelled: crate::scene::Presence::ALWAYS,
+        labelled: crate::scene::Labelling::Seen,
     }
 }
 

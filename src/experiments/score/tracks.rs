@@ -17,11 +17,13 @@
 //! boxes with a 2D box in the left colour image (the devkit evaluates in the
 //! image), so by default the truth is restricted the way the KITTI-style copy
 //! labels it (`kitti_export`): within 80 m of the LiDAR in the horizontal
-//! plane, hit by at least one LiDAR point of the sweep, and with a 2D box in
-//! the image. `GtFilter::All` scores against every ground-truth box. Either
-//! way only labelled boxes are truth (`gt/boxes.csv`'s `labelled` column: a
-//! KITTI twin's parked car is in the world for the whole drive, in the truth
-//! only where KITTI labelled it).
+//! plane, hit by at least one LiDAR point of the sweep unless its label is a
+//! recording's annotation (a twin's box is truth where KITTI labelled it,
+//! even where the twin's scene hides it), and with a 2D box in the image.
+//! `GtFilter::All` scores against every ground-truth box. Either way only
+//! labelled boxes are truth (`gt/boxes.csv`'s `labelled` column: a KITTI
+//! twin's parked car is in the world for the whole drive, in the truth only
+//! where KITTI labelled it).
 //!
 //! Metrics: class-agnostic and per-class CLEAR-MOT ([`crate::metrics::clear_mot`])
 //! at 3D and BEV IoU ≥ 0.25 and 0.5; per-object TP % and ATE
@@ -31,7 +33,7 @@ use super::json::{Json, obj};
 use super::{EvaluateError, Result, dataset_frame_times};
 use crate::io::kitti::calib::Calib;
 use crate::io::kitti::detections::{camera_box_to_lidar, lidar_box_to_camera};
-use crate::io::kitti::export::synthetic_calib;
+use crate::io::kitti::export::{is_label_candidate, synthetic_calib};
 use crate::io::kitti::labels::TrackingLabel;
 use crate::io::kitti::results::{ImageSize, image_box};
 use crate::io::kitti::{LineCtx, content_lines, read_text, sequence_file};
@@ -45,14 +47,12 @@ use crate::metrics::{ObjectScore, object_scores};
 use crate::report::{Cell, Table};
 use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
-use limot_sim::record::{Dataset, EgoTruth, instances_hit};
+use limot_sim::record::{BoxTruth, Dataset, EgoTruth, instances_hit};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// Ground-truth boxes farther than this (horizontal, from the LiDAR) are not
-/// labelled in the KITTI-style copy (`kitti_export`'s label range).
-pub const KITTI_LABEL_RANGE_M: f64 = 80.0;
+pub use crate::io::kitti::export::LABEL_RANGE_M as KITTI_LABEL_RANGE_M;
 
 /// Which ground-truth boxes are scored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -208,22 +208,16 @@ fn lidar_box_to_world(t_world_lidar: &Isometry3<f64>, b: &OrientedBox) -> Orient
     OrientedBox::from_pose(&(t_world_lidar * t_lidar_box), b.size_lwh)
 }
 
-/// Whether the KITTI-style copy labels this box (the rule of `kitti_export`):
-/// in range, hit by a LiDAR point, with a 2D box in the left colour image.
-fn camera_visible(
-    t_lidar_box: &Isometry3<f64>,
-    size_lwh: Vector3<f64>,
-    has_points: bool,
-    calib: &Calib,
-) -> bool {
-    let center = t_lidar_box.translation.vector;
-    if !has_points || center.xy().norm() > KITTI_LABEL_RANGE_M {
+/// Whether the KITTI-style copy labels this box: a label candidate
+/// ([`is_label_candidate`]) with a 2D box in the left colour image.
+fn camera_visible(b: &BoxTruth, t_lidar_box: &Isometry3<f64>, hit: bool, calib: &Calib) -> bool {
+    if !is_label_candidate(b, t_lidar_box, hit) {
         return false;
     }
     let r = t_lidar_box.rotation.to_rotation_matrix();
     let lidar_box = OrientedBox {
-        center,
-        size_lwh,
+        center: t_lidar_box.translation.vector,
+        size_lwh: b.size_lwh_m,
         yaw_rad: r[(1, 0)].atan2(r[(0, 0)]),
     };
     image_box(
@@ -311,8 +305,8 @@ impl ScoredTruth {
                 let keep = match opts.gt_filter {
                     GtFilter::All => true,
                     GtFilter::CameraVisible => camera_visible(
+                        b,
                         &(t_world_lidar.inverse() * b.t_world_box),
-                        b.size_lwh_m,
                         hit.contains(&b.id),
                         &truth.calib,
                     ),
@@ -637,7 +631,7 @@ impl TracksEvaluation {
             GtFilter::All => "all ground-truth boxes",
             GtFilter::CameraVisible => {
                 "camera-visible ground truth (as the KITTI-style copy labels it: <= 80 m, \
-                 hit by LiDAR, 2D box in the left image)"
+                 hit by LiDAR unless annotated, 2D box in the left image)"
             }
         };
         let mut out = format!(

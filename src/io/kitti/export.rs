@@ -6,7 +6,7 @@
 //! velodyne/0000/NNNNNN.bin   raw sweeps (x, y, z, intensity as f32), not de-skewed, laser by laser like KITTI
 //! oxts/0000.txt              30-field OXTS lines of the IMU at each sweep start (noise-free: an INS)
 //! calib/0000.txt             P0..P3, R_rect, Tr_velo_cam (a KITTI-like ideal camera), Tr_imu_velo
-//! label_02/0000.txt          labelled ground-truth boxes at the sweep start, camera-visible ones only (as KITTI)
+//! label_02/0000.txt          labelled ground-truth boxes at the sweep start, camera-visible ones only (as KITTI; `is_label_candidate`)
 //! detections/0000.txt        the simulated detections, AB3DMOT CSV (camera frame, score as stored)
 //! poses/0000.txt             ground-truth t_world_lidar at each sweep start, KITTI pose format
 //! times.txt                  sweep start times, s
@@ -44,8 +44,20 @@ use std::path::{Path, PathBuf};
 const ORIGIN_LAT_DEG: f64 = 49.011;
 const ORIGIN_LON_DEG: f64 = 8.423;
 const ORIGIN_ALT_M: f64 = 112.0;
-/// Ground-truth boxes farther than this are not labelled (KITTI labels ~80 m).
-const LABEL_RANGE_M: f64 = 80.0;
+/// Ground-truth boxes farther than this (horizontal, from the LiDAR) are not
+/// labelled (KITTI labels ~80 m).
+pub const LABEL_RANGE_M: f64 = 80.0;
+
+/// Whether the copy labels a ground-truth box of a frame, short of the image
+/// test (a label needs a 2D box in the left colour image): the box is
+/// labelled, within [`LABEL_RANGE_M`], and hit by the sweep (`hit`) unless its
+/// label is a recording's annotation (`BoxTruth::annotated`: the annotators
+/// judged visibility on the real scans; the twin's scene may hide the box).
+pub fn is_label_candidate(b: &BoxTruth, t_lidar_box: &Isometry3<f64>, hit: bool) -> bool {
+    b.labelled
+        && (hit || b.annotated)
+        && t_lidar_box.translation.vector.xy().norm() <= LABEL_RANGE_M
+}
 
 /// Why the KITTI-style copy of a dataset could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -257,7 +269,7 @@ impl KittiCopyWriter {
         for b in boxes {
             let t_lidar_box = t_world_lidar.inverse() * b.t_world_box;
             let center = t_lidar_box.translation.vector;
-            if !b.labelled || center.xy().norm() > LABEL_RANGE_M || !points_on.contains_key(&b.id) {
+            if !is_label_candidate(b, &t_lidar_box, points_on.contains_key(&b.id)) {
                 continue;
             }
             let r = t_lidar_box.rotation.to_rotation_matrix();

@@ -576,8 +576,9 @@ pub fn twins_section(results: &SuiteResults) -> Result<Option<Section>, ReportEr
         text,
         "\n\nTracking is scored as in the rest of this report, restricted to class Car \
          (the twin's Car includes KITTI's Van) against the camera-visible truth \
-         (KITTI-like camera, within {} m, hit by a LiDAR point): the shape of KITTI's Car \
-         benchmark, not its devkit. Object ATE is in the true world frame (the track's \
+         (KITTI's labels within {} m with a box in the KITTI-like camera's image, whether \
+         or not the twin's scene hides them from its LiDAR, as KITTI's annotators judged \
+         visibility on the real scans): the shape of KITTI's Car benchmark, not its devkit. Object ATE is in the true world frame (the track's \
          error alone). Object ids: a KITTI track id k is object k + 1 in its twin.",
         crate::experiments::KITTI_LABEL_RANGE_M
     );
