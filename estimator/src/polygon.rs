@@ -1,5 +1,5 @@
 //! Convex polygons in the plane: signed area, intersection of two convex
-//! polygons, convex hull and its area. The footprint geometry of box overlaps
+//! polygons, area of a convex hull. The footprint geometry of box overlaps
 //! (the tracker's 3D IoU/GIoU and the evaluation's IoU share it).
 
 use nalgebra::Vector2;
@@ -68,14 +68,9 @@ pub fn convex_intersection(subject: &[Vector2<f64>], clip: &[Vector2<f64>]) -> V
     output
 }
 
-/// Area of the convex hull of `points` (reorders `points`).
+/// Area of the convex hull of `points` (Andrew's monotone chain; reorders
+/// `points`).
 pub fn hull_area(points: &mut [Vector2<f64>]) -> f64 {
-    polygon_area(&convex_hull(points))
-}
-
-/// The convex hull of `points`, counter-clockwise, without collinear
-/// vertices (Andrew's monotone chain; reorders `points`).
-pub fn convex_hull(points: &mut [Vector2<f64>]) -> Vec<Vector2<f64>> {
     points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     let mut hull: Vec<Vector2<f64>> = Vec::with_capacity(2 * points.len());
     for pass in 0..2 {
@@ -96,7 +91,7 @@ pub fn convex_hull(points: &mut [Vector2<f64>]) -> Vec<Vector2<f64>> {
         // The last point of each chain starts the other one.
         hull.pop();
     }
-    hull
+    polygon_area(&hull)
 }
 
 #[cfg(test)]

@@ -13,8 +13,7 @@ use super::labels::{CameraBox, TrackingLabel};
 use super::{Result, sequence_file, write_text};
 use limot_estimator::geometry::OrientedBox;
 use limot_estimator::input::ObjectClass;
-use limot_estimator::polygon::{convex_hull, convex_intersection};
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use std::path::{Path, PathBuf};
 
 /// Image size of the left colour camera (pixels); KITTI sequences use
@@ -61,67 +60,36 @@ pub fn box_corners_rect(cam: &CameraBox) -> [Vector3<f64>; 8] {
     std::array::from_fn(|i| r * Vector3::new(xs[i], ys[i], zs[i]) + cam.bottom_center_rect)
 }
 
-/// Nearest depth in front of the camera that [`image_box`] projects, m.
-const NEAR_PLANE_M: f64 = 0.1;
-
-/// The 12 edges of [`box_corners_rect`]'s corners: bottom, top, vertical.
-const BOX_EDGES: [(usize, usize); 12] = [
-    (0, 1),
-    (1, 2),
-    (2, 3),
-    (3, 0),
-    (4, 5),
-    (5, 6),
-    (6, 7),
-    (7, 4),
-    (0, 4),
-    (1, 5),
-    (2, 6),
-    (3, 7),
-];
-
-/// 2D box (left, top, right, bottom) in the left colour image of the part of
-/// a camera box at least [`NEAR_PLANE_M`] in front of the camera, clipped to
-/// the image (a car beside the camera, partly behind it, gets the truncated
-/// box KITTI's labels give it); `None` when no part is in front or nothing is
-/// left after clipping.
+/// 2D box (left, top, right, bottom) of a camera box in the left colour
+/// image, clipped to it; `None` if a corner is less than 0.1 m in front of
+/// the camera or nothing is left after clipping.
 pub fn image_box(cam: &CameraBox, calib: &Calib, image: ImageSize) -> Option<[f64; 4]> {
     let corners = box_corners_rect(cam);
-    // The box cut by the near plane is convex, its vertices the corners in
-    // front and the crossings of the edges that pierce the plane; its image
-    // is the convex hull of theirs, and the visible part that hull cut by
-    // the image rectangle (not the hull's bounding box clipped: a near
-    // crossing far beside the image would stretch the box vertically).
-    let in_front = corners.iter().filter(|c| c.z >= NEAR_PLANE_M).copied();
-    let crossings = BOX_EDGES.iter().filter_map(|&(i, j)| {
-        let (a, b) = (corners[i], corners[j]);
-        ((a.z - NEAR_PLANE_M) * (b.z - NEAR_PLANE_M) < 0.0)
-            .then(|| a + (b - a) * ((NEAR_PLANE_M - a.z) / (b.z - a.z)))
-    });
-    let mut projected = Vec::with_capacity(20);
-    for c in in_front.chain(crossings) {
-        projected.push(calib.project_rect_to_image(&c)?.coords);
+    if corners.iter().any(|c| c.z < 0.1) {
+        return None;
     }
-    let (w, h) = (image.width - 1.0, image.height - 1.0);
-    let rectangle = [
-        Vector2::new(0.0, 0.0),
-        Vector2::new(w, 0.0),
-        Vector2::new(w, h),
-        Vector2::new(0.0, h),
-    ];
-    let visible = convex_intersection(&convex_hull(&mut projected), &rectangle);
     let mut b = [
         f64::INFINITY,
         f64::INFINITY,
         f64::NEG_INFINITY,
         f64::NEG_INFINITY,
     ];
-    for p in &visible {
-        b = [b[0].min(p.x), b[1].min(p.y), b[2].max(p.x), b[3].max(p.y)];
+    for c in &corners {
+        let px = calib.project_rect_to_image(c)?;
+        b = [
+            b[0].min(px.x),
+            b[1].min(px.y),
+            b[2].max(px.x),
+            b[3].max(px.y),
+        ];
     }
-    // clamped: the clipping's crossings may stray past the edge by rounding
-    let b = [b[0].max(0.0), b[1].max(0.0), b[2].min(w), b[3].min(h)];
-    (b[2] > b[0] && b[3] > b[1]).then_some(b)
+    let clipped = [
+        b[0].max(0.0),
+        b[1].max(0.0),
+        b[2].min(image.width - 1.0),
+        b[3].min(image.height - 1.0),
+    ];
+    (clipped[2] > clipped[0] && clipped[3] > clipped[1]).then_some(clipped)
 }
 
 /// The result line of a track box; `None` when it has no 2D box.
@@ -216,26 +184,6 @@ mod tests {
             score: 0.5,
         };
         assert!(track_to_label(&track, &calib, ImageSize::KITTI_DEFAULT).is_none());
-    }
-
-    #[test]
-    fn a_box_partly_behind_the_camera_gets_its_truncated_image_box() {
-        let calib = crate::io::kitti::calib::tests::sample();
-        // A real label of sequence 0000 (frame 110, a Van beside the camera,
-        // 2.4 m ahead, 5.5 m long: its rear corners are behind the camera).
-        let text = "110 3 Van 1 0 0.712833 1012.019480 83.937340 1241.000000 374.000000 2.195312 1.895275 5.530314 3.664249 1.773823 2.438529 1.640924\n";
-        let label = parse_labels(text, Path::new("l.txt")).unwrap().remove(0);
-        assert!(box_corners_rect(&label.cam_box).iter().any(|c| c.z < 0.0));
-        let b = image_box(&label.cam_box, &calib, ImageSize::KITTI_DEFAULT).unwrap();
-        // clipped at the image's right and bottom edges, as annotated; the
-        // left and top edges within a few pixels (another sequence's calib)
-        assert_eq!([b[2], b[3]], [1241.0, 374.0]);
-        assert!((b[0] - label.bbox_2d[0]).abs() < 15.0, "{b:?}");
-        assert!((b[1] - label.bbox_2d[1]).abs() < 15.0, "{b:?}");
-        // wholly behind the near plane: nothing
-        let mut behind = label.cam_box;
-        behind.bottom_center_rect.z = -3.0;
-        assert_eq!(image_box(&behind, &calib, ImageSize::KITTI_DEFAULT), None);
     }
 
     #[test]
