@@ -59,7 +59,14 @@ fn main() {
     let (source, config) = match sequence {
         Some(s) => (
             Source::open_kitti_tracking(&dir, s, detections.as_deref(), ScoreMap::Sigmoid),
-            kitti_tracking_config(limot::experiments::kitti_val_tuned_options().tracker),
+            EstimatorConfig {
+                // the filter's score is not timed
+                record_feature_indices: false,
+                ..kitti_tracking_config(
+                    limot::experiments::kitti_val_tuned_options().tracker,
+                    variant,
+                )
+            },
         ),
         None => (Source::open(&dir), EstimatorConfig::default()),
     };

@@ -74,13 +74,15 @@ pub enum RunError {
     },
 }
 
-/// The estimator settings for a KITTI tracking sequence with `tracker`:
-/// on real 0000 the odometry drifts against the detections (cm per frame),
-/// so a parked car's static node rests on the window's observations only
-/// (chosen on 0000: docs/kitti-real-data.md).
-pub fn kitti_tracking_config(tracker: TrackerConfig) -> EstimatorConfig {
+/// The estimator settings for `variant` on a KITTI tracking sequence with
+/// `tracker`: on real 0000 the odometry drifts against the detections (cm
+/// per frame), so a parked car's static node rests on the window's
+/// observations only (chosen on 0000: docs/kitti-real-data.md); a filtering
+/// variant records its features for the filter's score against the labels.
+pub fn kitti_tracking_config(tracker: TrackerConfig, variant: Variant) -> EstimatorConfig {
     let mut config = EstimatorConfig {
         tracker,
+        record_feature_indices: variant != Variant::Lio,
         ..EstimatorConfig::default()
     };
     config.objects.static_keeps_old_observations = false;

@@ -119,7 +119,7 @@ pub(super) fn run_estimator(
     };
     let tracking = kitti_tracking_options(tracker, parse_score_map(&kitti_tracking.score_map)?)?;
     let config = if kitti_tracking.sequence.is_some() {
-        crate::run::kitti_tracking_config(tracking.tracker.clone())
+        crate::run::kitti_tracking_config(tracking.tracker.clone(), variant)
     } else {
         limot_estimator::pipeline::EstimatorConfig {
             tracker: tracking.tracker.clone(),
@@ -190,6 +190,9 @@ pub(super) fn run_estimator(
                 "tracks: no {} here, so no MOT score",
                 crate::io::kitti::sequence_file(&dataset.join("label_02"), sequence).display()
             ),
+        }
+        if let Some(f) = &scores.filter {
+            println!("filter vs label_02: {}", f.labelled_summary_line());
         }
         let scores_path = out.join("scores.json");
         std::fs::write(&scores_path, serde_json::to_string_pretty(&scores)? + "\n")

@@ -314,7 +314,7 @@ fn run_variant(
             variant,
             ..RunOptions::default()
         };
-        let config = kitti_tracking_config(spec.tracking.tracker.clone());
+        let config = kitti_tracking_config(spec.tracking.tracker.clone(), variant);
         let output = run(&source, &spec.training, &options, Some(config))?;
         write_output(&out, &output)?;
         let (scores, _) = score_run(

@@ -33,8 +33,11 @@ pub use score::ego::{
     evaluate_trajectories, load_estimate, load_truth, parse_rpe_delta,
 };
 pub use score::filtering::{
-    FILTER_MOVING_SPEED_MPS, FilterEvaluation, KeptMovingCauses, TRACK_OBJECT_GATE_M,
+    FILTER_MOVING_SPEED_MPS, FilterEvaluation, FrameObjects, KeptMovingCauses, TRACK_OBJECT_GATE_M,
     evaluate_filtering,
+};
+pub use score::kitti_filter::{
+    LABEL_BOX_GROUND_CLEARANCE_M, LABEL_BOX_MARGIN_M, SPEED_WINDOW_FRAMES, score_filter_on_labels,
 };
 pub use score::kitti_sequence::{
     EgoScores, KittiEgoTruth, KittiRunScores, KittiScoreOptions, ObjectSummary, RPE_PATH_DELTA_M,

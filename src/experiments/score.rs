@@ -6,7 +6,8 @@
 //!   limot dataset, a KITTI-style directory (OXTS + calib) or a pose file →
 //!   ATE_T / ATE_R after alignment and RPE.
 //! - [`kitti_sequence`]: a run on a KITTI tracking sequence against its OXTS
-//!   poses and label_02 (ego ATE/RPE, Car CLEAR-MOT in 2D and 3D, object ATE).
+//!   poses and label_02 (ego ATE/RPE, Car CLEAR-MOT in 2D and 3D, object ATE;
+//!   the filter judged by the labelled boxes, [`kitti_filter`]).
 //! - [`tracks`]: KITTI-format tracking results (label_02 lines + score) against
 //!   the ground-truth boxes of a limot dataset → CLEAR-MOT at 3D and BEV IoU,
 //!   TP % and per-object ATE.
@@ -18,6 +19,7 @@
 pub(crate) mod ego;
 pub(crate) mod filtering;
 pub(crate) mod json;
+pub(crate) mod kitti_filter;
 pub(crate) mod kitti_sequence;
 pub(crate) mod tracks;
 

@@ -4,9 +4,10 @@
 //! objects, which on static ones (parked, or stopped at a light), and for
 //! the trajectory-based filters why a moving object's features were kept.
 
-use crate::metrics::{FilterScore, filter_precision_recall, pose_at};
+use crate::metrics::{FilterScore, pose_at};
 use crate::run::RunOutput;
 use limot_estimator::Variant;
+use limot_estimator::pipeline::FrameEstimate;
 use limot_estimator::tracking::{Lifecycle, Motion, TrackOutput};
 use limot_sim::record::{BoxTruth, Dataset, EgoTruth, RecordError};
 use nalgebra::{Isometry3, Vector3};
@@ -88,10 +89,85 @@ impl FilterEvaluation {
         FilterScore::from_counts(tp, fp, fn_, tn)
     }
 
+    /// `features removed … % of …; on moving objects … % of …; on standing
+    /// objects … % of …` (no precision: for labels that cover part of the
+    /// sweep, [`super::kitti_filter`]).
+    pub fn labelled_summary_line(&self) -> String {
+        let pct = |a: usize, b: usize| {
+            if b == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.1} %", 100.0 * a as f64 / b as f64)
+            }
+        };
+        format!(
+            "features removed {} of {}; on labelled moving objects {} of {}; \
+             on labelled standing objects {} of {}",
+            pct(self.removed, self.features),
+            self.features,
+            pct(self.removed_moving, self.moving_features),
+            self.moving_features,
+            pct(self.removed_static_object, self.static_object_features),
+            self.static_object_features
+        )
+    }
+
     /// Share of the static objects' features removed (what `allfilt` loses).
     pub fn static_object_removed_fraction(&self) -> Option<f64> {
         (self.static_object_features > 0)
             .then(|| self.removed_static_object as f64 / self.static_object_features as f64)
+    }
+}
+
+/// What a filter is judged against at one frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameObjects {
+    /// The object under each point of the sweep (0: none), by point index.
+    pub point_labels: Vec<u32>,
+    /// Objects moving faster than [`FILTER_MOVING_SPEED_MPS`].
+    pub moving: BTreeSet<u32>,
+    /// Standing objects (parked, or stopped).
+    pub standing: BTreeSet<u32>,
+}
+
+impl FilterEvaluation {
+    /// No frame yet.
+    pub fn empty() -> FilterEvaluation {
+        FilterEvaluation {
+            features: 0,
+            removed: 0,
+            moving_features: 0,
+            removed_moving: 0,
+            static_object_features: 0,
+            removed_static_object: 0,
+            kept_moving_causes: None,
+        }
+    }
+
+    /// Counts the features of estimate `e` against `objects`; returns each
+    /// feature's object label and whether the filter removed it.
+    pub fn add_frame(&mut self, e: &FrameEstimate, objects: &FrameObjects) -> Vec<(u32, bool)> {
+        let removed: BTreeSet<u32> = e.removed_feature_indices.iter().copied().collect();
+        let features: Vec<(u32, bool)> = e
+            .feature_indices
+            .iter()
+            .map(|&i| {
+                let label = objects.point_labels.get(i as usize).copied().unwrap_or(0);
+                (label, removed.contains(&i))
+            })
+            .collect();
+        for &(label, r) in &features {
+            self.features += 1;
+            self.removed += usize::from(r);
+            if objects.moving.contains(&label) {
+                self.moving_features += 1;
+                self.removed_moving += usize::from(r);
+            } else if objects.standing.contains(&label) {
+                self.static_object_features += 1;
+                self.removed_static_object += usize::from(r);
+            }
+        }
+        features
     }
 }
 
@@ -106,15 +182,7 @@ pub fn evaluate_filtering(
     output: &RunOutput,
 ) -> Result<Option<FilterEvaluation>, RecordError> {
     let boxes = dataset.box_truth()?;
-    let mut total = FilterEvaluation {
-        features: 0,
-        removed: 0,
-        moving_features: 0,
-        removed_moving: 0,
-        static_object_features: 0,
-        removed_static_object: 0,
-        kept_moving_causes: None,
-    };
+    let mut total = FilterEvaluation::empty();
     let trajectory_based = matches!(output.variant, Variant::Dynafilt | Variant::Limot);
     let mut causes = KeptMovingCauses::default();
     let mut ego = dataset.ego_truth()?;
@@ -126,41 +194,22 @@ pub fn evaluate_filtering(
         }
         any = true;
         let frame = e.frame_index as usize;
-        let labels = dataset.frame_labels(frame)?;
         let frame_boxes = boxes.get(frame).map_or(&[][..], |b| &b[..]);
         let moving: BTreeSet<u32> = frame_boxes
             .iter()
             .filter(|b| !b.parked && b.velocity_world_mps.norm() > FILTER_MOVING_SPEED_MPS)
             .map(|b| b.id)
             .collect();
-        let static_objects: BTreeSet<u32> = frame_boxes
-            .iter()
-            .filter(|b| !moving.contains(&b.id))
-            .map(|b| b.id)
-            .collect();
-        let removed: BTreeSet<u32> = e.removed_feature_indices.iter().copied().collect();
-        let feature_labels: Vec<u32> = e
-            .feature_indices
-            .iter()
-            .map(|&i| labels.get(i as usize).copied().unwrap_or(0))
-            .collect();
-        let removed_mask: Vec<bool> = e
-            .feature_indices
-            .iter()
-            .map(|i| removed.contains(i))
-            .collect();
-        let s = filter_precision_recall(&removed_mask, &feature_labels, &moving)
-            .expect("one label per feature");
-        total.features += feature_labels.len();
-        total.removed += s.true_positives + s.false_positives;
-        total.moving_features += s.true_positives + s.false_negatives;
-        total.removed_moving += s.true_positives;
-        for (&label, &r) in feature_labels.iter().zip(&removed_mask) {
-            if static_objects.contains(&label) {
-                total.static_object_features += 1;
-                total.removed_static_object += usize::from(r);
-            }
-        }
+        let objects = FrameObjects {
+            point_labels: dataset.frame_labels(frame)?,
+            standing: frame_boxes
+                .iter()
+                .filter(|b| !moving.contains(&b.id))
+                .map(|b| b.id)
+                .collect(),
+            moving,
+        };
+        let features = total.add_frame(e, &objects);
         if trajectory_based {
             // The filter of frame `e` used the tracks after the estimate
             // before it (none for the first estimate).
@@ -175,11 +224,11 @@ pub fn evaluate_filtering(
                     &p.tracks,
                     &boxes,
                     &ego,
-                    &moving,
+                    &objects.moving,
                 )
             });
-            for (&label, &r) in feature_labels.iter().zip(&removed_mask) {
-                if !r && moving.contains(&label) {
+            for &(label, r) in &features {
+                if !r && objects.moving.contains(&label) {
                     let track = nearest.as_ref().and_then(|n| n.get(&label).copied());
                     causes.count(track);
                 }

@@ -20,6 +20,8 @@
 //! frame, so the object ATE includes the ego's error relative to the scene.
 
 use super::ego::{EgoEvalOptions, Trajectory, evaluate_trajectories};
+use super::filtering::FilterEvaluation;
+use super::kitti_filter::score_filter_on_labels;
 use super::{EvaluateError, Result};
 use crate::experiments::ResultPolicy;
 use crate::experiments::lidar_poses;
@@ -297,6 +299,11 @@ pub struct KittiRunScores {
     /// `None` when the sequence has no `label_02` file or the variant does
     /// not track (lio).
     pub tracks: Option<TrackScores>,
+    /// The filter judged by the labelled boxes ([`super::kitti_filter`]);
+    /// `None` without `label_02`, for lio, or when the run recorded no
+    /// features.
+    #[serde(default)]
+    pub filter: Option<FilterEvaluation>,
 }
 
 /// Writes the run's tracks as `results_dir/SSSS.txt` (KITTI tracking format,
@@ -329,17 +336,20 @@ pub fn score_run(
         .map(|e| (e.t_s, e.t_world_lidar))
         .collect();
     let ego = score_ego(training, sequence, &estimate, opts)?;
-    let tracks = match read_sequence_labels(training, sequence)? {
-        Some(gt) if output.variant.tracks_objects() => {
-            Some(score_tracks(&gt, &labels, num_frames as u32, &calib)?)
-        }
-        _ => None,
+    let gt = read_sequence_labels(training, sequence)?;
+    let (tracks, filter) = match &gt {
+        Some(gt) if output.variant.tracks_objects() => (
+            Some(score_tracks(gt, &labels, num_frames as u32, &calib)?),
+            score_filter_on_labels(training, sequence, output, gt, &calib)?,
+        ),
+        _ => (None, None),
     };
     Ok((
         KittiRunScores {
             sequence,
             ego,
             tracks,
+            filter,
         },
         results_file,
     ))
