@@ -10,8 +10,10 @@
 //!   agent id), kept up to date by [`World::set_time`] for users who want the
 //!   physics state. Ray casting does not need them: a rolling sweep sees each
 //!   agent at its own column time, so [`World::snapshot`] evaluates every
-//!   agent pose once at that time and rays are cast against the boxes
-//!   directly (exact f64 slab test after a bounding-sphere cull).
+//!   agent pose once at that time and rays are cast against the agents'
+//!   bodies directly (exact f64 slab tests after a bounding-sphere cull): a
+//!   vehicle's body is its box, a cyclist's and a pedestrian's the thinner
+//!   solids inside theirs (`body_parts`).
 //!   [`World::snapshot_agents`] + [`World::agent_sweep_spheres`] let the
 //!   LiDAR skip agents outside a column's plane altogether;
 //!   [`World::static_bounding_spheres`], [`World::static_bounding_corners`]
@@ -36,7 +38,7 @@ mod ground;
 mod shapes;
 
 use ground::intersect_ground;
-use shapes::{Placement, intersect_cuboid, intersect_shape};
+use shapes::{Placement, intersect_offset_cuboid, intersect_shape};
 
 /// What a ray hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -94,12 +96,57 @@ type StaticHit = (f64, Unit<Vector3<f64>>, usize);
 struct AgentBody {
     id: u32,
     class: ObjectClass,
-    half_extents_m: Vector3<f64>,
+    /// The solids of its body ([`body_parts`]).
+    parts: Vec<BodyPart>,
     bounding_radius_m: f64,
     trajectory: Trajectory,
     presence: Presence,
     body: RigidBodyHandle,
     collider: ColliderHandle,
+}
+
+/// A solid box of an agent's body, in the frame of its ground-truth box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BodyPart {
+    /// Centre of the part in the box frame, m.
+    offset_m: Vector3<f64>,
+    half_extents_m: Vector3<f64>,
+}
+
+/// Width of a bicycle (wheels and frame) as the LiDAR sees it, m.
+const BICYCLE_WIDTH_M: f64 = 0.12;
+/// Shoulder width of a rider or a pedestrian, m.
+const SHOULDER_WIDTH_M: f64 = 0.45;
+/// Depth of a pedestrian's body (chest to back), m.
+const BODY_DEPTH_M: f64 = 0.3;
+
+/// The solids a ray can hit of an agent of `class` whose ground-truth box is
+/// `size_lwh_m`: a vehicle fills its box; a cyclist's box spans the bicycle
+/// and the rider's arms and knees, so the body is a bicycle (the box's
+/// length, [`BICYCLE_WIDTH_M`] wide, up to the saddle at 55 % of the height)
+/// under a rider (a third of the length, [`SHOULDER_WIDTH_M`] wide, from 45 %
+/// of the height to the top); a pedestrian's box spans the stride and the
+/// arms' swing, the body is a column [`BODY_DEPTH_M`] deep and shoulder-wide.
+/// Every part lies inside the box.
+fn body_parts(class: ObjectClass, size_lwh_m: &Vector3<f64>) -> Vec<BodyPart> {
+    let (l, w, h) = (size_lwh_m.x, size_lwh_m.y, size_lwh_m.z);
+    // a part spanning heights [from, to] (fractions of h) of the box
+    let part = |length: f64, width: f64, from: f64, to: f64| BodyPart {
+        offset_m: Vector3::new(0.0, 0.0, h * (0.5 * (from + to) - 0.5)),
+        half_extents_m: Vector3::new(
+            0.5 * length.min(l),
+            0.5 * width.min(w),
+            0.5 * h * (to - from),
+        ),
+    };
+    match class {
+        ObjectClass::Car | ObjectClass::Truck => vec![part(l, w, 0.0, 1.0)],
+        ObjectClass::Cyclist => vec![
+            part(l, BICYCLE_WIDTH_M, 0.0, 0.55),
+            part(l / 3.0, SHOULDER_WIDTH_M, 0.45, 1.0),
+        ],
+        ObjectClass::Pedestrian => vec![part(BODY_DEPTH_M, SHOULDER_WIDTH_M, 0.0, 1.0)],
+    }
 }
 
 /// The simulated world built from a [`Scene`].
@@ -250,7 +297,7 @@ impl World {
                 AgentBody {
                     id: agent.id,
                     class: agent.class,
-                    half_extents_m: half,
+                    parts: body_parts(agent.class, &agent.size_lwh_m),
                     bounding_radius_m: half.norm(),
                     // a clone shares the knots
                     trajectory: agent.trajectory.clone(),
@@ -727,21 +774,24 @@ impl WorldAt<'_> {
             if (to_center - dir * along).norm_squared() > radius * radius {
                 continue;
             }
-            if let Some((range_m, normal_world)) = intersect_cuboid(
-                &agent.half_extents_m,
-                &pose.box_placement,
-                origin_world,
-                dir,
-                limit,
-            ) && range_m < limit
-            {
-                limit = range_m;
-                best = Some(RayHit {
-                    range_m,
-                    normal_world,
-                    instance_id: agent.id,
-                    surface: Surface::Agent(agent.class),
-                });
+            for part in &agent.parts {
+                if let Some((range_m, normal_world)) = intersect_offset_cuboid(
+                    &part.half_extents_m,
+                    &part.offset_m,
+                    &pose.box_placement,
+                    origin_world,
+                    dir,
+                    limit,
+                ) && range_m < limit
+                {
+                    limit = range_m;
+                    best = Some(RayHit {
+                        range_m,
+                        normal_world,
+                        instance_id: agent.id,
+                        surface: Surface::Agent(agent.class),
+                    });
+                }
             }
         }
         (best, ground_range_m)

@@ -115,7 +115,27 @@ pub(super) fn intersect_cuboid(
     dir: &Vector3<f64>,
     max_range_m: f64,
 ) -> Option<ShapeHit> {
-    let o = placement.point_to_local(origin);
+    intersect_offset_cuboid(
+        half_extents_m,
+        &Vector3::zeros(),
+        placement,
+        origin,
+        dir,
+        max_range_m,
+    )
+}
+
+/// [`intersect_cuboid`] of a box centred at `offset_m` in the frame of
+/// `placement` (axes shared): one part of a compound body.
+pub(super) fn intersect_offset_cuboid(
+    half_extents_m: &Vector3<f64>,
+    offset_m: &Vector3<f64>,
+    placement: &Placement,
+    origin: &Point3<f64>,
+    dir: &Vector3<f64>,
+    max_range_m: f64,
+) -> Option<ShapeHit> {
+    let o = placement.point_to_local(origin) - offset_m;
     let d = placement.vector_to_local(dir);
     let mut t_in = f64::NEG_INFINITY;
     let mut t_out = f64::INFINITY;

@@ -510,3 +510,38 @@ fn candidate_statics_skip_the_bvh_only_when_none_is_hit_and_their_bounds_hold_th
     }
     assert!(hits.iter().all(|&n| n > 20), "{hits:?}");
 }
+
+#[test]
+fn cyclists_and_pedestrians_are_thinner_than_their_boxes() {
+    // agents at rest 10 m ahead, their boxes centred at height 0.85 m
+    let agent = |id: u32, class: ObjectClass, size: Vector3<f64>| {
+        let mut a = moving_agent(id, 10.0, 0.0);
+        a.class = class;
+        a.size_lwh_m = size;
+        a.trajectory = Trajectory::stationary(0.0, 1.0, &Isometry3::translation(10.0, 0.0, 0.85));
+        a
+    };
+    let hit = |a: crate::scene::Agent, y: f64, z: f64| {
+        let mut scene = scene_with(Ground::flat(-5.0), Vec::new());
+        scene.agents.push(a);
+        let world = World::new(&scene);
+        world
+            .snapshot(0.5)
+            .cast_ray(&Point3::new(0.0, y, z), &unit(1.0, 0.0, 0.0), 50.0)
+            .map(|h| h.range_m)
+    };
+    let size = Vector3::new(1.8, 0.8, 1.7);
+    let cyclist = || agent(3, ObjectClass::Cyclist, size);
+    // the bicycle: the box's length, a wheel's width, up to the saddle
+    assert!((hit(cyclist(), 0.0, 0.3).unwrap() - 9.1).abs() < 1e-9);
+    assert_eq!(hit(cyclist(), 0.2, 0.3), None);
+    // the rider: a third of the length, shoulder-wide, above the saddle
+    assert!((hit(cyclist(), 0.2, 1.5).unwrap() - 9.7).abs() < 1e-9);
+    assert_eq!(hit(cyclist(), 0.3, 1.5), None);
+    // a pedestrian: a column 0.3 m deep and 0.45 m wide, the box's height
+    let walker = || agent(4, ObjectClass::Pedestrian, Vector3::new(0.8, 0.6, 1.7));
+    assert!((hit(walker(), 0.2, 1.6).unwrap() - 9.85).abs() < 1e-9);
+    assert_eq!(hit(walker(), 0.25, 1.0), None);
+    // a car fills its box
+    assert!((hit(agent(5, ObjectClass::Car, size), 0.35, 0.3).unwrap() - 9.1).abs() < 1e-9);
+}
