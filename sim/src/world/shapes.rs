@@ -60,9 +60,14 @@ pub(super) fn intersect_shape(
     max_range_m: f64,
 ) -> Option<ShapeHit> {
     match shape {
-        Shape::Cuboid { half_extents_m } => {
-            intersect_cuboid(half_extents_m, placement, origin, dir, max_range_m)
-        }
+        Shape::Cuboid { half_extents_m } => intersect_offset_cuboid(
+            half_extents_m,
+            &Vector3::zeros(),
+            placement,
+            origin,
+            dir,
+            max_range_m,
+        ),
         Shape::Cylinder {
             radius_m,
             half_height_m,
@@ -107,26 +112,9 @@ fn accept(
     ))
 }
 
-/// Slab test of an oriented box; entry range and outward world normal.
-pub(super) fn intersect_cuboid(
-    half_extents_m: &Vector3<f64>,
-    placement: &Placement,
-    origin: &Point3<f64>,
-    dir: &Vector3<f64>,
-    max_range_m: f64,
-) -> Option<ShapeHit> {
-    intersect_offset_cuboid(
-        half_extents_m,
-        &Vector3::zeros(),
-        placement,
-        origin,
-        dir,
-        max_range_m,
-    )
-}
-
-/// [`intersect_cuboid`] of a box centred at `offset_m` in the frame of
-/// `placement` (axes shared): one part of a compound body.
+/// Slab test of a box centred at `offset_m` in the frame of `placement`
+/// (axes shared; zero for a box placed at its centre, else one part of a
+/// compound body): entry range and outward world normal.
 pub(super) fn intersect_offset_cuboid(
     half_extents_m: &Vector3<f64>,
     offset_m: &Vector3<f64>,
