@@ -47,6 +47,16 @@ fn run_all_variants() -> Option<KittiSuiteResults> {
     let text = std::fs::read_to_string(readme).unwrap();
     assert!(text.contains("| 00  | LIMOT (limot)"), "{text}");
     assert!(text.contains("paper, Table I"), "{text}");
+    // the filter table: one row per filtering variant
+    assert!(
+        text.contains("Dynamic-feature filter against label_02"),
+        "{text}"
+    );
+    assert!(text.contains("| 00  | LIO-Allfilt  |"), "{text}");
+    assert!(
+        !text.contains("| 00  | LIO          |"),
+        "lio filters nothing: {text}"
+    );
     Some(results)
 }
 
