@@ -4,7 +4,7 @@
 //! objects, which on static ones (parked, or stopped at a light), and for
 //! the trajectory-based filters why a moving object's features were kept.
 
-use crate::metrics::{FilterScore, pose_at};
+use crate::metrics::{FilterScore, filter_precision_recall, pose_at};
 use crate::run::RunOutput;
 use limot_estimator::Variant;
 use limot_estimator::pipeline::FrameEstimate;
@@ -148,26 +148,29 @@ impl FilterEvaluation {
     /// feature's object label and whether the filter removed it.
     pub fn add_frame(&mut self, e: &FrameEstimate, objects: &FrameObjects) -> Vec<(u32, bool)> {
         let removed: BTreeSet<u32> = e.removed_feature_indices.iter().copied().collect();
-        let features: Vec<(u32, bool)> = e
+        let labels: Vec<u32> = e
             .feature_indices
             .iter()
-            .map(|&i| {
-                let label = objects.point_labels.get(i as usize).copied().unwrap_or(0);
-                (label, removed.contains(&i))
-            })
+            .map(|&i| objects.point_labels.get(i as usize).copied().unwrap_or(0))
             .collect();
-        for &(label, r) in &features {
-            self.features += 1;
-            self.removed += usize::from(r);
-            if objects.moving.contains(&label) {
-                self.moving_features += 1;
-                self.removed_moving += usize::from(r);
-            } else if objects.standing.contains(&label) {
+        let removed_mask: Vec<bool> = e
+            .feature_indices
+            .iter()
+            .map(|i| removed.contains(i))
+            .collect();
+        let s = filter_precision_recall(&removed_mask, &labels, &objects.moving)
+            .expect("one label per feature");
+        self.features += labels.len();
+        self.removed += s.true_positives + s.false_positives;
+        self.moving_features += s.true_positives + s.false_negatives;
+        self.removed_moving += s.true_positives;
+        for (&label, &r) in labels.iter().zip(&removed_mask) {
+            if objects.standing.contains(&label) {
                 self.static_object_features += 1;
                 self.removed_static_object += usize::from(r);
             }
         }
-        features
+        labels.into_iter().zip(removed_mask).collect()
     }
 }
 
