@@ -384,7 +384,7 @@ pub fn run_demo(
                      detection, while the track that took it is still tentative (confirmed \
                      after {init} consecutive matched frames), or when the confirmed track's \
                      box misses the truth at the IoU.\n\n{loss_text}",
-                    range = crate::experiments::KITTI_LABEL_RANGE_M,
+                    range = crate::io::kitti::export::LABEL_RANGE_M,
                     init = limot_estimator::tracking::TrackerConfig::default().init_frames,
                 ),
                 tables: vec![same_truth, loss],

@@ -942,25 +942,18 @@ mod tests {
 
     #[test]
     fn bad_boxes_are_rejected_by_field() {
-        let dir = tiny_dataset("box-size");
-        set_field(&dir, "gt/boxes.csv", 2, 12, "-1");
-        let err = error_of(&dir);
-        assert!(err.contains("gt/boxes.csv:2: field `w`"), "{err}");
-
-        let dir = tiny_dataset("box-parked");
-        set_field(&dir, "gt/boxes.csv", 3, 17, "2");
-        let err = error_of(&dir);
-        assert!(err.contains("gt/boxes.csv:3: field `parked`"), "{err}");
-
-        let dir = tiny_dataset("box-labelled");
-        set_field(&dir, "gt/boxes.csv", 2, 18, "yes");
-        let err = error_of(&dir);
-        assert!(err.contains("gt/boxes.csv:2: field `labelled`"), "{err}");
-
-        let dir = tiny_dataset("box-annotated");
-        set_field(&dir, "gt/boxes.csv", 3, 19, "-1");
-        let err = error_of(&dir);
-        assert!(err.contains("gt/boxes.csv:3: field `annotated`"), "{err}");
+        for (line, column, value, field) in [
+            (2, 12, "-1", "w"),
+            (3, 17, "2", "parked"),
+            (2, 18, "yes", "labelled"),
+            (3, 19, "-1", "annotated"),
+        ] {
+            let dir = tiny_dataset(&format!("box-{field}"));
+            set_field(&dir, "gt/boxes.csv", line, column, value);
+            let err = error_of(&dir);
+            let expected = format!("gt/boxes.csv:{line}: field `{field}`");
+            assert!(err.contains(&expected), "{err}");
+        }
     }
 
     #[test]

@@ -44,9 +44,8 @@ pub use score::kitti_sequence::{
     TrackScores, read_ego_truth, read_sequence_labels, score_ego, score_run, score_tracks,
 };
 pub use score::tracks::{
-    GtFilter, KITTI_LABEL_RANGE_M, MotScore, ResultBoxes, ScoredTruth, TrackEvalOptions,
-    TrackingInput, TracksEvaluation, dataset_calib, ego_pose_at, evaluate_tracks, read_results,
-    tracking_input,
+    GtFilter, MotScore, ResultBoxes, ScoredTruth, TrackEvalOptions, TrackingInput,
+    TracksEvaluation, dataset_calib, ego_pose_at, evaluate_tracks, read_results, tracking_input,
 };
 pub use score::{EvaluateError, dataset_frame_times, is_limot_dataset};
 pub(crate) use suite::variant_name;

@@ -284,13 +284,7 @@ pub fn filter_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
     for c in [2, 4, 6] {
         table.set_decimals(c, 1);
     }
-    let share = |a: usize, b: usize| -> Cell {
-        if b == 0 {
-            Cell::Missing
-        } else {
-            (100.0 * a as f64 / b as f64).into()
-        }
-    };
+    let percent = |x: Option<f64>| -> Cell { x.map(|v| 100.0 * v).into() };
     for s in results.sequences.iter().filter(|s| s.has_scans) {
         for &variant in &results.variants {
             let Some(f) = s
@@ -303,11 +297,11 @@ pub fn filter_table(results: &KittiSuiteResults) -> Result<Table, ReportError> {
             table.push_row(vec![
                 seq_cell(s.sequence),
                 Cell::from(variant.label()),
-                share(f.removed, f.features),
+                percent(f.removed_fraction()),
                 f.moving_features.into(),
-                share(f.removed_moving, f.moving_features),
+                percent(f.score().recall),
                 f.static_object_features.into(),
-                share(f.removed_static_object, f.static_object_features),
+                percent(f.static_object_removed_fraction()),
             ])?;
         }
     }

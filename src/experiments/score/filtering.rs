@@ -93,23 +93,22 @@ impl FilterEvaluation {
     /// objects … % of …` (no precision: for labels that cover part of the
     /// sweep, [`super::kitti_filter`]).
     pub fn labelled_summary_line(&self) -> String {
-        let pct = |a: usize, b: usize| {
-            if b == 0 {
-                "-".to_string()
-            } else {
-                format!("{:.1} %", 100.0 * a as f64 / b as f64)
-            }
-        };
+        let pct = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{:.1} %", 100.0 * x));
         format!(
             "features removed {} of {}; on labelled moving objects {} of {}; \
              on labelled standing objects {} of {}",
-            pct(self.removed, self.features),
+            pct(self.removed_fraction()),
             self.features,
-            pct(self.removed_moving, self.moving_features),
+            pct(self.score().recall),
             self.moving_features,
-            pct(self.removed_static_object, self.static_object_features),
+            pct(self.static_object_removed_fraction()),
             self.static_object_features
         )
+    }
+
+    /// Share of all features removed.
+    pub fn removed_fraction(&self) -> Option<f64> {
+        (self.features > 0).then(|| self.removed as f64 / self.features as f64)
     }
 
     /// Share of the static objects' features removed (what `allfilt` loses).

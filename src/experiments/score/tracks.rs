@@ -52,8 +52,6 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-pub use crate::io::kitti::export::LABEL_RANGE_M as KITTI_LABEL_RANGE_M;
-
 /// Which ground-truth boxes are scored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum GtFilter {

@@ -580,7 +580,7 @@ pub fn twins_section(results: &SuiteResults) -> Result<Option<Section>, ReportEr
          or not the twin's scene hides them from its LiDAR, as KITTI's annotators judged \
          visibility on the real scans): the shape of KITTI's Car benchmark, not its devkit. Object ATE is in the true world frame (the track's \
          error alone). Object ids: a KITTI track id k is object k + 1 in its twin.",
-        crate::experiments::KITTI_LABEL_RANGE_M
+        crate::io::kitti::export::LABEL_RANGE_M
     );
     Ok(Some(Section {
         heading: "KITTI twins beside the paper (Tables I-III)".into(),
