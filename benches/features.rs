@@ -6,7 +6,9 @@
 //! `--sequence`). The scans are read first (not timed) and used as they are
 //! (no de-skew: its cost is not what this measures); each stage is timed per
 //! scan, median over repetitions (or with `--best` the fastest repetition,
-//! steadier on a loaded machine), and the mean and p95 over scans printed.
+//! steadier on a loaded machine), and the mean and p95 over scans printed,
+//! with a hash of every feature index and downsampled coordinate (to check
+//! that a change leaves the outputs bit for bit as they were).
 
 use limot::io::Source;
 use limot::io::kitti::detections::ScoreMap;
@@ -19,6 +21,13 @@ use std::time::Instant;
 const EDGE_VOXEL_M: f64 = 0.2;
 const PLANAR_VOXEL_M: f64 = 0.4;
 const REPS: usize = 7;
+
+/// FNV-1a step over 64-bit words.
+fn hash_words(hash: &mut u64, words: impl IntoIterator<Item = u64>) {
+    for word in words {
+        *hash = (*hash ^ word).wrapping_mul(0x0100_0000_01b3);
+    }
+}
 
 fn mean_p95(mut v: Vec<f64>) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
@@ -63,6 +72,7 @@ fn main() {
     let mut downsampler = VoxelDownsampler::default();
     let (mut features_ms, mut downsample_ms) = (Vec::new(), Vec::new());
     let (mut planar_in, mut planar_out) = (0usize, 0usize);
+    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
     for scan in &scans {
         let positions: Vec<Vector3<f64>> = scan.points.iter().map(|p| p.position()).collect();
         let mut f_reps = Vec::new();
@@ -86,9 +96,15 @@ fn main() {
                 .collect();
             let p = downsampler.downsample(&planar, PLANAR_VOXEL_M);
             d_reps.push(clock.elapsed().as_secs_f64() * 1e3);
-            std::hint::black_box((e, &p));
             planar_in = features.planar_indices.len();
             planar_out = p.len();
+            if f_reps.len() == 1 {
+                let indices = features.edge_indices.iter().chain(&features.planar_indices);
+                hash_words(&mut hash, indices.map(|&i| i as u64));
+                let coordinates = e.iter().chain(&p).flat_map(|v| v.iter().copied());
+                hash_words(&mut hash, coordinates.map(f64::to_bits));
+            }
+            std::hint::black_box((e, &p));
         }
         f_reps.sort_by(f64::total_cmp);
         d_reps.sort_by(f64::total_cmp);
@@ -100,7 +116,7 @@ fn main() {
     let (fm, fp) = mean_p95(features_ms);
     let (dm, dp) = mean_p95(downsample_ms);
     println!(
-        "{} scans, {points} points each (last: {planar_in} planar -> {planar_out})",
+        "{} scans, {points} points each (last: {planar_in} planar -> {planar_out}), hash {hash:016x}",
         scans.len()
     );
     println!("features   mean {fm:.3} ms  p95 {fp:.3} ms");

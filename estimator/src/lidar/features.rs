@@ -127,6 +127,9 @@ pub struct ScanFeatures {
     pub planar_indices: Vec<usize>,
 }
 
+/// Ring buffers kept between calls (more than any real sensor's rings).
+const MAX_KEPT_RING_BUFFERS: usize = 256;
+
 /// Per-point flags (in ring/time order).
 const HAS_CURVATURE: u8 = 1;
 /// Occluded or parallel to the beam: neither edge nor planar.
@@ -172,15 +175,11 @@ const EDGE: u8 = 8;
 pub struct FeatureExtractor {
     /// The settings used by every call.
     pub config: FeatureConfig,
-    /// Range per scan index (NaN = ignored point).
-    range_of_index: Vec<f64>,
-    /// First ordered position of each ring (len rings + 1).
-    ring_start: Vec<usize>,
-    /// Write cursor per ring for the counting sort.
-    cursor: Vec<usize>,
-    /// Points in ring, then time order.
-    ordered: Vec<OrderedPoint>,
-    /// Per ordered position: range, curvature, flags, segment bounds.
+    /// The accepted points of each ring (storage order, then time order);
+    /// a ring is processed whole while its buffers are in cache.
+    rings: Vec<Vec<OrderedPoint>>,
+    /// Per position of the ring being processed: range, curvature, flags,
+    /// segment bounds.
     range: Vec<f64>,
     curvature: Vec<f64>,
     flags: Vec<u8>,
@@ -346,82 +345,31 @@ impl FeatureExtractor {
         let min_range = self.config.min_range_m;
         let max_range = self.config.max_range_m;
 
-        // 1. ranges and ring histogram (sequential in scan order)
-        self.range_of_index.clear();
-        self.ring_start.clear();
-        for (p, raw) in points_lidar[..n].iter().zip(points) {
-            let r = p.norm();
-            if r.is_finite() && r >= min_range && r <= max_range {
-                self.range_of_index.push(r);
-                let slot = raw.ring as usize + 1;
-                if slot >= self.ring_start.len() {
-                    self.ring_start.resize(slot + 1, 0);
+        // 1. ranges, and the accepted points of each ring (one pass in
+        //    storage order; the rings are then processed one at a time)
+        let mut num_rings = 0;
+        // (a scan with an absurd ring number must not leave every later
+        // call clearing thousands of buffers)
+        self.rings.truncate(MAX_KEPT_RING_BUFFERS);
+        for ring in &mut self.rings {
+            ring.clear();
+        }
+        for (i, (p, raw)) in points_lidar[..n].iter().zip(points).enumerate() {
+            let range = p.norm();
+            if range.is_finite() && range >= min_range && range <= max_range {
+                let ring = raw.ring as usize;
+                if ring >= self.rings.len() {
+                    self.rings.resize_with(ring + 1, Vec::new);
                 }
-                self.ring_start[slot] += 1;
-            } else {
-                self.range_of_index.push(f64::NAN);
-            }
-        }
-        let num_rings = self.ring_start.len().saturating_sub(1);
-        if num_rings == 0 {
-            return;
-        }
-        for ring in 0..num_rings {
-            self.ring_start[ring + 1] += self.ring_start[ring];
-        }
-        let total = self.ring_start[num_rings];
-
-        // 2. counting sort by ring, carrying what the later passes need so
-        //    that they read sequentially; then time order within each ring
-        //    (the sort is skipped when the storage is already time-ordered)
-        self.ordered.clear();
-        self.ordered.resize(total, OrderedPoint::default());
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&self.ring_start[..num_rings]);
-        for (i, (raw, &range)) in points.iter().zip(&self.range_of_index).enumerate() {
-            if !range.is_nan() {
-                let c = &mut self.cursor[raw.ring as usize];
-                self.ordered[*c] = OrderedPoint {
+                num_rings = num_rings.max(ring + 1);
+                self.rings[ring].push(OrderedPoint {
                     key: ((time_key(raw.time_offset_s) as u64) << 32) | i as u64,
                     range,
                     x: raw.x,
                     y: raw.y,
-                };
-                *c += 1;
+                });
             }
         }
-        for ring in 0..num_rings {
-            let slice = &mut self.ordered[self.ring_start[ring]..self.ring_start[ring + 1]];
-            sort_ring(slice);
-            // Equal times (duplicates, coarse time stamps): order by the
-            // coordinates so that storage order does not matter.
-            let mut a = 0;
-            while a < slice.len() {
-                let t = slice[a].key >> 32;
-                let mut b = a + 1;
-                while b < slice.len() && slice[b].key >> 32 == t {
-                    b += 1;
-                }
-                if b - a > 1 {
-                    slice[a..b].sort_unstable_by(|x, y| {
-                        let (ix, iy) = (x.key as u32, y.key as u32);
-                        ring_order(&points[ix as usize], ix, &points[iy as usize], iy)
-                    });
-                }
-                a = b;
-            }
-        }
-        self.range.clear();
-        self.range.extend(self.ordered.iter().map(|o| o.range));
-
-        // 3. segments: split a ring where consecutive points are far apart
-        //    in azimuth (angle between their horizontal directions); then
-        //    curvature and rejection per segment
-        self.segment_start.resize(total, 0);
-        self.segment_end.resize(total, 0);
-        self.curvature.resize(total, 0.0);
-        self.flags.clear();
-        self.flags.resize(total, 0);
         let cos_gap = self
             .config
             .max_azimuth_gap_rad
@@ -432,13 +380,50 @@ impl FeatureExtractor {
             depth_jump_m: self.config.occlusion_depth_jump_m,
             parallel_ratio: self.config.parallel_beam_ratio,
         };
-        for ring in 0..num_rings {
-            let (rs, re) = (self.ring_start[ring], self.ring_start[ring + 1]);
-            let mut seg_start = rs;
-            for k in rs..=re {
-                let ends_segment = k == re || {
-                    k > rs && {
-                        let (a, b) = (&self.ordered[k - 1], &self.ordered[k]);
+        let sectors = self.config.sectors_per_ring.max(1);
+        let edge_threshold = self.config.edge_curvature_threshold;
+        let surface_threshold = self.config.surface_curvature_threshold;
+        for ordered in &mut self.rings[..num_rings] {
+            let len = ordered.len();
+            if len == 0 {
+                continue;
+            }
+            // 2. time order within the ring (a rotation of the storage
+            //    order, usually; see `sort_ring_by`)
+            sort_ring(ordered);
+            // Equal times (duplicates, coarse time stamps): order by the
+            // coordinates so that storage order does not matter.
+            let mut a = 0;
+            while a < len {
+                let t = ordered[a].key >> 32;
+                let mut b = a + 1;
+                while b < len && ordered[b].key >> 32 == t {
+                    b += 1;
+                }
+                if b - a > 1 {
+                    ordered[a..b].sort_unstable_by(|x, y| {
+                        let (ix, iy) = (x.key as u32, y.key as u32);
+                        ring_order(&points[ix as usize], ix, &points[iy as usize], iy)
+                    });
+                }
+                a = b;
+            }
+            self.range.clear();
+            self.range.extend(ordered.iter().map(|o| o.range));
+
+            // 3. segments: split the ring where consecutive points are far
+            //    apart in azimuth (angle between their horizontal
+            //    directions); then curvature and rejection per segment
+            self.segment_start.resize(len, 0);
+            self.segment_end.resize(len, 0);
+            self.curvature.resize(len, 0.0);
+            self.flags.clear();
+            self.flags.resize(len, 0);
+            let mut seg_start = 0;
+            for k in 0..=len {
+                let ends_segment = k == len || {
+                    k > 0 && {
+                        let (a, b) = (&ordered[k - 1], &ordered[k]);
                         let (ax, ay, bx, by) = (a.x as f64, a.y as f64, b.x as f64, b.y as f64);
                         let dot = ax * bx + ay * by;
                         let nn = (ax * ax + ay * ay) * (bx * bx + by * by);
@@ -456,17 +441,12 @@ impl FeatureExtractor {
                     seg_start = k;
                 }
             }
-        }
 
-        // 5. edges per ring sector by decreasing curvature, with suppression
-        let sectors = self.config.sectors_per_ring.max(1);
-        let edge_threshold = self.config.edge_curvature_threshold;
-        for ring in 0..num_rings {
-            let (rs, re) = (self.ring_start[ring], self.ring_start[ring + 1]);
-            let len = re - rs;
+            // 4. edges per ring sector by decreasing curvature, with
+            //    suppression
             for sector in 0..sectors {
-                let sp = rs + len * sector / sectors;
-                let ep = rs + len * (sector + 1) / sectors;
+                let sp = len * sector / sectors;
+                let ep = len * (sector + 1) / sectors;
                 self.candidates.clear();
                 for k in sp..ep {
                     if self.flags[k] & (HAS_CURVATURE | REJECTED) == HAS_CURVATURE
@@ -499,19 +479,18 @@ impl FeatureExtractor {
                     }
                 }
             }
-        }
 
-        // 6. collect
-        let surface_threshold = self.config.surface_curvature_threshold;
-        for k in 0..total {
-            let f = self.flags[k];
-            let index = self.ordered[k].key as u32 as usize;
-            if f & EDGE != 0 {
-                out.edge_indices.push(index);
-            } else if f & (HAS_CURVATURE | REJECTED) == HAS_CURVATURE
-                && self.curvature[k] < surface_threshold
-            {
-                out.planar_indices.push(index);
+            // 5. collect, in ring then time order
+            for (k, o) in ordered.iter().enumerate() {
+                let f = self.flags[k];
+                let index = o.key as u32 as usize;
+                if f & EDGE != 0 {
+                    out.edge_indices.push(index);
+                } else if f & (HAS_CURVATURE | REJECTED) == HAS_CURVATURE
+                    && self.curvature[k] < surface_threshold
+                {
+                    out.planar_indices.push(index);
+                }
             }
         }
     }
@@ -762,7 +741,10 @@ mod tests {
         let mut extractor = FeatureExtractor::new(FeatureConfig::default());
         let (scan, positions) = scan_of(&both);
         let _ = extractor.extract(&positions[..10], &scan);
+        let (far_ring, far_positions) = scan_of(&ring(4000, 0.0, &[10.0; 100]));
+        let _ = extractor.extract(&far_positions, &far_ring);
         let f = extractor.extract(&positions, &scan);
+        assert_eq!(f, extract_features(&positions, &scan, &extractor.config));
         let mut expected_edges: Vec<usize> = fa.edge_indices.clone();
         expected_edges.extend(fb.edge_indices.iter().map(|i| i + a.len()));
         let mut edges = f.edge_indices.clone();
