@@ -1,6 +1,7 @@
 //! The `lio` variant end to end on simulated urban drives without moving
 //! objects (noise-free and default noise), `lio` and `limot` through the
-//! default highway's ego lane change, and LiDAR-only on real KITTI scans.
+//! default highway's ego lane change and a stop-and-go wave of the jam, and
+//! LiDAR-only on real KITTI scans.
 
 mod common;
 
@@ -11,7 +12,7 @@ use limot::simulate::resolve_scenario;
 use limot_estimator::Variant;
 use limot_sim::Dataset;
 use limot_sim::scenario::ScenarioSpec;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The urban streets without moving agents, the ego driving straight along
 /// the main street (its inner lane).
@@ -232,6 +233,26 @@ fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
     );
 }
 
+/// `lio` and `limot` on the dataset `dir`: ego ATE_T below 0.5 m and ATE_R
+/// below 0.01 rad.
+fn assert_highway_bounds(dir: &Path) {
+    let source = Source::open(dir).unwrap();
+    for variant in [Variant::Lio, Variant::Limot] {
+        let options = RunOptions {
+            variant,
+            ..RunOptions::default()
+        };
+        let output = run(&source, dir, &options, None).unwrap();
+        let (ate_t, ate_r) = ate(dir, &output);
+        eprintln!(
+            "{}: ATE_T {ate_t:.3} m, ATE_R {ate_r:.4} rad",
+            variant.name()
+        );
+        assert!(ate_t < 0.5, "{}: ATE_T {ate_t} m", variant.name());
+        assert!(ate_r < 0.01, "{}: ATE_R {ate_r} rad", variant.name());
+    }
+}
+
 #[test]
 fn lio_and_limot_keep_their_highway_bounds_through_the_ego_lane_change() {
     let mut spec = resolve_scenario("highway").unwrap();
@@ -241,20 +262,25 @@ fn lio_and_limot_keep_their_highway_bounds_through_the_ego_lane_change() {
     let change = &spec.highway_params().ego_lane_changes[0];
     assert!(change.t_s < 9.0 && change.to_lane != spec.ego.lane);
     let dir = simulate(&spec, "highway-lane-change");
-    let source = Source::open(&dir).unwrap();
-    for variant in [Variant::Lio, Variant::Limot] {
-        let options = RunOptions {
-            variant,
-            ..RunOptions::default()
-        };
-        let output = run(&source, &dir, &options, None).unwrap();
-        let (ate_t, ate_r) = ate(&dir, &output);
-        eprintln!(
-            "{}: ATE_T {ate_t:.3} m, ATE_R {ate_r:.4} rad",
-            variant.name()
-        );
-        assert!(ate_t < 0.5, "{}: ATE_T {ate_t} m", variant.name());
-        assert!(ate_r < 0.01, "{}: ATE_R {ate_r} rad", variant.name());
-    }
+    assert_highway_bounds(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn lio_and_limot_keep_their_highway_bounds_through_a_stop_and_go_wave() {
+    let mut spec = resolve_scenario("highway-jam").unwrap();
+    // the ego pulls away, runs into the jam, stands and pulls away again
+    spec.duration_s = 32.0;
+    let dir = simulate(&spec, "highway-jam");
+    let speeds: Vec<f64> = Dataset::open(&dir)
+        .unwrap()
+        .ego_truth()
+        .unwrap()
+        .iter()
+        .map(|e| e.velocity_world_mps.xy().norm())
+        .collect();
+    let stood = speeds.iter().skip(speeds.len() / 2).any(|&v| v < 0.5);
+    assert!(stood, "the ego never stood in the jam");
+    assert_highway_bounds(&dir);
     let _ = std::fs::remove_dir_all(&dir);
 }

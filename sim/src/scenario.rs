@@ -26,7 +26,9 @@ use std::path::{Path, PathBuf};
 mod params;
 mod validate;
 
-pub use params::{EgoSpec, Family, GroundParams, HighwayParams, KittiParams, UrbanParams};
+pub use params::{
+    EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, UrbanParams,
+};
 
 /// Longest simulated time span a scenario may have, s.
 pub const MAX_DURATION_S: f64 = 3600.0;
@@ -160,7 +162,13 @@ fn urban_ground() -> GroundParams {
     }
 }
 
-const BUILTIN_NAMES: &[&str] = &["highway", "urban", "highway-dense", "urban-parked"];
+const BUILTIN_NAMES: &[&str] = &[
+    "highway",
+    "urban",
+    "highway-dense",
+    "urban-parked",
+    "highway-jam",
+];
 
 impl ScenarioSpec {
     /// The default scenarios, equal to `scenarios/<name>.toml`.
@@ -211,6 +219,18 @@ impl ScenarioSpec {
                     gantry_spacing_m: 0.0,
                     sign_spacing_m: 0.0,
                     // the ego keeps its lane among the pacing traffic
+                    ego_lane_changes: Vec::new(),
+                    ..HighwayParams::default()
+                }),
+                ..base(Family::Highway, 1)
+            }),
+            // Stop-and-go: the ego runs into a jam whose stops travel
+            // upstream head by head, and moves with it in waves among
+            // traffic that stands as often as it moves.
+            "highway-jam" => Some(ScenarioSpec {
+                highway: Some(HighwayParams {
+                    jam: Some(JamParams::default()),
+                    // the ego keeps its lane through the waves
                     ego_lane_changes: Vec::new(),
                     ..HighwayParams::default()
                 }),
@@ -599,6 +619,16 @@ mod tests {
         let msg = error_of(&nan);
         assert!(msg.contains("bad.toml:7"), "{msg}");
         assert!(msg.contains("highway.speed_max_mps"), "{msg}");
+
+        // a jam whose cycle is too short to stand, brake and pull away
+        let jam = format!("{HEAD}[highway.jam]\nstopped_s = 10.0\nperiod_s = 20.0\n");
+        let msg = error_of(&jam);
+        assert!(msg.contains("bad.toml:7"), "{msg}");
+        assert!(msg.contains("highway.jam.period_s"), "{msg}");
+        let jam = format!("{HEAD}[highway.jam]\nfront_ahead_m = 5.0\n");
+        let msg = error_of(&jam);
+        assert!(msg.contains("bad.toml:6"), "{msg}");
+        assert!(msg.contains("highway.jam.front_ahead_m"), "{msg}");
 
         let negative = format!("{HEAD}[highway]\n\nspeed_min_mps = -3.0\n");
         let msg = error_of(&negative);

@@ -47,8 +47,8 @@ pub use suspension::{BodyAttitude, RideInput, Suspension, ride};
 use limot_estimator::geometry::wrap_angle_rad;
 use spec::validate;
 pub use spec::{
-    DriverParams, LaneChange, PlanarSample, PlanarTrack, StopLine, TrafficError, TrafficSpec,
-    VehicleSpec,
+    DriverParams, JamFront, LaneChange, PlanarSample, PlanarTrack, StopLine, TrafficError,
+    TrafficSpec, VehicleSpec,
 };
 
 use nalgebra::{Point2, Vector2};
@@ -376,6 +376,15 @@ impl Sim<'_> {
         let front = me.s_m + me.lon_half_m;
         let lane_len = self.spec.lanes[lane_idx].length_m();
         best = nearer(best, Some((lane_len - front, v_i)));
+        for jam in &self.spec.jam_fronts {
+            if jam.lane != lane_idx {
+                continue;
+            }
+            let (s_m, speed_mps) = jam.state_at(t_s);
+            if s_m > front {
+                best = nearer(best, Some((s_m - front, v_i - speed_mps)));
+            }
+        }
         let b = self.spec.vehicles[i].driver.comfortable_decel_mps2;
         for (k, line) in self.spec.stop_lines.iter().enumerate() {
             if line.lane != lane_idx {

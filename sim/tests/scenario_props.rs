@@ -356,6 +356,9 @@ fn check_common(spec: &ScenarioSpec, scene: &Scene) {
 
 fn check_highway(spec: &ScenarioSpec, scene: &Scene) {
     let h = spec.highway.clone().unwrap_or_default();
+    if h.jam.is_some() {
+        return check_jam(spec, scene);
+    }
     assert_eq!(scene.agents.len(), h.vehicles);
     assert!(scene.agents.iter().all(|a| !a.parked));
     assert!(
@@ -397,6 +400,42 @@ fn check_highway(spec: &ScenarioSpec, scene: &Scene) {
         "{}: ego yaw rate {yaw_rate} rad/s",
         spec.name
     );
+}
+
+/// A highway with a jam: at most the requested vehicles (none starts within
+/// a safe gap of a jam head), all of them driving (not parked), and the ego
+/// stops and goes in waves no faster than the heads, within the vehicle
+/// limits.
+fn check_jam(spec: &ScenarioSpec, scene: &Scene) {
+    let h = spec.highway.clone().unwrap_or_default();
+    let jam = h.jam.clone().unwrap();
+    assert!(scene.agents.len() <= h.vehicles && scene.agents.len() >= h.vehicles / 2);
+    assert!(scene.agents.iter().all(|a| !a.parked));
+    let (mut stands, mut standing, mut top) = (0, false, 0.0f64);
+    for t in sample_times(scene, 0.1) {
+        let v = ego_speed_at(scene, t);
+        if v < 0.5 && !standing && t > spec.ego.depart_s + 1.0 {
+            stands += 1;
+        }
+        standing = v < 0.5 || (standing && v < 3.0);
+        if t > jam.period_s {
+            top = top.max(v);
+        }
+    }
+    let periods = ((spec.duration_s - jam.period_s) / jam.period_s).floor() as usize;
+    assert!(
+        stands >= periods,
+        "{}: {stands} stands in {} s",
+        spec.name,
+        spec.duration_s
+    );
+    assert!(
+        top < jam.peak_speed_mps + 1.5,
+        "{}: {top} m/s in the jam",
+        spec.name
+    );
+    let (lateral, yaw_rate) = ego_lateral_accel_and_yaw_rate(scene);
+    assert!(lateral <= EGO_LATERAL_ACCEL_MAX_MPS2 && yaw_rate <= EGO_YAW_RATE_MAX_RADPS);
 }
 
 /// Vehicle limits of a car on the highway: lateral acceleration a comfortable
@@ -714,6 +753,23 @@ proptest! {
         check_common(&spec, &scene);
         check_highway(&spec, &scene);
         check_ego_overtakes(&spec, &scene);
+        prop_assert_eq!(spec.family, Family::Highway);
+    }
+
+    #[test]
+    fn jam_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, offset_s in 0.0f64..8.0) {
+        let mut spec = ScenarioSpec::builtin("highway-jam").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 40.0;
+        let h = spec.highway.as_mut().unwrap();
+        h.lanes = lanes;
+        h.jam.as_mut().unwrap().lane_offset_s = offset_s;
+        spec.ego.lane = lanes / 2;
+        spec.validate().unwrap();
+        let scene = spec.build().unwrap();
+        // no overlaps (check_common), waves, vehicle limits
+        check_common(&spec, &scene);
+        check_highway(&spec, &scene);
         prop_assert_eq!(spec.family, Family::Highway);
     }
 

@@ -6,8 +6,8 @@ use limot_estimator::input::ObjectClass;
 use limot_sim::scene::Trajectory;
 use limot_sim::scene::{Agent, Ego, Ground, Scene};
 use limot_sim::traffic::{
-    DriverParams, LaneChange, LanePath, PathPiece, StopLine, Suspension, TrafficSpec, VehicleSpec,
-    first_overlap, lift_to_ground, simulate_traffic,
+    DriverParams, JamFront, LaneChange, LanePath, PathPiece, StopLine, Suspension, TrafficSpec,
+    VehicleSpec, first_overlap, lift_to_ground, simulate_traffic,
 };
 use nalgebra::{Isometry3, Point2, Vector3};
 use proptest::prelude::*;
@@ -85,7 +85,15 @@ fn class_of(code: u8) -> (ObjectClass, Vector3<f64>, DriverParams, f64) {
 
 /// Parallel lanes of a gently curving road, vehicles placed back to front in
 /// each lane with a safe starting gap.
-fn build_spec(n_lanes: usize, curvature_1pm: f64, drafts: &[Draft], red: bool) -> TrafficSpec {
+/// `jam`: a jam head in every lane (at the given phase of its cycle), 60 m
+/// beyond the farthest vehicle.
+fn build_spec(
+    n_lanes: usize,
+    curvature_1pm: f64,
+    drafts: &[Draft],
+    red: bool,
+    jam: Option<f64>,
+) -> TrafficSpec {
     let pieces = [
         PathPiece::Straight { length_m: 80.0 },
         PathPiece::Arc {
@@ -155,10 +163,25 @@ fn build_spec(n_lanes: usize, curvature_1pm: f64, drafts: &[Draft], red: bool) -
     } else {
         Vec::new()
     };
+    let head_s_m = next_rear_s.iter().copied().fold(0.0, f64::max) + 60.0;
+    let jam_fronts = jam.map_or_else(Vec::new, |phase_s| {
+        (0..n_lanes)
+            .map(|lane| JamFront {
+                lane,
+                start_s_m: head_s_m,
+                period_s: 16.0,
+                stopped_s: 4.0,
+                peak_speed_mps: 8.0,
+                accel_mps2: 2.0,
+                phase_s: phase_s + lane as f64,
+            })
+            .collect()
+    });
     TrafficSpec {
         lanes,
         vehicles,
         stop_lines,
+        jam_fronts,
         duration_s: 20.0,
     }
 }
@@ -227,8 +250,9 @@ proptest! {
         curvature in -0.012f64..0.012,
         drafts in prop::collection::vec(draft(), 5..=20),
         red in any::<bool>(),
+        jam in prop::option::of(0.0f64..16.0),
     ) {
-        let spec = build_spec(n_lanes, curvature, &drafts, red);
+        let spec = build_spec(n_lanes, curvature, &drafts, red, jam);
         let scene = scene_of(&spec, &Ground::flat(0.0));
         let overlap = first_overlap(&scene, 0.01);
         prop_assert!(overlap.is_none(), "overlap {overlap:?}");

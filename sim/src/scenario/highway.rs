@@ -15,7 +15,7 @@ use super::{
     traffic_error,
 };
 use crate::scene::{Scene, Shape, StaticKind, StaticObject};
-use crate::traffic::{LaneChange, LanePath, PathPiece, TrafficSpec, VehicleSpec};
+use crate::traffic::{JamFront, LaneChange, LanePath, PathPiece, TrafficSpec, VehicleSpec};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
 use rand::RngExt;
@@ -99,6 +99,18 @@ fn layout(
     ));
 
     let mut vehicles = place_vehicles(&h, spec.ego.lane, ego_s, rng);
+    let fronts = jam_fronts(&h, ego_s);
+    // nobody starts so close behind (or beside) a head that it cannot follow it
+    let clear_m = highway_min_spacing_m(&h);
+    vehicles.retain(|v| {
+        fronts
+            .iter()
+            .all(|f| f.lane != v.lane || (v.start_s_m - f.start_s_m).abs() >= clear_m)
+    });
+    // ids stay 1..=N in placement order
+    for (k, v) in vehicles.iter_mut().enumerate() {
+        v.id = k as u32 + 1;
+    }
     add_lane_changes(&h, spec.duration_s, &mut vehicles, rng);
     let mut ego = ego_vehicle(&spec.ego, spec.ego.lane, ego_s, spec.ego_speed_mps());
     // traffic makes room for the ego's changes (the route must happen)
@@ -115,9 +127,30 @@ fn layout(
         lanes,
         vehicles,
         stop_lines: Vec::new(),
+        jam_fronts: fronts,
         duration_s: spec.duration_s,
     };
     Ok((ground, statics, traffic))
+}
+
+/// The jam's heads (if any), one per lane, starting `front_ahead_m` ahead
+/// of the ego at the start of their cruise.
+fn jam_fronts(h: &HighwayParams, ego_s_m: f64) -> Vec<JamFront> {
+    let Some(jam) = &h.jam else {
+        return Vec::new();
+    };
+    (0..h.lanes)
+        .map(|lane| JamFront {
+            lane,
+            start_s_m: ego_s_m + jam.front_ahead_m,
+            period_s: jam.period_s,
+            stopped_s: jam.stopped_s,
+            peak_speed_mps: jam.peak_speed_mps,
+            accel_mps2: jam.accel_mps2,
+            // a later phase is an earlier start of the cycle
+            phase_s: (-(lane as f64) * jam.lane_offset_s).rem_euclid(jam.period_s),
+        })
+        .collect()
 }
 
 /// Pieces of the carriageway centre line: the initial straight, then curves
@@ -470,6 +503,56 @@ mod tests {
                 );
                 lane = to;
             }
+        }
+    }
+
+    #[test]
+    fn in_the_jam_the_ego_and_its_neighbours_stop_and_go_in_waves() {
+        for seed in 1..=4 {
+            let mut spec = ScenarioSpec::builtin("highway-jam").unwrap();
+            spec.seed = seed;
+            let jam = spec.highway_params().jam.unwrap();
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let (_, _, traffic) = layout(&spec, &mut rng).unwrap();
+            let tracks = crate::traffic::simulate_traffic(&traffic).unwrap();
+            // (stands, top speed once in the jam) of a track
+            let waves = |track: &crate::traffic::PlanarTrack| {
+                let (mut stands, mut standing, mut top) = (0, false, 0.0f64);
+                for (k, p) in track.samples.iter().enumerate() {
+                    let t_s = track.t0_s + k as f64 * track.dt_s;
+                    if p.speed_mps < 0.5 && !standing && t_s > spec.ego.depart_s + 1.0 {
+                        stands += 1;
+                    }
+                    standing = p.speed_mps < 0.5 || (standing && p.speed_mps < 3.0);
+                    if t_s > jam.period_s {
+                        top = top.max(p.speed_mps);
+                    }
+                }
+                (stands, top)
+            };
+            let ego = tracks.last().unwrap();
+            let (stands, top) = waves(ego);
+            // one stand per period, moving at up to the heads' speed between
+            assert!(stands >= 2, "seed {seed}: the ego stood {stands} times");
+            assert!(
+                (10.0..jam.peak_speed_mps + 1.5).contains(&top),
+                "seed {seed}: top speed in the jam {top}"
+            );
+            // the traffic behind the heads queues too (what starts far
+            // behind reaches the jam late: at least one stand)
+            let front_s = traffic.jam_fronts[0].start_s_m;
+            let queued: Vec<_> = tracks
+                .iter()
+                .zip(&traffic.vehicles)
+                .filter(|(t, v)| v.start_s_m < front_s && t.id != ego.id)
+                .map(|(t, _)| waves(t).0)
+                .collect();
+            let waving = queued.iter().filter(|&&n| n >= 1).count();
+            assert!(
+                waving * 10 >= queued.len() * 8,
+                "seed {seed}: {waving} of {} queued vehicles stop and go",
+                queued.len()
+            );
         }
     }
 

@@ -206,6 +206,50 @@ pub struct HighwayParams {
     /// previous change left the ego. Requests the run ends before are not
     /// executed. Empty = the ego keeps its lane.
     pub ego_lane_changes: Vec<LaneChange>,
+    /// A stop-and-go jam the ego drives into (`[highway.jam]`); unset =
+    /// free-flowing traffic.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jam: Option<JamParams>,
+}
+
+/// A stop-and-go jam ahead of the ego (`[highway.jam]`): in every lane, an
+/// invisible jam head starts `front_ahead_m` ahead of the ego and drives a
+/// stop-and-go cycle (see [`crate::traffic::JamFront`]): cruising at
+/// `peak_speed_mps`, braking at `accel_mps2` to a stand of `stopped_s`,
+/// pulling away again, every `period_s`, each lane `lane_offset_s` later in
+/// its cycle than the lane to its right. The traffic behind it, the ego's
+/// with it, queues and moves off in waves: the case where moving cars look
+/// most like the static world. Vehicles that would start within a safe gap
+/// of a head are not placed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct JamParams {
+    /// Where the heads start, ahead of the ego, m.
+    pub front_ahead_m: f64,
+    /// Length of one stop-and-go cycle, s.
+    pub period_s: f64,
+    /// Standing part of each cycle, s.
+    pub stopped_s: f64,
+    /// The heads' speed between stands, m/s.
+    pub peak_speed_mps: f64,
+    /// The heads' braking and pulling-away rate, m/s².
+    pub accel_mps2: f64,
+    /// Each lane is this much later in its cycle than the lane to its
+    /// right, s.
+    pub lane_offset_s: f64,
+}
+
+impl Default for JamParams {
+    fn default() -> Self {
+        JamParams {
+            front_ahead_m: 60.0,
+            period_s: 30.0,
+            stopped_s: 10.0,
+            peak_speed_mps: 14.0,
+            accel_mps2: 1.5,
+            lane_offset_s: 4.0,
+        }
+    }
 }
 
 impl Default for HighwayParams {
@@ -248,6 +292,7 @@ impl Default for HighwayParams {
                     cooperative: false,
                 },
             ],
+            jam: None,
         }
     }
 }

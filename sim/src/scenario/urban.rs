@@ -310,6 +310,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         lanes,
         vehicles,
         stop_lines,
+        jam_fronts: Vec::new(),
         duration_s: spec.duration_s,
     };
     // ids: main street 1..=N, cross streets N+1..=M, parked cars from M+1
@@ -762,6 +763,7 @@ fn cross_traffic(
                 red_intervals_s: plan.cross_red.clone(),
             })
             .collect(),
+        jam_fronts: Vec::new(),
         duration_s,
     }
 }

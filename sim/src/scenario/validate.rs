@@ -2,8 +2,8 @@
 //! rely on (capacities, spacings, signal timing).
 
 use super::{
-    EgoSpec, GroundParams, HighwayParams, KittiParams, MAX_DURATION_S, ScenarioError, UrbanParams,
-    invalid,
+    EgoSpec, GroundParams, HighwayParams, JamParams, KittiParams, MAX_DURATION_S, ScenarioError,
+    UrbanParams, invalid,
 };
 use crate::sensors::LidarConfig;
 use crate::traffic::LaneChange;
@@ -224,6 +224,9 @@ pub(super) fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
             "noise_wall_fraction + cutting_fraction must be at most 1",
         ));
     }
+    if let Some(jam) = &h.jam {
+        validate_jam(jam)?;
+    }
     // impossible geometry: the vehicles must fit into the spawn zone with
     // safe gaps (the zone around the ego stays free in its lane)
     let capacity = highway_capacity(h);
@@ -236,6 +239,39 @@ pub(super) fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
                 h.vehicles,
                 h.lanes,
                 h.spawn_behind_m + h.spawn_ahead_m
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks `[highway.jam]`: every field in a sensible range, and a cycle
+/// long enough to stand, brake, pull away and cruise.
+fn validate_jam(jam: &JamParams) -> Result<(), ScenarioError> {
+    in_range(
+        "highway.jam.front_ahead_m",
+        jam.front_ahead_m,
+        20.0,
+        100_000.0,
+    )?;
+    in_range("highway.jam.period_s", jam.period_s, 5.0, MAX_DURATION_S)?;
+    in_range("highway.jam.stopped_s", jam.stopped_s, 0.5, MAX_DURATION_S)?;
+    in_range("highway.jam.peak_speed_mps", jam.peak_speed_mps, 1.0, 40.0)?;
+    in_range("highway.jam.accel_mps2", jam.accel_mps2, 0.3, 4.0)?;
+    in_range(
+        "highway.jam.lane_offset_s",
+        jam.lane_offset_s,
+        0.0,
+        MAX_DURATION_S,
+    )?;
+    let busy_s = jam.stopped_s + 2.0 * jam.peak_speed_mps / jam.accel_mps2;
+    if busy_s > jam.period_s {
+        return Err(invalid(
+            "highway.jam.period_s",
+            format!(
+                "= {}: shorter than standing {} s plus braking and pulling away to and from \
+                 {} m/s at {} m/s^2 ({busy_s:.1} s in all)",
+                jam.period_s, jam.stopped_s, jam.peak_speed_mps, jam.accel_mps2
             ),
         ));
     }

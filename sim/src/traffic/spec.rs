@@ -229,6 +229,80 @@ impl StopLine {
     }
 }
 
+/// The head of a stop-and-go jam across one lane: an invisible leader that
+/// cruises at `peak_speed_mps`, brakes at `accel_mps2` to a stand, stands
+/// `stopped_s`, pulls away at `accel_mps2`, and repeats every `period_s`;
+/// at t = 0 it is `phase_s` into its cycle (which begins with the cruise)
+/// and at `start_s_m` on its lane. The traffic behind it queues and moves
+/// off in waves, as behind the head of a real jam; what is ahead of it
+/// drives on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JamFront {
+    /// Index of the lane in `TrafficSpec::lanes`.
+    pub lane: usize,
+    /// Arc length of the front on its lane at t = 0, m.
+    pub start_s_m: f64,
+    /// Length of one cycle, s.
+    pub period_s: f64,
+    /// Standing part of each cycle, s.
+    pub stopped_s: f64,
+    /// Speed between the stands, m/s.
+    pub peak_speed_mps: f64,
+    /// Braking and pulling-away rate, m/s².
+    pub accel_mps2: f64,
+    /// Time into the cycle at t = 0, s.
+    pub phase_s: f64,
+}
+
+impl JamFront {
+    /// Time to brake from the peak speed to a stand (or pull away), s.
+    fn ramp_s(&self) -> f64 {
+        self.peak_speed_mps / self.accel_mps2
+    }
+
+    /// Cruising part of each cycle, s (negative = the cycle is too short).
+    pub fn cruise_s(&self) -> f64 {
+        self.period_s - self.stopped_s - 2.0 * self.ramp_s()
+    }
+
+    /// Distance from the cycle's start and speed, `tau_s` into a cycle.
+    fn in_cycle(&self, tau_s: f64) -> (f64, f64) {
+        let (v, a) = (self.peak_speed_mps, self.accel_mps2);
+        let (cruise, ramp) = (self.cruise_s(), self.ramp_s());
+        let braked = v * cruise + 0.5 * v * ramp;
+        if tau_s < cruise {
+            (v * tau_s, v)
+        } else if tau_s < cruise + ramp {
+            let t = tau_s - cruise;
+            (v * cruise + v * t - 0.5 * a * t * t, v - a * t)
+        } else if tau_s < cruise + ramp + self.stopped_s {
+            (braked, 0.0)
+        } else {
+            let t = (tau_s - cruise - ramp - self.stopped_s).min(ramp);
+            (braked + 0.5 * a * t * t, a * t)
+        }
+    }
+
+    /// Distance covered in one cycle, m.
+    fn cycle_m(&self) -> f64 {
+        self.peak_speed_mps * (self.cruise_s() + self.ramp_s())
+    }
+
+    /// Distance from the start of cycle 0 and speed at cycle time `u_s`.
+    fn travelled(&self, u_s: f64) -> (f64, f64) {
+        let cycles = (u_s / self.period_s).floor();
+        let (d, v) = self.in_cycle(u_s - cycles * self.period_s);
+        (cycles * self.cycle_m() + d, v)
+    }
+
+    /// Arc length on its lane (m) and speed (m/s) at time `t_s`.
+    pub fn state_at(&self, t_s: f64) -> (f64, f64) {
+        let (d0, _) = self.travelled(self.phase_s);
+        let (d, v) = self.travelled(self.phase_s + t_s);
+        (self.start_s_m + d - d0, v)
+    }
+}
+
 /// The input of the traffic simulation: lanes, vehicles on them, stop lines.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrafficSpec {
@@ -238,6 +312,8 @@ pub struct TrafficSpec {
     pub vehicles: Vec<VehicleSpec>,
     /// Stop lines with their red phases.
     pub stop_lines: Vec<StopLine>,
+    /// Heads of stop-and-go jams.
+    pub jam_fronts: Vec<JamFront>,
     /// Simulated time span [0, duration_s], s (at most one hour).
     pub duration_s: f64,
 }
@@ -437,6 +513,40 @@ pub(super) fn validate(spec: &TrafficSpec) -> Result<(), TrafficError> {
             }
         }
         vs.driver.check(id)?;
+    }
+    for (index, front) in spec.jam_fronts.iter().enumerate() {
+        let err = |field: &str, reason: String| TrafficError::InvalidSpec {
+            field: format!("jam_fronts[{index}].{field}"),
+            reason,
+        };
+        if front.lane >= n_lanes {
+            return Err(err(
+                "lane",
+                format!("{} out of range ({n_lanes} lanes)", front.lane),
+            ));
+        }
+        for (field, value) in [
+            ("period_s", front.period_s),
+            ("stopped_s", front.stopped_s),
+            ("peak_speed_mps", front.peak_speed_mps),
+            ("accel_mps2", front.accel_mps2),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(err(field, format!("{value} must be positive and finite")));
+            }
+        }
+        if !(front.start_s_m.is_finite() && front.phase_s.is_finite()) {
+            return Err(err("start_s_m", "start and phase must be finite".into()));
+        }
+        if front.cruise_s() < 0.0 {
+            return Err(err(
+                "period_s",
+                format!(
+                    "{} s leaves no time to cruise after standing {} s and braking and pulling away at {} m/s^2 to and from {} m/s",
+                    front.period_s, front.stopped_s, front.accel_mps2, front.peak_speed_mps
+                ),
+            ));
+        }
     }
     for (index, line) in spec.stop_lines.iter().enumerate() {
         let err = |field: &str, reason: String| TrafficError::InvalidStopLine {

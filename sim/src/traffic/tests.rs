@@ -35,6 +35,7 @@ fn spec(lanes: Vec<LanePath>, vehicles: Vec<VehicleSpec>, duration_s: f64) -> Tr
         lanes,
         vehicles,
         stop_lines: Vec::new(),
+        jam_fronts: Vec::new(),
         duration_s,
     }
 }
@@ -475,6 +476,115 @@ fn tracks_lifted_as_they_are_recorded_are_those_lifted_afterwards() {
         let afterwards = lift_onto(track, &ground, &raised, &vs.size_lwh_m, suspension.as_ref());
         assert_eq!(streamed, &afterwards, "vehicle {}", vs.id);
     }
+}
+
+fn jam_front(lane: usize, start_s_m: f64, phase_s: f64) -> JamFront {
+    JamFront {
+        lane,
+        start_s_m,
+        period_s: 30.0,
+        stopped_s: 10.0,
+        peak_speed_mps: 14.0,
+        accel_mps2: 1.5,
+        phase_s,
+    }
+}
+
+#[test]
+fn a_jam_front_cruises_brakes_stands_and_pulls_away_each_period() {
+    for phase_s in [0.0, 7.3, 29.9] {
+        let front = jam_front(0, 100.0, phase_s);
+        assert_eq!(front.state_at(0.0).0, 100.0);
+        let dt = 0.01;
+        let (mut last_s, mut last_v) = front.state_at(0.0);
+        let mut standing_s = 0.0;
+        for k in 1..=9000 {
+            let (s, v) = front.state_at(k as f64 * dt);
+            assert!((0.0..=14.0).contains(&v), "speed {v} at {}", k as f64 * dt);
+            // continuous, never backwards, its speed the slope of its path
+            assert!(s >= last_s && s - last_s <= 14.0 * dt + 1e-9);
+            assert!(
+                (v - last_v).abs() <= 1.5 * dt + 1e-9,
+                "jump {last_v} -> {v}"
+            );
+            // (within a step's acceleration where it crosses a phase)
+            assert!(((s - last_s) / dt - 0.5 * (v + last_v)).abs() < 1.5 * dt);
+            if v == 0.0 {
+                standing_s += dt;
+            }
+            (last_s, last_v) = (s, v);
+        }
+        // 90 s = three periods, each standing 10 s
+        assert!((standing_s - 30.0).abs() < 0.05, "stood {standing_s} s");
+        // each period covers the same distance
+        let (a, b, c) = (
+            front.state_at(5.0).0,
+            front.state_at(35.0).0,
+            front.state_at(65.0).0,
+        );
+        assert!(((b - a) - (c - b)).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn traffic_queues_behind_a_jam_front_and_moves_off_in_waves() {
+    // two lanes, cars behind the front and one ahead of it
+    let lanes = vec![straight(3000.0, 0.0), straight(3000.0, 3.7)];
+    let vehicles = vec![
+        car(1, 0, 400.0, 15.0, 25.0),
+        car(2, 0, 120.0, 14.0, 25.0),
+        car(3, 0, 60.0, 14.0, 25.0),
+        car(4, 1, 100.0, 14.0, 25.0),
+    ];
+    let mut s = spec(lanes, vehicles, 90.0);
+    s.jam_fronts = vec![jam_front(0, 200.0, 0.0), jam_front(1, 200.0, 26.0)];
+    let tracks = simulate_traffic(&s).unwrap();
+    assert_eq!(first_overlap(&scene_of(&s, &tracks), 0.01), None);
+    for (track, vs) in tracks.iter().zip(&s.vehicles) {
+        let front = &s.jam_fronts[vs.lane];
+        let behind = vs.start_s_m < front.start_s_m;
+        let mut stands = 0;
+        let mut standing = false;
+        for (k, p) in track.samples.iter().enumerate() {
+            let (front_s, _) = front.state_at(k as f64 * track.dt_s);
+            if behind {
+                // never through the head: its front bumper stays behind it
+                assert!(
+                    p.x + 2.25 <= front_s + 1e-6,
+                    "car {} passed the head",
+                    vs.id
+                );
+            }
+            if p.speed_mps < 0.5 && !standing {
+                stands += 1;
+            }
+            standing = p.speed_mps < 0.5 || (standing && p.speed_mps < 3.0);
+        }
+        let top = track
+            .samples
+            .iter()
+            .map(|p| p.speed_mps)
+            .fold(0.0, f64::max);
+        // once caught up with the jam (after its first period)
+        let top_in_jam = track.samples[3000..]
+            .iter()
+            .map(|p| p.speed_mps)
+            .fold(0.0, f64::max);
+        if behind {
+            // stop and go: a stand every period, no faster than the head
+            // in the jam (a queued car may close up a little)
+            assert!(stands >= 2, "car {}: {stands} stands", vs.id);
+            assert!(top_in_jam < 15.0, "car {}: top speed {top_in_jam}", vs.id);
+        } else {
+            // the car ahead of the head drives on at its desired speed
+            assert_eq!(stands, 0);
+            assert!(top > 24.0);
+        }
+    }
+    // a head that cannot cruise is refused
+    s.jam_fronts[1].period_s = 20.0;
+    let err = simulate_traffic(&s).unwrap_err().to_string();
+    assert!(err.contains("jam_fronts[1].period_s"), "{err}");
 }
 
 #[test]
