@@ -1,7 +1,7 @@
 //! The `lio` variant end to end on simulated urban drives without moving
 //! objects (noise-free and default noise), `lio` and `limot` through the
-//! default highway's ego lane change and a stop-and-go wave of the jam, and
-//! LiDAR-only on real KITTI scans.
+//! default highway's ego lane change, an on-ramp merge and a stop-and-go wave
+//! of the jam, and LiDAR-only on real KITTI scans.
 
 mod common;
 
@@ -281,6 +281,18 @@ fn lio_and_limot_keep_their_highway_bounds_through_a_stop_and_go_wave() {
         .collect();
     let stood = speeds.iter().skip(speeds.len() / 2).any(|&v| v < 0.5);
     assert!(stood, "the ego never stood in the jam");
+    assert_highway_bounds(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn lio_and_limot_keep_their_highway_bounds_through_the_on_ramp_merge() {
+    let mut spec = resolve_scenario("highway-merge").unwrap();
+    // from a standstill on the acceleration lane into the right lane
+    // (requested at 5 s, done within a few seconds)
+    spec.duration_s = 14.0;
+    assert!(spec.highway_params().on_ramp.unwrap().merge_request_s < 6.0);
+    let dir = simulate(&spec, "highway-merge");
     assert_highway_bounds(&dir);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -27,7 +27,7 @@ mod params;
 mod validate;
 
 pub use params::{
-    EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, UrbanParams,
+    EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OnRampParams, UrbanParams,
 };
 
 /// Longest simulated time span a scenario may have, s.
@@ -168,6 +168,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "highway-dense",
     "urban-parked",
     "highway-jam",
+    "highway-merge",
 ];
 
 impl ScenarioSpec {
@@ -232,6 +233,24 @@ impl ScenarioSpec {
                     jam: Some(JamParams::default()),
                     // the ego keeps its lane through the waves
                     ego_lane_changes: Vec::new(),
+                    ..HighwayParams::default()
+                }),
+                ..base(Family::Highway, 1)
+            }),
+            // An on-ramp: the ego starts on the acceleration lane, merges
+            // into the right lane and later moves over one lane.
+            "highway-merge" => Some(ScenarioSpec {
+                ego: EgoSpec {
+                    lane: 0,
+                    ..EgoSpec::default()
+                },
+                highway: Some(HighwayParams {
+                    on_ramp: Some(OnRampParams::default()),
+                    ego_lane_changes: vec![crate::traffic::LaneChange {
+                        t_s: 14.0,
+                        to_lane: 1,
+                        cooperative: false,
+                    }],
                     ..HighwayParams::default()
                 }),
                 ..base(Family::Highway, 1)
@@ -440,6 +459,12 @@ impl ScenarioSpec {
                         format!("must be below highway.lanes = {}", h.lanes),
                     ));
                 }
+                if h.on_ramp.is_some() && self.ego.lane != 0 {
+                    return Err(invalid(
+                        "ego.lane",
+                        "must be 0 with highway.on_ramp (the lane the ego merges into)",
+                    ));
+                }
                 validate_ego_lane_changes(&h.ego_lane_changes, self.ego.lane, h.lanes)?;
             }
             Family::Urban => {
@@ -619,6 +644,15 @@ mod tests {
         let msg = error_of(&nan);
         assert!(msg.contains("bad.toml:7"), "{msg}");
         assert!(msg.contains("highway.speed_max_mps"), "{msg}");
+
+        // an on-ramp needs the ego to merge into lane 0
+        let ramp = format!("{HEAD}[ego]\nlane = 1\n[highway.on_ramp]\nlength_m = 200.0\n");
+        let msg = error_of(&ramp);
+        assert!(msg.contains("ego.lane"), "{msg}");
+        let ramp = format!("{HEAD}[ego]\nlane = 0\n[highway.on_ramp]\nlength_m = 20.0\n");
+        let msg = error_of(&ramp);
+        assert!(msg.contains("bad.toml:8"), "{msg}");
+        assert!(msg.contains("highway.on_ramp.length_m"), "{msg}");
 
         // a jam whose cycle is too short to stand, brake and pull away
         let jam = format!("{HEAD}[highway.jam]\nstopped_s = 10.0\nperiod_s = 20.0\n");

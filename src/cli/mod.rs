@@ -34,8 +34,8 @@ enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
         /// Scenario TOML file, a built-in scenario name (highway, urban, highway-dense,
-        /// urban-parked, highway-jam), or `kitti` with --training and --sequence: the digital twin of
-        /// a KITTI tracking sequence.
+        /// urban-parked, highway-jam, highway-merge), or `kitti` with --training and
+        /// --sequence: the digital twin of a KITTI tracking sequence.
         scenario: String,
         /// With `kitti`: the KITTI tracking `training` dir (calib/, oxts/, label_02/).
         #[arg(long)]
@@ -332,8 +332,8 @@ enum EvalCommand {
 #[derive(clap::Args, Debug)]
 struct SuiteArgs {
     /// Scenario families: built-in names (highway, urban, highway-dense,
-    /// urban-parked, highway-jam), TOML files, or `kitti` (the digital twins of
-    /// --sequences in --training), comma-separated.
+    /// urban-parked, highway-jam, highway-merge), TOML files, or `kitti` (the
+    /// digital twins of --sequences in --training), comma-separated.
     #[arg(long, default_value = "highway,highway-dense,urban,urban-parked")]
     families: String,
     /// Seeds, comma-separated (default: 1,2; a suite of KITTI twins only: 1).

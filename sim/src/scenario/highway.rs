@@ -80,9 +80,18 @@ fn layout(
             .map_err(|e| traffic_error(spec, e))
     };
     let reference = path(0.0)?;
-    let lanes = (0..h.lanes)
+    let mut lanes = (0..h.lanes)
         .map(|i| path(lane_offset_m(&h, i)))
         .collect::<Result<Vec<_>, _>>()?;
+    // the acceleration lane (index h.lanes) to where the on-ramp ends
+    if let Some(ramp) = &h.on_ramp {
+        let ramp_pieces = pieces_up_to(&pieces, ego_s + ramp.length_m);
+        let offset_m = lane_offset_m(&h, 0) - h.lane_width_m;
+        lanes.push(
+            LanePath::from_pieces(Point2::origin(), 0.0, &ramp_pieces, offset_m)
+                .map_err(|e| traffic_error(spec, e))?,
+        );
+    }
 
     let mut statics = guard_rails(&h, &reference, &ground);
     statics.extend(poles_and_signs(&h, &reference, &ground, rng));
@@ -112,15 +121,23 @@ fn layout(
         v.id = k as u32 + 1;
     }
     add_lane_changes(&h, spec.duration_s, &mut vehicles, rng);
-    let mut ego = ego_vehicle(&spec.ego, spec.ego.lane, ego_s, spec.ego_speed_mps());
+    let start_lane = if h.on_ramp.is_some() {
+        h.lanes
+    } else {
+        spec.ego.lane
+    };
+    let mut ego = ego_vehicle(&spec.ego, start_lane, ego_s, spec.ego_speed_mps());
+    let merge = h.on_ramp.iter().map(|ramp| LaneChange {
+        t_s: ramp.merge_request_s,
+        to_lane: spec.ego.lane,
+        cooperative: true,
+    });
     // traffic makes room for the ego's changes (the route must happen)
-    ego.lane_changes = h
-        .ego_lane_changes
-        .iter()
-        .map(|change| LaneChange {
+    ego.lane_changes = merge
+        .chain(h.ego_lane_changes.iter().map(|change| LaneChange {
             cooperative: true,
             ..change.clone()
-        })
+        }))
         .collect();
     vehicles.push(ego);
     let traffic = TrafficSpec {
@@ -191,11 +208,45 @@ fn lane_offset_m(h: &HighwayParams, i: usize) -> f64 {
     (i as f64 + 0.5 - 0.5 * h.lanes as f64) * h.lane_width_m
 }
 
+/// Distance from the centre line to the right edge of the paved lanes:
+/// the carriageway's, and the on-ramp's acceleration lane beside it.
+fn right_edge_m(h: &HighwayParams) -> f64 {
+    let ramp = if h.on_ramp.is_some() { 1.0 } else { 0.0 };
+    (0.5 * h.lanes as f64 + ramp) * h.lane_width_m
+}
+
+/// The leading `length_m` of a path's pieces (the last one cut short).
+fn pieces_up_to(pieces: &[PathPiece], length_m: f64) -> Vec<PathPiece> {
+    let mut out = Vec::new();
+    let mut left = length_m;
+    for piece in pieces {
+        if left <= 0.0 {
+            break;
+        }
+        out.push(match *piece {
+            PathPiece::Straight { length_m } => PathPiece::Straight {
+                length_m: length_m.min(left),
+            },
+            PathPiece::Arc {
+                length_m,
+                curvature_1pm,
+            } => PathPiece::Arc {
+                length_m: length_m.min(left),
+                curvature_1pm,
+            },
+        });
+        left -= match *piece {
+            PathPiece::Straight { length_m } | PathPiece::Arc { length_m, .. } => length_m,
+        };
+    }
+    out
+}
+
 /// Outer faces of the two rails.
 fn cross_section(h: &HighwayParams) -> CrossSection {
     let half_road = 0.5 * h.lanes as f64 * h.lane_width_m;
     CrossSection {
-        right_rail_m: -(half_road + RIGHT_SHOULDER_M + RAIL_WIDTH_M),
+        right_rail_m: -(right_edge_m(h) + RIGHT_SHOULDER_M + RAIL_WIDTH_M),
         left_rail_m: half_road + LEFT_SHOULDER_M + RAIL_WIDTH_M,
     }
 }
@@ -210,7 +261,7 @@ fn guard_rails(
 ) -> Vec<StaticObject> {
     let half_road = 0.5 * h.lanes as f64 * h.lane_width_m;
     let offsets = [
-        -(half_road + RIGHT_SHOULDER_M + 0.5 * RAIL_WIDTH_M),
+        -(right_edge_m(h) + RIGHT_SHOULDER_M + 0.5 * RAIL_WIDTH_M),
         half_road + LEFT_SHOULDER_M + 0.5 * RAIL_WIDTH_M,
     ];
     let segments = (reference.length_m() / h.guard_rail_segment_m).floor() as usize;
@@ -245,8 +296,7 @@ fn poles_and_signs(
     ground: &crate::scene::Ground,
     rng: &mut ChaCha8Rng,
 ) -> Vec<StaticObject> {
-    let half_road = 0.5 * h.lanes as f64 * h.lane_width_m;
-    let offset = -(half_road + RIGHT_SHOULDER_M + RAIL_WIDTH_M + POLE_OUTSIDE_RAIL_M);
+    let offset = -(right_edge_m(h) + RIGHT_SHOULDER_M + RAIL_WIDTH_M + POLE_OUTSIDE_RAIL_M);
     let count = (reference.length_m() / h.pole_spacing_m).floor() as usize;
     let mut out = Vec::new();
     for k in 0..count {
@@ -504,6 +554,53 @@ mod tests {
                 lane = to;
             }
         }
+    }
+
+    #[test]
+    fn the_ego_merges_from_the_on_ramp_before_it_ends_and_then_moves_over() {
+        for seed in 1..=6 {
+            let mut spec = ScenarioSpec::builtin("highway-merge").unwrap();
+            spec.seed = seed;
+            spec.duration_s = 25.0;
+            let h = spec.highway_params();
+            let ramp = h.on_ramp.clone().unwrap();
+            let switches = ego_lane_switches(&spec);
+            assert_eq!(switches.len(), 2, "seed {seed}: {switches:?}");
+            let (t_merge, from, to) = switches[0];
+            assert_eq!((from, to), (h.lanes, 0), "seed {seed}");
+            // within seconds of the request, well before the ramp's end
+            // (which the ego, from a standstill, reaches after ~15 s)
+            assert!(
+                (ramp.merge_request_s..ramp.merge_request_s + 6.0).contains(&t_merge),
+                "seed {seed}: merged at {t_merge} s"
+            );
+            assert_eq!((switches[1].1, switches[1].2), (0, 1), "seed {seed}");
+            assert!(switches[1].0 >= h.ego_lane_changes[0].t_s, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn the_on_ramp_is_paved_beside_the_carriageway_and_ends_ahead_of_the_ego() {
+        let spec = ScenarioSpec::builtin("highway-merge").unwrap();
+        let h = spec.highway_params();
+        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+        let (_, _, traffic) = layout(&spec, &mut rng).unwrap();
+        assert_eq!(traffic.lanes.len(), h.lanes + 1);
+        let ramp = &traffic.lanes[h.lanes];
+        let ego = traffic.vehicles.last().unwrap();
+        assert_eq!(ego.lane, h.lanes);
+        let end = ego.start_s_m + h.on_ramp.as_ref().unwrap().length_m;
+        assert!((ramp.length_m() - end).abs() < 1e-6);
+        // one lane width right of lane 0, and the rail a lane further out
+        let lane0 = &traffic.lanes[0];
+        let gap = (ramp.point_at(100.0) - lane0.point_at(100.0)).norm();
+        assert!((gap - h.lane_width_m).abs() < 1e-6);
+        let plain = HighwayParams {
+            on_ramp: None,
+            ..h.clone()
+        };
+        let shift = cross_section(&plain).right_rail_m - cross_section(&h).right_rail_m;
+        assert!((shift - h.lane_width_m).abs() < 1e-12);
     }
 
     #[test]

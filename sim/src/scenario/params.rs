@@ -206,10 +206,40 @@ pub struct HighwayParams {
     /// previous change left the ego. Requests the run ends before are not
     /// executed. Empty = the ego keeps its lane.
     pub ego_lane_changes: Vec<LaneChange>,
+    /// The ego starts on an on-ramp's acceleration lane and merges
+    /// (`[highway.on_ramp]`); unset = it starts in `ego.lane`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on_ramp: Option<OnRampParams>,
     /// A stop-and-go jam the ego drives into (`[highway.jam]`); unset =
     /// free-flowing traffic.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub jam: Option<JamParams>,
+}
+
+/// An on-ramp for the ego (`[highway.on_ramp]`): an acceleration lane to
+/// the right of lane 0, from the start of the road to `length_m` ahead of
+/// the ego's start, paved beside the carriageway (the right shoulder, rail
+/// and roadside move out by one lane width along the whole road). The ego
+/// starts on it and asks to merge into lane 0 at `merge_request_s`; the
+/// traffic in lane 0 makes room (a cooperative lane change, see
+/// [`crate::traffic::LaneChange::cooperative`]) and the ego's
+/// `ego_lane_changes` follow from lane 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OnRampParams {
+    /// Where the acceleration lane ends, ahead of the ego's start, m.
+    pub length_m: f64,
+    /// When the ego asks to merge, s.
+    pub merge_request_s: f64,
+}
+
+impl Default for OnRampParams {
+    fn default() -> Self {
+        OnRampParams {
+            length_m: 250.0,
+            merge_request_s: 5.0,
+        }
+    }
 }
 
 /// A stop-and-go jam ahead of the ego (`[highway.jam]`): in every lane, an
@@ -292,6 +322,7 @@ impl Default for HighwayParams {
                     cooperative: false,
                 },
             ],
+            on_ramp: None,
             jam: None,
         }
     }

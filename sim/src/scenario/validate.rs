@@ -227,6 +227,15 @@ pub(super) fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
     if let Some(jam) = &h.jam {
         validate_jam(jam)?;
     }
+    if let Some(ramp) = &h.on_ramp {
+        in_range("highway.on_ramp.length_m", ramp.length_m, 100.0, 5000.0)?;
+        in_range(
+            "highway.on_ramp.merge_request_s",
+            ramp.merge_request_s,
+            0.0,
+            MAX_DURATION_S,
+        )?;
+    }
     // impossible geometry: the vehicles must fit into the spawn zone with
     // safe gaps (the zone around the ego stays free in its lane)
     let capacity = highway_capacity(h);
