@@ -4,6 +4,9 @@
 //! changes. The ego changes lanes too, at the requested times once the
 //! target lane's gap is safe (the traffic model's own lane-change logic).
 //! The long straight with parallel rails is the LiDAR-degenerate case.
+//! Optionally the ego starts on an on-ramp's acceleration lane and merges
+//! (`[highway.on_ramp]`), and jam heads ahead of it make the traffic stop
+//! and go (`[highway.jam]`).
 
 use super::common::{
     beside, cuboid_between, draw_body, ego_vehicle, generate_ground, pole, run_traffic, uniform,
