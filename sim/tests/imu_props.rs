@@ -437,6 +437,27 @@ fn noise_free_imu_dead_reckons_the_highway_lane_change() {
     }
 }
 
+/// The on-ramp merge (from a standstill on the acceleration lane into the
+/// right lane) and stop-and-go waves of the jam (standing 10 s, pulling
+/// away): the noise-free IMU dead-reckons through both. At 400 Hz, since
+/// the integration's own error at 100 Hz (the jam's jerky speed changes)
+/// grows to ~1.5 cm over 32 s while the stream is consistent to 0.1 mm.
+#[test]
+fn noise_free_imu_dead_reckons_the_merge_and_the_jam() {
+    for (name, duration_s) in [("highway-merge", 14.0), ("highway-jam", 32.0)] {
+        let mut spec = limot_sim::scenario::ScenarioSpec::builtin(name).unwrap();
+        spec.duration_s = duration_s;
+        let scene = spec.build().unwrap();
+        let (pos_err, rot_err) = dead_reckoning_error_at(&scene.ego, duration_s, 400.0);
+        assert!(pos_err < 1e-3, "{name}: position error {pos_err} m");
+        assert!(
+            rot_err < 0.01f64.to_radians(),
+            "{name}: rotation error {} deg",
+            rot_err.to_degrees()
+        );
+    }
+}
+
 /// The ego's right turn of the default urban scenario (a quarter circle of
 /// 8 m at a few m/s, yaw rates near 30 deg/s): its noise-free IMU dead-reckons
 /// from before the turn until well after it onto its own pose.
