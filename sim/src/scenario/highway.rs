@@ -167,7 +167,8 @@ fn jam_fronts(h: &HighwayParams, ego_s_m: f64) -> Vec<JamFront> {
             stopped_s: jam.stopped_s,
             peak_speed_mps: jam.peak_speed_mps,
             accel_mps2: jam.accel_mps2,
-            // a later phase is an earlier start of the cycle
+            // lane k's cycle runs k offsets after lane 0's: at t = 0 it is
+            // that much short of a cycle's start
             phase_s: (-(lane as f64) * jam.lane_offset_s).rem_euclid(jam.period_s),
         })
         .collect()

@@ -246,8 +246,8 @@ impl Default for OnRampParams {
 /// invisible jam head starts `front_ahead_m` ahead of the ego and drives a
 /// stop-and-go cycle (see [`crate::traffic::JamFront`]): cruising at
 /// `peak_speed_mps`, braking at `accel_mps2` to a stand of `stopped_s`,
-/// pulling away again, every `period_s`, each lane `lane_offset_s` later in
-/// its cycle than the lane to its right. The traffic behind it, the ego's
+/// pulling away again, every `period_s`, each lane running its cycle
+/// `lane_offset_s` after the lane to its right. The traffic behind it, the ego's
 /// with it, queues and moves off in waves: the case where moving cars look
 /// most like the static world. Vehicles that would start within a safe gap
 /// of a head are not placed.
@@ -264,8 +264,7 @@ pub struct JamParams {
     pub peak_speed_mps: f64,
     /// The heads' braking and pulling-away rate, m/s².
     pub accel_mps2: f64,
-    /// Each lane is this much later in its cycle than the lane to its
-    /// right, s.
+    /// Each lane runs its cycle this much after the lane to its right, s.
     pub lane_offset_s: f64,
 }
 
