@@ -225,9 +225,9 @@ impl ScenarioSpec {
                 }),
                 ..base(Family::Highway, 1)
             }),
-            // Stop-and-go: the ego runs into a jam whose stops travel
-            // upstream head by head, and moves with it in waves among
-            // traffic that stands as often as it moves.
+            // Stop-and-go: a jam head in every lane stands and pulls away
+            // each cycle, and the ego moves with the queue behind it in
+            // waves among traffic that stands as often as it moves.
             "highway-jam" => Some(ScenarioSpec {
                 highway: Some(HighwayParams {
                     jam: Some(JamParams::default()),

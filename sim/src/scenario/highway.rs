@@ -153,24 +153,11 @@ fn layout(
     Ok((ground, statics, traffic))
 }
 
-/// The jam's heads (if any), one per lane, starting `front_ahead_m` ahead
-/// of the ego at the start of their cruise.
+/// The jam's heads (if any), one per lane.
 fn jam_fronts(h: &HighwayParams, ego_s_m: f64) -> Vec<JamFront> {
-    let Some(jam) = &h.jam else {
-        return Vec::new();
-    };
-    (0..h.lanes)
-        .map(|lane| JamFront {
-            lane,
-            start_s_m: ego_s_m + jam.front_ahead_m,
-            period_s: jam.period_s,
-            stopped_s: jam.stopped_s,
-            peak_speed_mps: jam.peak_speed_mps,
-            accel_mps2: jam.accel_mps2,
-            // lane k's cycle runs k offsets after lane 0's: at t = 0 it is
-            // that much short of a cycle's start
-            phase_s: (-(lane as f64) * jam.lane_offset_s).rem_euclid(jam.period_s),
-        })
+    h.jam
+        .iter()
+        .flat_map(|jam| (0..h.lanes).map(move |lane| jam.front(lane, ego_s_m)))
         .collect()
 }
 
@@ -227,21 +214,8 @@ fn pieces_up_to(pieces: &[PathPiece], length_m: f64) -> Vec<PathPiece> {
         if left <= 0.0 {
             break;
         }
-        out.push(match *piece {
-            PathPiece::Straight { length_m } => PathPiece::Straight {
-                length_m: length_m.min(left),
-            },
-            PathPiece::Arc {
-                length_m,
-                curvature_1pm,
-            } => PathPiece::Arc {
-                length_m: length_m.min(left),
-                curvature_1pm,
-            },
-        });
-        left -= match *piece {
-            PathPiece::Straight { length_m } | PathPiece::Arc { length_m, .. } => length_m,
-        };
+        out.push(piece.cut_to(left));
+        left -= piece.length_m();
     }
     out
 }

@@ -1,7 +1,7 @@
 //! The scenario spec's tables: family, ego, ground, `[highway]` and `[urban]`
 //! parameters, with their defaults.
 
-use crate::traffic::LaneChange;
+use crate::traffic::{JamFront, LaneChange};
 use serde::{Deserialize, Serialize};
 
 /// Scenario family: which generator builds the scene.
@@ -277,6 +277,23 @@ impl Default for JamParams {
             peak_speed_mps: 14.0,
             accel_mps2: 1.5,
             lane_offset_s: 4.0,
+        }
+    }
+}
+
+impl JamParams {
+    /// The head in `lane` of a road whose ego starts at `ego_s_m`: at the
+    /// start of its cruise at t = 0 in lane 0, each lane to the left
+    /// `lane_offset_s` more short of a cycle's start.
+    pub(crate) fn front(&self, lane: usize, ego_s_m: f64) -> JamFront {
+        JamFront {
+            lane,
+            start_s_m: ego_s_m + self.front_ahead_m,
+            period_s: self.period_s,
+            stopped_s: self.stopped_s,
+            peak_speed_mps: self.peak_speed_mps,
+            accel_mps2: self.accel_mps2,
+            phase_s: (-(lane as f64) * self.lane_offset_s).rem_euclid(self.period_s),
         }
     }
 }

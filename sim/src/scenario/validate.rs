@@ -273,8 +273,10 @@ fn validate_jam(jam: &JamParams) -> Result<(), ScenarioError> {
         0.0,
         MAX_DURATION_S,
     )?;
-    let busy_s = jam.stopped_s + 2.0 * jam.peak_speed_mps / jam.accel_mps2;
-    if busy_s > jam.period_s {
+    // the traffic model's own test of a head's cycle
+    let cruise_s = jam.front(0, 0.0).cruise_s();
+    if cruise_s < 0.0 {
+        let busy_s = jam.period_s - cruise_s;
         return Err(invalid(
             "highway.jam.period_s",
             format!(

@@ -47,6 +47,31 @@ pub enum PathPiece {
     },
 }
 
+impl PathPiece {
+    /// Length along the reference line, m.
+    pub fn length_m(&self) -> f64 {
+        match *self {
+            PathPiece::Straight { length_m } | PathPiece::Arc { length_m, .. } => length_m,
+        }
+    }
+
+    /// The same piece, at most `max_length_m` long.
+    pub fn cut_to(&self, max_length_m: f64) -> PathPiece {
+        match *self {
+            PathPiece::Straight { length_m } => PathPiece::Straight {
+                length_m: length_m.min(max_length_m),
+            },
+            PathPiece::Arc {
+                length_m,
+                curvature_1pm,
+            } => PathPiece::Arc {
+                length_m: length_m.min(max_length_m),
+                curvature_1pm,
+            },
+        }
+    }
+}
+
 fn invalid(reason: String) -> TrafficError {
     TrafficError::InvalidPath { reason }
 }
@@ -532,6 +557,25 @@ mod tests {
             lane.curve_speed_limit_mps(75.0, 20.0, a_lat, decel),
             f64::INFINITY
         );
+    }
+
+    #[test]
+    fn a_piece_cut_short_keeps_its_kind_and_curvature() {
+        let arc = PathPiece::Arc {
+            length_m: 50.0,
+            curvature_1pm: 0.01,
+        };
+        assert_eq!(arc.length_m(), 50.0);
+        assert_eq!(
+            arc.cut_to(20.0),
+            PathPiece::Arc {
+                length_m: 20.0,
+                curvature_1pm: 0.01
+            }
+        );
+        assert_eq!(arc.cut_to(80.0), arc);
+        let straight = PathPiece::Straight { length_m: 30.0 };
+        assert_eq!(straight.cut_to(10.0).length_m(), 10.0);
     }
 
     #[test]

@@ -535,8 +535,10 @@ pub(super) fn validate(spec: &TrafficSpec) -> Result<(), TrafficError> {
                 return Err(err(field, format!("{value} must be positive and finite")));
             }
         }
-        if !(front.start_s_m.is_finite() && front.phase_s.is_finite()) {
-            return Err(err("start_s_m", "start and phase must be finite".into()));
+        for (field, value) in [("start_s_m", front.start_s_m), ("phase_s", front.phase_s)] {
+            if !value.is_finite() {
+                return Err(err(field, format!("{value} must be finite")));
+            }
         }
         if front.cruise_s() < 0.0 {
             return Err(err(
