@@ -11,6 +11,7 @@ use limot_estimator::Variant;
 use limot_estimator::pipeline::EstimatorConfig;
 use limot_sim::Simulation;
 use limot_sim::record::Dataset;
+use limot_sim::scenario::EgoRoute;
 use std::path::Path;
 
 #[test]
@@ -19,7 +20,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
     // measured on
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = 30.0;
-    spec.urban.as_mut().unwrap().ego_turns_right = false;
+    spec.urban.as_mut().unwrap().ego_route = EgoRoute::Straight;
     spec.ego.lane = 1;
     let dir = std::env::temp_dir().join(format!("limot-filtering-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

@@ -13,6 +13,7 @@ use limot::io::Source;
 use limot::run::{RunOptions, run};
 use limot::simulate::resolve_scenario;
 use limot_estimator::Variant;
+use limot_sim::scenario::EgoRoute;
 use std::path::Path;
 
 fn ate_of(dir: &Path, variant: Variant) -> f64 {
@@ -71,7 +72,7 @@ fn allfilt_loses_the_map_where_parked_cars_are_the_structure() {
 fn lio_and_limot_track_the_turning_urban_route() {
     let mut spec = resolve_scenario("urban").unwrap();
     spec.duration_s = 40.0;
-    assert!(spec.urban_params().ego_turns_right);
+    assert_eq!(spec.urban_params().ego_route, EgoRoute::TurnRight);
     let dir = simulate(&spec, "variants-urban-turn");
     let lio = ate_of(&dir, Variant::Lio);
     let limot = ate_of(&dir, Variant::Limot);

@@ -27,7 +27,8 @@ mod params;
 mod validate;
 
 pub use params::{
-    EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OnRampParams, UrbanParams,
+    EgoRoute, EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OnRampParams,
+    UrbanParams,
 };
 
 /// Longest simulated time span a scenario may have, s.
@@ -169,6 +170,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "urban-parked",
     "highway-jam",
     "highway-merge",
+    "urban-left",
 ];
 
 impl ScenarioSpec {
@@ -266,11 +268,25 @@ impl ScenarioSpec {
                     parking_occupancy: 1.0,
                     tree_spacing_m: 60.0,
                     pole_spacing_m: 60.0,
-                    ego_turns_right: false,
+                    ego_route: EgoRoute::Straight,
                     ..UrbanParams::default()
                 }),
                 ground: urban_ground(),
                 ..base(Family::Urban, 1)
+            }),
+            // The default street and seed, the ego turning left at its first
+            // crossing from the inner lane, across the oncoming lanes.
+            "urban-left" => Some(ScenarioSpec {
+                ground: urban_ground(),
+                urban: Some(UrbanParams {
+                    ego_route: EgoRoute::TurnLeft,
+                    ..UrbanParams::default()
+                }),
+                ego: EgoSpec {
+                    lane: UrbanParams::default().lanes_per_direction - 1,
+                    ..EgoSpec::default()
+                },
+                ..base(Family::Urban, 2)
             }),
             _ => None,
         }
@@ -482,13 +498,18 @@ impl ScenarioSpec {
                         ),
                     ));
                 }
-                if u.ego_turns_right && self.ego.lane != 0 {
+                let (needed, route, lane_name) = match u.ego_route {
+                    EgoRoute::Straight => (self.ego.lane, "", ""),
+                    EgoRoute::TurnRight => (0, "turn-right", "kerb lane"),
+                    EgoRoute::TurnLeft => (u.lanes_per_direction - 1, "turn-left", "inner lane"),
+                };
+                if self.ego.lane != needed {
                     return Err(invalid(
                         "ego.lane",
                         format!(
-                            "= {}: the ego turns right (urban.ego_turns_right, true by \
-                             default) from the kerb lane: set ego.lane = 0, or \
-                             urban.ego_turns_right = false for the straight route",
+                            "= {}: the ego's route (urban.ego_route = \"{route}\") starts \
+                             from the {lane_name}: set ego.lane = {needed}, or \
+                             urban.ego_route = \"straight\"",
                             self.ego.lane
                         ),
                     ));

@@ -3,6 +3,7 @@
 //! ground), and the noise has the Kalibr statistics it is configured with.
 
 use limot_estimator::input::ImuSample;
+use limot_sim::scenario::EgoRoute;
 use limot_sim::scene::Ego;
 use limot_sim::scene::{Knot, Trajectory};
 use limot_sim::sensors::{ImuConfig, ImuSimulator};
@@ -458,42 +459,50 @@ fn noise_free_imu_dead_reckons_the_merge_and_the_jam() {
     }
 }
 
-/// The ego's right turn of the default urban scenario (a quarter circle of
-/// 8 m at a few m/s, yaw rates near 30 deg/s): its noise-free IMU dead-reckons
-/// from before the turn until well after it onto its own pose.
+/// The ego's right turn of the default urban scenario and its left turn in
+/// `urban-left` (quarter circles of 8 m at a few m/s, yaw rates near
+/// 30 deg/s): its noise-free IMU dead-reckons from before the turn until well
+/// after it onto its own pose.
 #[test]
-fn noise_free_imu_dead_reckons_the_urban_right_turn() {
-    let spec = limot_sim::scenario::ScenarioSpec::builtin("urban").unwrap();
-    assert!(spec.urban_params().ego_turns_right);
-    let scene = spec.build().unwrap();
-    let ego = &scene.ego;
-    // the moment of the fastest rotation
-    let yaw_rate = |t: f64| {
-        ego.trajectory
-            .state_at(t)
-            .angular_velocity_body_radps
-            .z
-            .abs()
-    };
-    let times = (0..=(spec.duration_s * 10.0) as usize).map(|k| k as f64 * 0.1);
-    let t_turn = times
-        .max_by(|&a, &b| yaw_rate(a).total_cmp(&yaw_rate(b)))
-        .unwrap();
-    assert!(
-        yaw_rate(t_turn) > 0.3,
-        "no turn: peak yaw rate {}",
-        yaw_rate(t_turn)
-    );
-    let (t0, t1) = (
-        (t_turn - 5.0).max(0.0),
-        (t_turn + 10.0).min(spec.duration_s),
-    );
-    let (pos_err, rot_err) = dead_reckoning_error_over(ego, t0, t1, 100.0);
-    println!("turn at {t_turn} s: position error {pos_err} m, rotation error {rot_err} rad");
-    assert!(pos_err < 0.01, "position error {pos_err} m");
-    assert!(
-        rot_err < 0.1f64.to_radians(),
-        "rotation error {} deg",
-        rot_err.to_degrees()
-    );
+fn noise_free_imu_dead_reckons_the_urban_turns() {
+    for (name, route) in [
+        ("urban", EgoRoute::TurnRight),
+        ("urban-left", EgoRoute::TurnLeft),
+    ] {
+        let spec = limot_sim::scenario::ScenarioSpec::builtin(name).unwrap();
+        assert_eq!(spec.urban_params().ego_route, route);
+        let scene = spec.build().unwrap();
+        let ego = &scene.ego;
+        // the moment of the fastest rotation
+        let yaw_rate = |t: f64| ego.trajectory.state_at(t).angular_velocity_body_radps.z;
+        let times = (0..=(spec.duration_s * 10.0) as usize).map(|k| k as f64 * 0.1);
+        let t_turn = times
+            .max_by(|&a, &b| yaw_rate(a).abs().total_cmp(&yaw_rate(b).abs()))
+            .unwrap();
+        // turning the right way (left = +z)
+        let expected_sign = if route == EgoRoute::TurnLeft {
+            1.0
+        } else {
+            -1.0
+        };
+        assert!(
+            yaw_rate(t_turn) * expected_sign > 0.3,
+            "{name}: no turn: peak yaw rate {}",
+            yaw_rate(t_turn)
+        );
+        let (t0, t1) = (
+            (t_turn - 5.0).max(0.0),
+            (t_turn + 10.0).min(spec.duration_s),
+        );
+        let (pos_err, rot_err) = dead_reckoning_error_over(ego, t0, t1, 100.0);
+        println!(
+            "{name}: turn at {t_turn} s: position error {pos_err} m, rotation error {rot_err} rad"
+        );
+        assert!(pos_err < 0.01, "{name}: position error {pos_err} m");
+        assert!(
+            rot_err < 0.1f64.to_radians(),
+            "{name}: rotation error {} deg",
+            rot_err.to_degrees()
+        );
+    }
 }

@@ -3,7 +3,7 @@
 //! determinism, stop-and-go, ground contact).
 
 use limot_estimator::input::ObjectClass;
-use limot_sim::scenario::{Family, ScenarioError, ScenarioSpec};
+use limot_sim::scenario::{EgoRoute, Family, ScenarioError, ScenarioSpec};
 use limot_sim::scene::{Scene, Shape, StaticKind};
 use limot_sim::traffic::first_overlap;
 use proptest::prelude::*;
@@ -220,26 +220,46 @@ fn bad_files_name_file_line_and_field() {
         let want = format!("{}:{line}", path.display());
         assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
     }
-    // a turning ego from any lane but the kerb lane, a route that is not a bool
+    // a right turn from any lane but the kerb lane, a left turn from any
+    // but the inner lane, a route that is none of the names
     let urban = std::fs::read_to_string(scenario_file("urban")).unwrap();
-    for (tag, from, to, key, field) in [
+    let urban_left = std::fs::read_to_string(scenario_file("urban-left")).unwrap();
+    for (tag, base, from, to, key, field) in [
         (
             "urban_turn_from_lane_1",
+            &urban,
             "lane = 0 ",
             "lane = 1 ",
             "lane",
             "ego.lane",
         ),
         (
-            "urban_turn_not_bool",
-            "ego_turns_right = true",
-            "ego_turns_right = 1",
-            "ego_turns_right",
-            "urban.ego_turns_right",
+            "urban_left_turn_from_lane_0",
+            &urban_left,
+            "lane = 1 ",
+            "lane = 0 ",
+            "lane",
+            "ego.lane",
+        ),
+        (
+            "urban_route_unknown",
+            &urban,
+            "ego_route = \"turn-right\"",
+            "ego_route = \"u-turn\"",
+            "ego_route",
+            "urban.ego_route",
+        ),
+        (
+            "urban_route_not_a_name",
+            &urban,
+            "ego_route = \"turn-right\"",
+            "ego_route = true",
+            "ego_route",
+            "urban.ego_route",
         ),
     ] {
-        assert!(urban.contains(from), "{tag}");
-        let text = urban.replace(from, to);
+        assert!(base.contains(from), "{tag}");
+        let text = base.replace(from, to);
         let (path, err) = load_text(tag, &text);
         let msg = err.to_string();
         let want = format!("{}:{}", path.display(), line_of(&text, key));
@@ -800,15 +820,21 @@ proptest! {
     }
 
     #[test]
-    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2, turns in any::<bool>()) {
+    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2, route in 0usize..3) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
         spec.seed = seed;
         spec.duration_s = 30.0;
         let urban = spec.urban.as_mut().unwrap();
         urban.lanes_per_direction = lanes;
-        urban.ego_turns_right = turns;
-        // a turn starts from the kerb lane; straight on, the inner lane
-        spec.ego.lane = if turns { 0 } else { lanes - 1 };
+        // a right turn starts from the kerb lane; a left turn and the
+        // straight route from the inner lane
+        let (route, lane) = [
+            (EgoRoute::Straight, lanes - 1),
+            (EgoRoute::TurnRight, 0),
+            (EgoRoute::TurnLeft, lanes - 1),
+        ][route];
+        urban.ego_route = route;
+        spec.ego.lane = lane;
         let scene = spec.build().unwrap();
         check_common(&spec, &scene);
         check_urban(&spec, &scene);

@@ -1,10 +1,11 @@
-//! Property tests of the urban ego's turning route (`urban.ego_turns_right`):
-//! over generated streets the ego turns right into the cross street and
-//! follows it, nobody overlaps anybody (ego included), and the ego's yaw rate
-//! and lateral acceleration stay within a car's limits.
+//! Property tests of the urban ego's turning routes (`urban.ego_route`):
+//! over generated streets the ego turns right or left into the cross street
+//! and follows it, nobody overlaps anybody (ego included: a left turn crosses
+//! the oncoming lanes and the far side's pedestrians and cyclists), and the
+//! ego's yaw rate and lateral acceleration stay within a car's limits.
 
 use limot_estimator::geometry::wrap_angle_rad;
-use limot_sim::scenario::ScenarioSpec;
+use limot_sim::scenario::{EgoRoute, ScenarioSpec};
 use limot_sim::scene::Scene;
 use limot_sim::traffic::{DriverParams, first_overlap};
 use nalgebra::Vector3;
@@ -69,23 +70,35 @@ fn turn_figures(spec: &ScenarioSpec, scene: &Scene) -> TurnFigures {
     f
 }
 
-fn turning_spec(seed: u64, duration_s: f64, lanes: usize, turns: bool) -> ScenarioSpec {
+/// The default street with the given route, from the lane the route needs
+/// (the kerb lane for a right turn, the inner lane otherwise).
+fn route_spec(seed: u64, duration_s: f64, lanes: usize, route: EgoRoute) -> ScenarioSpec {
     let mut spec = ScenarioSpec::builtin("urban").unwrap();
     spec.seed = seed;
     spec.duration_s = duration_s;
     let u = spec.urban.as_mut().unwrap();
     u.lanes_per_direction = lanes;
-    u.ego_turns_right = turns;
+    u.ego_route = route;
+    spec.ego.lane = match route {
+        EgoRoute::TurnRight => 0,
+        EgoRoute::Straight | EgoRoute::TurnLeft => lanes - 1,
+    };
     spec
 }
 
 fn check_turn(spec: &ScenarioSpec, scene: &Scene) -> Result<TurnFigures, TestCaseError> {
     let f = turn_figures(spec, scene);
-    println!("seed {}: {f:?}", spec.seed);
-    // it has turned right and follows the cross street away from the main street
+    let route = spec.urban_params().ego_route;
+    println!("seed {} {route:?}: {f:?}", spec.seed);
+    // it has turned and follows the cross street away from the main street
+    let heading = match route {
+        EgoRoute::TurnRight => -0.5 * std::f64::consts::PI,
+        EgoRoute::TurnLeft => 0.5 * std::f64::consts::PI,
+        EgoRoute::Straight => 0.0,
+    };
     prop_assert!(
-        wrap_angle_rad(f.final_heading_rad + 0.5 * std::f64::consts::PI).abs() < 3f64.to_radians(),
-        "seed {}: final heading {} deg",
+        wrap_angle_rad(f.final_heading_rad - heading).abs() < 3f64.to_radians(),
+        "seed {} {route:?}: final heading {} deg",
         spec.seed,
         f.final_heading_rad.to_degrees()
     );
@@ -112,7 +125,7 @@ fn check_turn(spec: &ScenarioSpec, scene: &Scene) -> Result<TurnFigures, TestCas
 #[test]
 fn default_urban_ego_turns_right_at_its_first_crossing() {
     let spec = ScenarioSpec::builtin("urban").unwrap();
-    assert!(spec.urban_params().ego_turns_right);
+    assert_eq!(spec.urban_params().ego_route, EgoRoute::TurnRight);
     let scene = spec.build().unwrap();
     let f = check_turn(&spec, &scene).unwrap();
     // a real turn: a quarter circle of 8 m at a few m/s
@@ -122,22 +135,37 @@ fn default_urban_ego_turns_right_at_its_first_crossing() {
 }
 
 #[test]
+fn urban_left_ego_turns_left_at_its_first_crossing() {
+    let spec = ScenarioSpec::builtin("urban-left").unwrap();
+    assert_eq!(spec.urban_params().ego_route, EgoRoute::TurnLeft);
+    let scene = spec.build().unwrap();
+    let f = check_turn(&spec, &scene).unwrap();
+    assert!(f.yaw_rate_radps > 0.3, "{f:?}");
+    // the same street as the default urban scenario's, the other way
+    let right = ScenarioSpec::builtin("urban").unwrap().build().unwrap();
+    assert_eq!(scene.ground, right.ground);
+    assert_eq!(scene, spec.build().unwrap());
+}
+
+#[test]
 fn straight_route_never_turns() {
-    let spec = turning_spec(2, 40.0, 2, false);
+    let spec = route_spec(2, 40.0, 2, EgoRoute::Straight);
     let scene = spec.build().unwrap();
     let f = turn_figures(&spec, &scene);
     assert!(f.final_heading_rad.abs() < 3f64.to_radians(), "{f:?}");
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 8, ..ProptestConfig::default() })]
 
     #[test]
     fn urban_routes_turn_without_overlaps_within_car_limits(
         seed in 0u64..1_000_000,
         lanes in 1usize..=2,
+        left in any::<bool>(),
     ) {
-        let spec = turning_spec(seed, 40.0, lanes, true);
+        let route = if left { EgoRoute::TurnLeft } else { EgoRoute::TurnRight };
+        let spec = route_spec(seed, 40.0, lanes, route);
         let scene = spec.build().unwrap();
         check_turn(&spec, &scene)?;
     }

@@ -344,6 +344,23 @@ impl Default for HighwayParams {
     }
 }
 
+/// The urban ego's route (`urban.ego_route`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EgoRoute {
+    /// Along the main street, from any lane.
+    Straight,
+    /// From the kerb lane (`ego.lane = 0`) right into the cross street on
+    /// the main street's green; the pedestrians and cyclists on the ego's
+    /// side of the main street wait until it has turned.
+    TurnRight,
+    /// From the inner lane (`ego.lane = lanes_per_direction - 1`) left across
+    /// the oncoming lanes into the cross street, in a protected phase: the
+    /// oncoming traffic and the pedestrians and cyclists on the far side of
+    /// the main street wait until it has turned.
+    TurnLeft,
+}
+
 /// The `[urban]` table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -402,11 +419,10 @@ pub struct UrbanParams {
     /// Street furniture on the sidewalks: traffic signs, bollards, bins,
     /// benches and bus shelters (the sidewalks and their kerbs are always there).
     pub street_furniture: bool,
-    /// The ego's route: true = it turns right at its first traffic light
-    /// (where it always waits at red) into the cross street, on the main
-    /// street's green, and follows that street; false = it drives straight
-    /// along the main street.
-    pub ego_turns_right: bool,
+    /// The ego's route: straight along the main street, or a turn at its
+    /// first traffic light (where it always waits at red) into the cross
+    /// street, which it then follows.
+    pub ego_route: EgoRoute,
 }
 
 impl Default for UrbanParams {
@@ -437,7 +453,7 @@ impl Default for UrbanParams {
             pole_spacing_m: 30.0,
             building_fraction: 1.0,
             street_furniture: true,
-            ego_turns_right: true,
+            ego_route: EgoRoute::TurnRight,
         }
     }
 }

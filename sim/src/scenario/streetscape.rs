@@ -43,6 +43,11 @@ const FURNITURE_LINE_M: f64 = 1.1;
 const BIN_SPACING_M: f64 = 45.0;
 const BENCH_SPACING_M: f64 = 70.0;
 const SHELTER_SPACING_M: f64 = 250.0;
+/// Bus shelters: centre from the kerb and depth, m; the back panel (0.05 m
+/// thick) ends 1.375 m from the kerb, clear of the widest walker (0.7 m) on
+/// the inner walkers' line (1.8 m from the kerb on a 4 m sidewalk).
+const SHELTER_FROM_KERB_M: f64 = 0.7;
+const SHELTER_DEPTH_M: f64 = 1.3;
 /// Furniture keeps this far (along x) from poles and trunks, m.
 const FURNITURE_CLEARANCE_M: f64 = 1.5;
 
@@ -595,7 +600,7 @@ fn furniture(
             shelter(
                 street,
                 ground,
-                Point2::new(x, side * (street.kerb_m + 0.75)),
+                Point2::new(x, side * (street.kerb_m + SHELTER_FROM_KERB_M)),
                 side,
                 raised,
                 out,
@@ -667,7 +672,7 @@ fn shelter(
     raised: f64,
     out: &mut Vec<StaticObject>,
 ) {
-    let (length, depth, height) = (3.6, 1.4, 2.4);
+    let (length, depth, height) = (3.6, SHELTER_DEPTH_M, 2.4);
     let z = street.ground_height_m(ground, at.x, at.y) + raised;
     let place = |dx: f64, dy: f64, dz: f64, size: Vector3<f64>| {
         street.boxed(
@@ -758,6 +763,43 @@ mod tests {
         // the facade got detail, none of it more than a metre out
         assert!(statics.iter().any(|s| s.kind == StaticKind::Facade));
         assert_eq!(statics, streetscape(&street, &ground, &[building], 3));
+    }
+
+    /// Street furniture (signs, bollards, bins, benches, shelters) stays
+    /// within 1.45 m of the kerb: the urban walkers' inner line is 1.8 m out
+    /// on a 4 m sidewalk and the widest walker is 0.7 m wide. (A shelter's
+    /// back panel once reached 1.475 m, into a wide walker's path.)
+    #[test]
+    fn furniture_leaves_the_walkers_inner_line_free() {
+        let crossings = [-200.0, 60.0, 170.0, 280.0, 390.0];
+        let street = layout(&crossings);
+        let ground = Ground::flat(0.0);
+        let mut shelters = 0;
+        for seed in 0..20 {
+            let statics = streetscape(&street, &ground, &[], seed);
+            for s in &statics {
+                let c = s.t_world_object.translation.vector;
+                let half_y = match s.shape {
+                    Shape::Cuboid { half_extents_m } => {
+                        let m = s.t_world_object.rotation.to_rotation_matrix();
+                        (m.matrix().abs() * half_extents_m).y
+                    }
+                    Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => radius_m,
+                };
+                // on the sidewalks (not the slabs themselves)
+                if s.kind == StaticKind::Kerb || c.y.abs() < 10.2 {
+                    continue;
+                }
+                shelters += usize::from(s.kind == StaticKind::Wall && half_y < 0.1);
+                let from_kerb = c.y.abs() + half_y - 10.2;
+                assert!(
+                    from_kerb <= 1.45,
+                    "seed {seed}: {:?} reaches {from_kerb} m",
+                    s.kind
+                );
+            }
+        }
+        assert!(shelters > 0);
     }
 
     /// A street turned and moved in the world gets the same detail, turned

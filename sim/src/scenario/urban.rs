@@ -9,16 +9,19 @@
 //! between the phases); pedestrians along the main street wait while the
 //! cross street has green.
 //!
-//! The ego's route (`urban.ego_turns_right`) either follows the main street
-//! or turns right at its first traffic light: from the kerb lane, on the main
-//! street's green, through an arc of `TURN_RADIUS_M` into the cross street's
-//! lane away from the main street, which it then follows to its end. The
-//! turn is protected: at that light the pedestrians and cyclists on the
-//! ego's side of the main street keep their red `TURN_CLEARANCE_S` longer
-//! than the main street. That cross street's traffic is simulated together
-//! with the main street's, so the ego follows the cross street's cars and
-//! they follow it, and the cross street is lined with buildings, parked
-//! cars, poles and trees (`side_street`).
+//! The ego's route (`urban.ego_route`) either follows the main street or
+//! turns at its first traffic light, on the main street's green, through an
+//! arc of `TURN_RADIUS_M` into the cross street's lane away from the main
+//! street, which it then follows to its end: right from the kerb lane, or
+//! left from the inner lane across the oncoming lanes. The turn is
+//! protected: at that light the movements it crosses keep their red
+//! `TURN_CLEARANCE_S` longer than the main street (a right turn crosses the
+//! pedestrians and cyclists on the ego's side of the main street; a left turn
+//! the oncoming cars and the pedestrians and cyclists on the far side). That
+//! cross street's traffic is simulated together with the main street's, so
+//! the ego follows the cross street's cars and they follow it, and the cross
+//! street is lined with buildings, parked cars, poles and trees
+//! (`side_street`).
 //!
 //! Cross-section (the ego drives along +x on the right, y < 0 side; the
 //! street is mirror-symmetric about y = 0):
@@ -33,7 +36,7 @@
 use super::common::{draw_body, ego_vehicle, generate_ground, run_traffic, uniform};
 use super::streetscape::{StreetLayout, streetscape};
 use super::{
-    ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
+    EgoRoute, ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
     URBAN_PEDESTRIAN_SPACING_M, UrbanParams, traffic_error, urban_spawn_length_m,
 };
 use crate::scene::{Agent, Ground, Scene};
@@ -128,14 +131,14 @@ const CROSS_ARRIVAL_BEFORE_RED_S: f64 = 2.0;
 /// street within the all-red (`URBAN_ALL_RED_S`) plus the main street's
 /// start-up time, m/s.
 const CROSS_SPEED_MAX_MPS: f64 = 12.0;
-/// Radius of the ego's right turn (its lane's centre line), m: a tight
-/// corner, taken at about sqrt(TURN_LATERAL_ACCEL_MPS2 * radius).
+/// Radius of the ego's turn (its lane's centre line), m: a tight corner,
+/// taken at about sqrt(TURN_LATERAL_ACCEL_MPS2 * radius).
 const TURN_RADIUS_M: f64 = 8.0;
 /// The ego keeps speed^2 * curvature near this in its turn, m/s^2.
 const TURN_LATERAL_ACCEL_MPS2: f64 = 2.0;
-/// At the ego's turn, pedestrians and cyclists on its side of the main street
-/// stay red this long after the main street's green starts, so the ego
-/// (first at the light) has turned past their paths before they move, s.
+/// At the ego's turn, the movements it crosses stay red this long after the
+/// main street's green starts, so the ego (first or second at the light) has
+/// turned past their paths before they move, s.
 const TURN_CLEARANCE_S: f64 = 12.0;
 /// Longest body of a pedestrian (`draw_body`), m.
 const PEDESTRIAN_LENGTH_MAX_M: f64 = 0.6;
@@ -168,14 +171,26 @@ fn cross_forward(i: usize) -> bool {
     i == 0
 }
 
-/// The ego's right turn: where, and the lane it drives.
+/// The ego's turn: where, which way, and the lane it drives.
 struct EgoTurn {
     /// Index into `Street::crossings`.
     crossing: usize,
-    /// The kerb lane (lane 0) from the street's start up to the turn, an arc
-    /// of `TURN_RADIUS_M` to the right, then the cross street's -y lane to its
-    /// end.
+    /// Left (across the oncoming lanes, into the cross street's +y half) or
+    /// right (into its -y half).
+    left: bool,
+    /// The ego's lane from the street's start up to the turn (the kerb lane
+    /// for a right turn, the inner lane for a left one), an arc of
+    /// `TURN_RADIUS_M`, then the cross street's lane away from the main
+    /// street (-y to the right, +y to the left) to its end.
     path: LanePath,
+}
+
+impl EgoTurn {
+    /// The direction the ego drives along the cross street after the turn:
+    /// -1 = -y (right), +1 = +y (left).
+    fn away_sign(&self) -> f64 {
+        if self.left { 1.0 } else { -1.0 }
+    }
 }
 
 /// The street layout shared by all placement steps.
@@ -198,7 +213,7 @@ struct Street {
     lanes: Vec<Lane>,
     /// The cross streets with traffic, by increasing crossing index.
     cross_streets: Vec<CrossStreet>,
-    /// The ego's right turn, None if it drives straight.
+    /// The ego's turn, None if it drives straight.
     turn: Option<EgoTurn>,
 }
 
@@ -325,13 +340,14 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     agents.extend(parked);
     if let Some(turn) = &street.turn {
         let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
-        let far_y = -(ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
+        let far_m = (ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
         let c = street.crossings[turn.crossing];
         let side = side_street(
             &street,
             &ground,
             c,
-            far_y,
+            turn.away_sign(),
+            far_m,
             first_side_id,
             spec.duration_s,
             spec.seed,
@@ -393,9 +409,11 @@ fn route_stop_lines(
 }
 
 /// The protected turn: at the crossing the ego turns at, the stop lines of
-/// the bike lane and the walk lines on the ego's side (y < 0) stay red until
-/// `TURN_CLEARANCE_S` after each main-street red (the walk lines get one
-/// there even without cross traffic).
+/// the movements its path crosses stay red until `TURN_CLEARANCE_S` after
+/// each main-street red: the bike lane and the walk lines on the side it
+/// turns to (y < 0 for a right turn, y > 0 for a left one; the walk lines get
+/// a red there even without cross traffic) and, for a left turn, the
+/// oncoming car lanes.
 fn protect_turn(
     street: &Street,
     turn: &EgoTurn,
@@ -411,11 +429,16 @@ fn protect_turn(
             .collect()
     };
     for (index, lane) in street.lanes.iter().enumerate() {
-        let ego_side = lane.path.point_at(0.0).y < 0.0;
+        let turn_side = lane.path.point_at(0.0).y * turn.away_sign() > 0.0;
         let sign = if lane.forward { -1.0 } else { 1.0 };
         let (line_x, red) = match lane.kind {
-            LaneKind::Bike if ego_side => (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red),
-            LaneKind::Walk if ego_side => (
+            LaneKind::Bike if turn_side => {
+                (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
+            }
+            LaneKind::Car if turn.left && !lane.forward => {
+                (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
+            }
+            LaneKind::Walk if turn_side => (
                 c + sign * (u.lane_width_m + WALK_STOP_SETBACK_M),
                 &plan.walk_red,
             ),
@@ -556,7 +579,10 @@ fn layout(
     let cross_piece = [PathPiece::Straight {
         length_m: 2.0 * cross_half_length,
     }];
-    let turn_crossing = u.ego_turns_right.then_some(ego_crossing);
+    let turn_crossing = match u.ego_route {
+        EgoRoute::Straight => None,
+        EgoRoute::TurnRight | EgoRoute::TurnLeft => Some(ego_crossing),
+    };
     let mut cross_streets = Vec::new();
     if u.cross_cars_per_intersection > 0 {
         for (k, &c) in crossings.iter().enumerate() {
@@ -574,28 +600,40 @@ fn layout(
             });
         }
     }
-    // the route turns from the kerb lane into the cross street's -y lane
-    // (x = c - w / 2), which it follows to the cross street's end
+    // the route turns from the kerb lane right into the cross street's -y
+    // lane (x = c - w / 2), or from the inner lane left into its +y lane
+    // (x = c + w / 2), and follows it to the cross street's end
     let turn = match turn_crossing {
         None => None,
         Some(k) => {
-            let kerb_lane_y = -(n as f64 - 0.5) * w;
-            let turn_x = crossings[k] - 0.5 * w - TURN_RADIUS_M;
+            let left = u.ego_route == EgoRoute::TurnLeft;
+            // the lane's y, where the arc starts, its curvature's sign and
+            // the straight from the arc's end to the cross street's end
+            let (lane_y, turn_x, curvature, after_arc_m) = if left {
+                let lane_y = -0.5 * w;
+                let after = cross_half_length - (lane_y + TURN_RADIUS_M);
+                (lane_y, crossings[k] + 0.5 * w - TURN_RADIUS_M, 1.0, after)
+            } else {
+                let lane_y = -(n as f64 - 0.5) * w;
+                let after = cross_half_length + lane_y - TURN_RADIUS_M;
+                (lane_y, crossings[k] - 0.5 * w - TURN_RADIUS_M, -1.0, after)
+            };
             let pieces = [
                 PathPiece::Straight {
                     length_m: turn_x - x_min,
                 },
                 PathPiece::Arc {
                     length_m: 0.5 * PI * TURN_RADIUS_M,
-                    curvature_1pm: -1.0 / TURN_RADIUS_M,
+                    curvature_1pm: curvature / TURN_RADIUS_M,
                 },
                 PathPiece::Straight {
-                    length_m: cross_half_length + kerb_lane_y - TURN_RADIUS_M,
+                    length_m: after_arc_m,
                 },
             ];
-            let start = Point2::new(x_min, kerb_lane_y);
+            let start = Point2::new(x_min, lane_y);
             Some(EgoTurn {
                 crossing: k,
+                left,
                 path: LanePath::from_pieces(start, 0.0, &pieces, 0.0)?,
             })
         }

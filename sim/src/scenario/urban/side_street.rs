@@ -10,7 +10,9 @@
 //! The cross street at x = c runs along y; its carriageway is two lanes
 //! (|x - c| <= lane_width), its sidewalks reach to the cross street's half
 //! width. Everything is drawn from the seed's own ChaCha stream, so the rest
-//! of the scene is the one the straight route has.
+//! of the scene is the one the straight route has. The street is laid out
+//! for its -y half (a right turn's) and turned half a turn about the
+//! crossing for its +y half (a left turn's), so both are lined alike.
 
 use super::statics::building;
 use super::{
@@ -43,13 +45,16 @@ pub(super) struct SideStreet {
 /// ChaCha stream (of the scenario seed) of the side street's statics.
 const SIDE_STREET_STREAM: u64 = 0x0053_4944_4545; // "SIDEE" in ASCII
 
-/// What lines the cross street at x = `crossing_x_m` on the ego's side of
-/// the main street (y < 0), from the main street's sidewalk to `far_y_m` (< 0).
+/// What lines the cross street at x = `crossing_x_m` on one side of the main
+/// street (`away_sign` -1: y < 0, +1: y > 0), from the main street's
+/// sidewalk to `far_m` (> 0) from the main street's axis.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn side_street(
     street: &Street,
     ground: &Ground,
     crossing_x_m: f64,
-    far_y_m: f64,
+    away_sign: f64,
+    far_m: f64,
     first_id: u32,
     duration_s: f64,
     seed: u64,
@@ -61,8 +66,18 @@ pub(super) fn side_street(
     let back_of_main_sidewalk = street.kerb_m() + u.sidewalk_width_m;
     // the main street's corner buildings reach at most this far from its axis
     let main_buildings_end = back_of_main_sidewalk + BUILDING_SETBACK_M.1 + BUILDING_DEPTH_M.1;
-    let at =
-        |side: f64, from_axis_m: f64, y: f64| Point2::new(crossing_x_m + side * from_axis_m, y);
+    // laid out in the -y half (y down to far_y_m); the +y half is the same
+    // turned by pi about (crossing_x_m, 0)
+    let far_y_m = -far_m;
+    let turned = away_sign > 0.0;
+    let at = |side: f64, from_axis_m: f64, y: f64| {
+        if turned {
+            Point2::new(crossing_x_m - side * from_axis_m, -y)
+        } else {
+            Point2::new(crossing_x_m + side * from_axis_m, y)
+        }
+    };
+    let turn_yaw = if turned { PI } else { 0.0 };
     let mut out = Vec::new();
     let mut parked = Vec::new();
     for side in [-1.0, 1.0] {
@@ -94,10 +109,11 @@ pub(super) fn side_street(
             out.push(building(ground, centre, 0.5 * depth, 0.5 * length, height));
             y -= length + gap;
         }
-        // parked cars facing the traffic on their side (right-hand: -y at
-        // x < c), past the main street's sidewalk and its pedestrians' lines
+        // parked cars heading with the traffic on their side (right-hand:
+        // -y at x < c), past the main street's sidewalk and its pedestrians'
+        // lines
         let start = -(back_of_main_sidewalk + CORNER_CLEARANCE_M);
-        let yaw = -side * 0.5 * PI;
+        let yaw = side * 0.5 * PI + turn_yaw;
         let mut y = start;
         while y - PARKING_PLACE_M >= far_y_m {
             let (y0, y1) = (y - PARKING_PLACE_M, y);
@@ -158,7 +174,7 @@ pub(super) fn side_street(
         cross_half_width_m: 0.0,
         view: (0.0, -far_y_m),
         furniture: false,
-        t_world_street: Isometry2::new(Vector2::new(crossing_x_m, 0.0), -0.5 * PI),
+        t_world_street: Isometry2::new(Vector2::new(crossing_x_m, 0.0), -0.5 * PI + turn_yaw),
     };
     let detail = building_detail(&layout, ground, &out, seed);
     out.extend(detail);
@@ -177,18 +193,22 @@ mod tests {
     use crate::scene::{Shape, StaticKind};
 
     /// Footprints stay off the carriageway and out of the main street's
-    /// building zone, and the street is lined along its whole length.
+    /// building zone, the street is lined along its whole length, and parked
+    /// cars face the traffic on their side, in both halves of the cross
+    /// street (y < 0 for a right turn, y > 0 for a left one).
     #[test]
     fn side_street_lines_the_cross_street_and_keeps_its_carriageway_free() {
         let spec = ScenarioSpec::builtin("urban").unwrap();
         let u = spec.urban_params();
-        for seed in 0..5 {
+        for (seed, away) in (0..5).flat_map(|seed| [(seed, -1.0), (seed, 1.0)]) {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let ground = generate_ground(&mut rng, &spec.ground, seed, (Point2::origin(), 0.0));
             let street = layout(&spec, &u, spec.ego_speed_mps(), &mut rng).unwrap();
             let c = street.crossings[street.ego_crossing];
-            let far = -400.0;
-            let side = side_street(&street, &ground, c, far, 1000, 60.0, seed);
+            let far = 400.0;
+            let side = side_street(&street, &ground, c, away, far, 1000, 60.0, seed);
+            // y measured away from the main street, negative as in the -y half
+            let local_y = |y: f64| -away * y;
             let statics = &side.statics;
             let mut building_ys = Vec::new();
             for s in statics {
@@ -196,7 +216,7 @@ mod tests {
                 let (half_x, half_y) = match s.shape {
                     Shape::Cuboid { half_extents_m } => {
                         if s.kind == StaticKind::Building {
-                            building_ys.push(p.y);
+                            building_ys.push(local_y(p.y));
                         }
                         // the footprint's world box (facade detail is
                         // turned with the street)
@@ -222,9 +242,12 @@ mod tests {
                     );
                 }
                 let main_zone = street.kerb_m() + u.sidewalk_width_m;
-                assert!(p.y + half_y <= -main_zone, "{p:?} in the main street");
                 assert!(
-                    p.y - half_y >= far - BUILDING_LENGTH_M.1,
+                    local_y(p.y) + half_y <= -main_zone,
+                    "{p:?} in the main street"
+                );
+                assert!(
+                    local_y(p.y) - half_y >= -far - BUILDING_LENGTH_M.1,
                     "{p:?} beyond the end"
                 );
             }
@@ -258,20 +281,54 @@ mod tests {
                 let on_side: Vec<_> = side
                     .parked
                     .iter()
-                    .map(|a| a.trajectory.pose_at(0.0).translation.vector)
-                    .filter(|p| (p.x - c) * sign > 0.0)
+                    .map(|a| a.trajectory.pose_at(0.0))
+                    .filter(|pose| (pose.translation.vector.x - c) * sign > 0.0)
                     .collect();
                 assert!(on_side.len() >= 20, "{} parked cars", on_side.len());
-                for p in on_side {
+                for pose in on_side {
+                    let p = pose.translation.vector;
                     let inner = (p.x - c).abs() - 0.5 * 1.95;
                     assert!(inner >= u.lane_width_m, "{p:?} on the carriageway");
-                    assert!(p.y <= -(street.kerb_m() + u.sidewalk_width_m), "{p:?}");
+                    assert!(
+                        local_y(p.y) <= -(street.kerb_m() + u.sidewalk_width_m),
+                        "{p:?}"
+                    );
+                    // right-hand traffic: +y at x > c, -y at x < c
+                    let heading = pose.rotation * nalgebra::Vector3::x();
+                    assert!(heading.y * sign > 0.99, "{p:?} heading {heading:?}");
                 }
             }
             // same seed, same street
-            let again = side_street(&street, &ground, c, far, 1000, 60.0, seed);
+            let again = side_street(&street, &ground, c, away, far, 1000, 60.0, seed);
             assert_eq!(side.statics, again.statics);
             assert_eq!(side.parked, again.parked);
+            // the +y half is the -y half turned by pi about the crossing
+            // (the buildings, poles, trees and parked cars; the facade detail
+            // follows the ground under it)
+            let other = side_street(&street, &ground, c, -away, far, 1000, 60.0, seed);
+            let footprints = |s: &SideStreet| -> Vec<Vector2<f64>> {
+                let statics = s.statics.iter().filter(|o| {
+                    matches!(
+                        o.kind,
+                        StaticKind::Building
+                            | StaticKind::Pole
+                            | StaticKind::TreeTrunk
+                            | StaticKind::TreeCrown
+                    )
+                });
+                let statics = statics.map(|o| o.t_world_object.translation.vector.xy());
+                let cars = s
+                    .parked
+                    .iter()
+                    .map(|a| a.trajectory.pose_at(0.0).translation.vector.xy());
+                statics.chain(cars).collect()
+            };
+            let (a, b) = (footprints(&side), footprints(&other));
+            assert_eq!(a.len(), b.len());
+            assert!(a.len() > 50);
+            for (a, b) in a.iter().zip(&b) {
+                assert!((a.x - c + (b.x - c)).abs() < 1e-9 && (a.y + b.y).abs() < 1e-9);
+            }
         }
     }
 }
