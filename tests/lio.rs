@@ -1,8 +1,8 @@
 //! The `lio` variant end to end on simulated urban drives without moving
 //! objects (noise-free and default noise), `lio` and `limot` through the
-//! urban left turn with its traffic, the default highway's ego lane change,
-//! an on-ramp merge and a stop-and-go wave of the jam, and LiDAR-only on
-//! real KITTI scans.
+//! urban left turn with its traffic, the default highway's on-ramp merge and
+//! overtaking lane change and a stop-and-go wave of the jam, and LiDAR-only
+//! on real KITTI scans.
 
 mod common;
 
@@ -294,15 +294,18 @@ fn assert_highway_bounds(dir: &Path) {
     }
 }
 
+/// The default highway's first 20 s: from a standstill on the on-ramp's
+/// acceleration lane into the right lane (requested at 5 s, done within a few
+/// seconds), then the overtake's lane change to the left (requested at 14 s,
+/// about 4 s long).
 #[test]
-fn lio_and_limot_keep_their_highway_bounds_through_the_ego_lane_change() {
+fn lio_and_limot_keep_their_highway_bounds_through_the_merge_and_the_overtake() {
     let mut spec = resolve_scenario("highway").unwrap();
-    // the first change (to the left lane, requested at 8 s, about 4 s long)
-    // lies inside the run
-    spec.duration_s = 16.0;
+    spec.duration_s = 20.0;
+    assert!(spec.highway_params().on_ramp.unwrap().merge_request_s < 6.0);
     let change = &spec.highway_params().ego_lane_changes[0];
-    assert!(change.t_s < 9.0 && change.to_lane != spec.ego.lane);
-    let dir = simulate(&spec, "highway-lane-change");
+    assert!(change.t_s < 15.0 && change.to_lane != spec.ego.lane);
+    let dir = simulate(&spec, "highway-merge-overtake");
     assert_highway_bounds(&dir);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -322,18 +325,6 @@ fn lio_and_limot_keep_their_highway_bounds_through_a_stop_and_go_wave() {
         .collect();
     let stood = speeds.iter().skip(speeds.len() / 2).any(|&v| v < 0.5);
     assert!(stood, "the ego never stood in the jam");
-    assert_highway_bounds(&dir);
-    let _ = std::fs::remove_dir_all(&dir);
-}
-
-#[test]
-fn lio_and_limot_keep_their_highway_bounds_through_the_on_ramp_merge() {
-    let mut spec = resolve_scenario("highway-merge").unwrap();
-    // from a standstill on the acceleration lane into the right lane
-    // (requested at 5 s, done within a few seconds)
-    spec.duration_s = 14.0;
-    assert!(spec.highway_params().on_ramp.unwrap().merge_request_s < 6.0);
-    let dir = simulate(&spec, "highway-merge");
     assert_highway_bounds(&dir);
     let _ = std::fs::remove_dir_all(&dir);
 }

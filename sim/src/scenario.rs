@@ -169,7 +169,6 @@ const BUILTIN_NAMES: &[&str] = &[
     "highway-dense",
     "urban-parked",
     "highway-jam",
-    "highway-merge",
     "urban-left",
 ];
 
@@ -178,8 +177,29 @@ impl ScenarioSpec {
     pub fn builtin(name: &str) -> Option<ScenarioSpec> {
         let base = |family, seed| ScenarioSpec::with_defaults(name.to_string(), family, seed, 60.0);
         match name {
+            // The ego starts on an on-ramp's acceleration lane, merges into
+            // the right lane, overtakes on the left and returns.
             "highway" => Some(ScenarioSpec {
-                highway: Some(HighwayParams::default()),
+                ego: EgoSpec {
+                    lane: 0,
+                    ..EgoSpec::default()
+                },
+                highway: Some(HighwayParams {
+                    on_ramp: Some(OnRampParams::default()),
+                    ego_lane_changes: vec![
+                        crate::traffic::LaneChange {
+                            t_s: 14.0,
+                            to_lane: 1,
+                            cooperative: false,
+                        },
+                        crate::traffic::LaneChange {
+                            t_s: 28.0,
+                            to_lane: 0,
+                            cooperative: false,
+                        },
+                    ],
+                    ..HighwayParams::default()
+                }),
                 ..base(Family::Highway, 1)
             }),
             // the ego turns right at its first crossing, from the kerb lane
@@ -235,24 +255,6 @@ impl ScenarioSpec {
                     jam: Some(JamParams::default()),
                     // the ego keeps its lane through the waves
                     ego_lane_changes: Vec::new(),
-                    ..HighwayParams::default()
-                }),
-                ..base(Family::Highway, 1)
-            }),
-            // An on-ramp: the ego starts on the acceleration lane, merges
-            // into the right lane and later moves over one lane.
-            "highway-merge" => Some(ScenarioSpec {
-                ego: EgoSpec {
-                    lane: 0,
-                    ..EgoSpec::default()
-                },
-                highway: Some(HighwayParams {
-                    on_ramp: Some(OnRampParams::default()),
-                    ego_lane_changes: vec![crate::traffic::LaneChange {
-                        t_s: 14.0,
-                        to_lane: 1,
-                        cooperative: false,
-                    }],
                     ..HighwayParams::default()
                 }),
                 ..base(Family::Highway, 1)

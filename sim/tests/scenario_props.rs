@@ -183,32 +183,32 @@ fn bad_files_name_file_line_and_field() {
     for (tag, from, to, field) in [
         (
             "ego_change_skips_a_lane",
-            "{ t_s = 24.0, to_lane = 1 }",
-            "{ t_s = 24.0, to_lane = 0 }",
+            "{ t_s = 28.0, to_lane = 0 }",
+            "{ t_s = 28.0, to_lane = 3 }",
             "highway.ego_lane_changes[1].to_lane",
         ),
         (
             "ego_change_off_the_road",
-            "{ t_s = 8.0, to_lane = 2 }",
-            "{ t_s = 8.0, to_lane = 4 }",
+            "{ t_s = 14.0, to_lane = 1 }",
+            "{ t_s = 14.0, to_lane = 4 }",
             "highway.ego_lane_changes[0].to_lane",
         ),
         (
             "ego_changes_out_of_order",
-            "{ t_s = 24.0, to_lane = 1 }",
-            "{ t_s = 4.0, to_lane = 1 }",
+            "{ t_s = 28.0, to_lane = 0 }",
+            "{ t_s = 4.0, to_lane = 0 }",
             "highway.ego_lane_changes[1].t_s",
         ),
         (
             "ego_change_at_nan",
-            "{ t_s = 8.0, to_lane = 2 }",
-            "{ t_s = nan, to_lane = 2 }",
+            "{ t_s = 14.0, to_lane = 1 }",
+            "{ t_s = nan, to_lane = 1 }",
             "highway.ego_lane_changes[0].t_s",
         ),
         (
             "ego_change_unknown_key",
-            "{ t_s = 8.0, to_lane = 2 }",
-            "{ t_s = 8.0, to_lane = 2, speed_mps = 3.0 }",
+            "{ t_s = 14.0, to_lane = 1 }",
+            "{ t_s = 14.0, to_lane = 1, speed_mps = 3.0 }",
             "highway.ego_lane_changes",
         ),
     ] {
@@ -786,13 +786,16 @@ proptest! {
 
     #[test]
     fn highway_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, vehicles in 20usize..=32) {
+        // the overtake from a middle lane, without the default's on-ramp
         let (spec, scene) = checked_highway("highway", seed, 25.0, lanes / 2, |h| {
             h.lanes = lanes;
             h.vehicles = vehicles;
+            h.on_ramp = None;
             // overtake on the left and return, both within the run
             for (change, to_lane) in h.ego_lane_changes.iter_mut().zip([lanes / 2 + 1, lanes / 2]) {
                 change.to_lane = to_lane;
             }
+            h.ego_lane_changes[0].t_s = 8.0;
             h.ego_lane_changes[1].t_s = 12.0;
         });
         check_ego_overtakes(&spec, &scene);
@@ -812,7 +815,7 @@ proptest! {
     #[test]
     fn merge_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, request_s in 2.0f64..8.0) {
         // no overlaps of the merging ego with the rails and the traffic
-        let (spec, _) = checked_highway("highway-merge", seed, 25.0, 0, |h| {
+        let (spec, _) = checked_highway("highway", seed, 25.0, 0, |h| {
             h.lanes = lanes;
             h.on_ramp.as_mut().unwrap().merge_request_s = request_s;
         });

@@ -511,17 +511,33 @@ mod tests {
             .collect()
     }
 
+    /// The default route: the ego merges from the on-ramp within seconds of
+    /// its request, well before the ramp ends (which it reaches from a
+    /// standstill after ~15 s), then overtakes on the left and returns, each
+    /// change within seconds of its request.
     #[test]
-    fn the_default_ego_overtakes_and_returns_within_seconds_of_each_request() {
+    fn the_default_ego_merges_overtakes_and_returns_within_seconds_of_each_request() {
         for seed in 1..=6 {
             let mut spec = ScenarioSpec::builtin("highway").unwrap();
             spec.seed = seed;
             spec.duration_s = 40.0;
+            let h = spec.highway_params();
+            let ramp = h.on_ramp.clone().unwrap();
             let switches = ego_lane_switches(&spec);
-            let requests = &spec.highway_params().ego_lane_changes;
-            assert_eq!(switches.len(), requests.len(), "seed {seed}: {switches:?}");
+            let requests = &h.ego_lane_changes;
+            assert_eq!(
+                switches.len(),
+                1 + requests.len(),
+                "seed {seed}: {switches:?}"
+            );
+            let (t_merge, from, to) = switches[0];
+            assert_eq!((from, to), (h.lanes, 0), "seed {seed}");
+            assert!(
+                (ramp.merge_request_s..ramp.merge_request_s + 6.0).contains(&t_merge),
+                "seed {seed}: merged at {t_merge} s"
+            );
             let mut lane = spec.ego.lane;
-            for (&(t_s, from, to), request) in switches.iter().zip(requests) {
+            for (&(t_s, from, to), request) in switches[1..].iter().zip(requests) {
                 assert_eq!((from, to), (lane, request.to_lane), "seed {seed}");
                 // traffic makes room within a few seconds of the request
                 assert!(
@@ -535,31 +551,8 @@ mod tests {
     }
 
     #[test]
-    fn the_ego_merges_from_the_on_ramp_before_it_ends_and_then_moves_over() {
-        for seed in 1..=6 {
-            let mut spec = ScenarioSpec::builtin("highway-merge").unwrap();
-            spec.seed = seed;
-            spec.duration_s = 25.0;
-            let h = spec.highway_params();
-            let ramp = h.on_ramp.clone().unwrap();
-            let switches = ego_lane_switches(&spec);
-            assert_eq!(switches.len(), 2, "seed {seed}: {switches:?}");
-            let (t_merge, from, to) = switches[0];
-            assert_eq!((from, to), (h.lanes, 0), "seed {seed}");
-            // within seconds of the request, well before the ramp's end
-            // (which the ego, from a standstill, reaches after ~15 s)
-            assert!(
-                (ramp.merge_request_s..ramp.merge_request_s + 6.0).contains(&t_merge),
-                "seed {seed}: merged at {t_merge} s"
-            );
-            assert_eq!((switches[1].1, switches[1].2), (0, 1), "seed {seed}");
-            assert!(switches[1].0 >= h.ego_lane_changes[0].t_s, "seed {seed}");
-        }
-    }
-
-    #[test]
     fn the_on_ramp_is_paved_beside_the_carriageway_and_ends_ahead_of_the_ego() {
-        let spec = ScenarioSpec::builtin("highway-merge").unwrap();
+        let spec = ScenarioSpec::builtin("highway").unwrap();
         let h = spec.highway_params();
         let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
         let (_, _, traffic) = layout(&spec, &mut rng).unwrap();
@@ -634,7 +627,9 @@ mod tests {
     #[test]
     fn without_requests_or_before_them_the_ego_keeps_its_lane() {
         let mut spec = ScenarioSpec::builtin("highway").unwrap();
-        spec.duration_s = 7.5;
+        // no ramp: the ego starts in lane 0, the first request is at 14 s
+        spec.highway.as_mut().unwrap().on_ramp = None;
+        spec.duration_s = 13.5;
         assert!(ego_lane_switches(&spec).is_empty());
         spec.duration_s = 20.0;
         spec.highway.as_mut().unwrap().ego_lane_changes.clear();
