@@ -419,14 +419,14 @@ fn tum_positions(path: &Path) -> Vec<[f64; 3]> {
 
 #[test]
 fn the_joint_ablation_runs_beside_limot_and_moves_the_ego() {
-    // Highway traffic: limot confirms dynamic objects within 4 s, so letting
+    // Highway traffic: limot confirms dynamic objects within 6 s, so letting
     // them inform the ego changes its trajectory (without any the two forms
     // would be the same graph and the same poses).
     let out = scratch("ablation");
     let spec = SuiteSpec {
         families: vec!["highway".into()],
         ablations: vec![Ablation::Joint],
-        ..spec(out.clone(), 4.0, vec![Variant::Limot])
+        ..spec(out.clone(), 6.0, vec![Variant::Limot])
     };
     let results = run_suite(&spec, false).unwrap();
     assert_eq!(results.ablations, [Ablation::Joint]);

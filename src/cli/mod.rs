@@ -334,7 +334,10 @@ struct SuiteArgs {
     /// Scenario families: built-in names (highway, urban, highway-dense,
     /// urban-parked, highway-jam, urban-left), TOML files, or `kitti` (the
     /// digital twins of --sequences in --training), comma-separated.
-    #[arg(long, default_value = "highway,highway-dense,urban,urban-parked")]
+    #[arg(
+        long,
+        default_value = "highway,highway-dense,highway-jam,urban,urban-parked,urban-left"
+    )]
     families: String,
     /// Seeds, comma-separated (default: 1,2; a suite of KITTI twins only: 1).
     #[arg(long)]
