@@ -1,8 +1,8 @@
 //! The `lio` variant end to end on simulated urban drives without moving
 //! objects (noise-free and default noise), `lio` and `limot` through the
 //! urban left turn with its traffic, the default highway's on-ramp merge and
-//! overtaking lane change and a stop-and-go wave of the jam, and LiDAR-only
-//! on real KITTI scans.
+//! overtaking lane change, the off-ramp and a stop-and-go wave of the jam,
+//! and LiDAR-only on real KITTI scans.
 
 mod common;
 
@@ -306,6 +306,25 @@ fn lio_and_limot_keep_their_highway_bounds_through_the_merge_and_the_overtake() 
     let change = &spec.highway_params().ego_lane_changes[0];
     assert!(change.t_s < 15.0 && change.to_lane != spec.ego.lane);
     let dir = simulate(&spec, "highway-merge-overtake");
+    assert_highway_bounds(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `highway-exit`: into the deceleration lane (requested at 14 s), then off
+/// the carriageway on the ramp's 150 m curve through 30 degrees (from ~26 s),
+/// through a gore cleared of the roadside.
+#[test]
+fn lio_and_limot_keep_their_highway_bounds_through_the_off_ramp() {
+    let mut spec = resolve_scenario("highway-exit").unwrap();
+    spec.duration_s = 34.0;
+    let dir = simulate(&spec, "highway-exit");
+    let truth = Dataset::open(&dir).unwrap().ego_truth().unwrap();
+    let forward = truth.last().unwrap().t_world_lidar.rotation * nalgebra::Vector3::x();
+    let heading = forward.y.atan2(forward.x);
+    assert!(
+        (heading + 30f64.to_radians()).abs() < 0.05,
+        "heading {heading} rad"
+    );
     assert_highway_bounds(&dir);
     let _ = std::fs::remove_dir_all(&dir);
 }

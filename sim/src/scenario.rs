@@ -27,8 +27,8 @@ mod params;
 mod validate;
 
 pub use params::{
-    EgoRoute, EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OnRampParams,
-    UrbanParams,
+    EgoRoute, EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OffRampParams,
+    OnRampParams, UrbanParams,
 };
 
 /// Longest simulated time span a scenario may have, s.
@@ -170,6 +170,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "urban-parked",
     "highway-jam",
     "urban-left",
+    "highway-exit",
 ];
 
 impl ScenarioSpec {
@@ -254,6 +255,20 @@ impl ScenarioSpec {
                 highway: Some(HighwayParams {
                     jam: Some(JamParams::default()),
                     // the ego keeps its lane through the waves
+                    ego_lane_changes: Vec::new(),
+                    ..HighwayParams::default()
+                }),
+                ..base(Family::Highway, 1)
+            }),
+            // An off-ramp: the ego keeps the right lane, changes into the
+            // deceleration lane and leaves the highway on the ramp's curve.
+            "highway-exit" => Some(ScenarioSpec {
+                ego: EgoSpec {
+                    lane: 0,
+                    ..EgoSpec::default()
+                },
+                highway: Some(HighwayParams {
+                    off_ramp: Some(OffRampParams::default()),
                     ego_lane_changes: Vec::new(),
                     ..HighwayParams::default()
                 }),
@@ -484,6 +499,34 @@ impl ScenarioSpec {
                     ));
                 }
                 validate_ego_lane_changes(&h.ego_lane_changes, self.ego.lane, h.lanes)?;
+                if let Some(exit) = &h.off_ramp {
+                    let last = h.ego_lane_changes.last();
+                    let final_lane = last.map_or(self.ego.lane, |c| c.to_lane);
+                    if final_lane != 0 {
+                        return Err(invalid(
+                            "highway.ego_lane_changes",
+                            format!(
+                                "end in lane {final_lane}, but the off-ramp \
+                                 (highway.off_ramp) leaves from lane 0"
+                            ),
+                        ));
+                    }
+                    let after_s = last
+                        .map(|c| c.t_s)
+                        .into_iter()
+                        .chain(h.on_ramp.as_ref().map(|r| r.merge_request_s))
+                        .fold(0.0, f64::max);
+                    if exit.exit_request_s < after_s {
+                        return Err(invalid(
+                            "highway.off_ramp.exit_request_s",
+                            format!(
+                                "= {}: must not come before the ego's last lane change or \
+                                 merge request ({after_s} s)",
+                                exit.exit_request_s
+                            ),
+                        ));
+                    }
+                }
             }
             Family::Urban => {
                 if self.highway.is_some() {

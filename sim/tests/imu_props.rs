@@ -448,22 +448,26 @@ fn noise_free_imu_dead_reckons_the_highway_merge_and_lane_change() {
     }
 }
 
-/// Stop-and-go waves of the jam (standing 10 s, pulling away): the
-/// noise-free IMU dead-reckons through them. At 400 Hz, since the
-/// integration's own error at 100 Hz (the jam's jerky speed changes) grows to
-/// ~1.5 cm over 32 s while the stream is consistent to 0.1 mm.
+/// Stop-and-go waves of the jam (standing 10 s, pulling away) and the
+/// off-ramp (into the deceleration lane, braking into the ramp's 150 m curve,
+/// 30 deg to the right): the noise-free IMU dead-reckons through them. At
+/// 400 Hz, since the integration's own error at 100 Hz (the jam's jerky speed
+/// changes) grows to ~1.5 cm over 32 s while the stream is consistent to
+/// 0.1 mm.
 #[test]
-fn noise_free_imu_dead_reckons_the_jam() {
-    let mut spec = limot_sim::scenario::ScenarioSpec::builtin("highway-jam").unwrap();
-    spec.duration_s = 32.0;
-    let scene = spec.build().unwrap();
-    let (pos_err, rot_err) = dead_reckoning_error_at(&scene.ego, spec.duration_s, 400.0);
-    assert!(pos_err < 1e-3, "position error {pos_err} m");
-    assert!(
-        rot_err < 0.01f64.to_radians(),
-        "rotation error {} deg",
-        rot_err.to_degrees()
-    );
+fn noise_free_imu_dead_reckons_the_jam_and_the_exit() {
+    for (name, duration_s) in [("highway-jam", 32.0), ("highway-exit", 34.0)] {
+        let mut spec = limot_sim::scenario::ScenarioSpec::builtin(name).unwrap();
+        spec.duration_s = duration_s;
+        let scene = spec.build().unwrap();
+        let (pos_err, rot_err) = dead_reckoning_error_at(&scene.ego, spec.duration_s, 400.0);
+        assert!(pos_err < 1e-3, "{name}: position error {pos_err} m");
+        assert!(
+            rot_err < 0.01f64.to_radians(),
+            "{name}: rotation error {} deg",
+            rot_err.to_degrees()
+        );
+    }
 }
 
 /// The ego's right turn of the default urban scenario and its left turn in

@@ -265,6 +265,52 @@ fn bad_files_name_file_line_and_field() {
         let want = format!("{}:{}", path.display(), line_of(&text, key));
         assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
     }
+    // the off-ramp: its fields, and a route that does not end in lane 0
+    let exit = std::fs::read_to_string(scenario_file("highway-exit")).unwrap();
+    for (tag, from, to, key, field) in [
+        (
+            "exit_request_nan",
+            "exit_request_s = 14.0",
+            "exit_request_s = nan",
+            "exit_request_s",
+            "highway.off_ramp.exit_request_s",
+        ),
+        (
+            "exit_curve_too_tight",
+            "curve_radius_m = 150.0",
+            "curve_radius_m = 10.0",
+            "curve_radius_m",
+            "highway.off_ramp.curve_radius_m",
+        ),
+        (
+            "exit_too_near",
+            "diverge_ahead_m = 450.0",
+            "diverge_ahead_m = 50.0",
+            "diverge_ahead_m",
+            "highway.off_ramp.diverge_ahead_m",
+        ),
+        (
+            "exit_from_lane_1",
+            "ego_lane_changes = []",
+            "ego_lane_changes = [{ t_s = 5.0, to_lane = 1 }]",
+            "ego_lane_changes",
+            "highway.ego_lane_changes",
+        ),
+        (
+            "exit_before_the_last_change",
+            "ego_lane_changes = []",
+            "ego_lane_changes = [{ t_s = 5.0, to_lane = 1 }, { t_s = 20.0, to_lane = 0 }]",
+            "exit_request_s",
+            "highway.off_ramp.exit_request_s",
+        ),
+    ] {
+        assert!(exit.contains(from), "{tag}");
+        let text = exit.replace(from, to);
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{}", path.display(), line_of(&text, key));
+        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+    }
     // a table of the other family
     let text = format!(
         "{}\n[urban]\nlanes_per_direction = 1\n",
@@ -773,7 +819,10 @@ fn checked_highway(
     spec.seed = seed;
     spec.duration_s = duration_s;
     spec.ego.lane = ego_lane;
-    tweak(spec.highway.as_mut().unwrap());
+    let h = spec.highway.as_mut().unwrap();
+    tweak(h);
+    // as many vehicles as fit with safe gaps into fewer lanes (32 into 3)
+    h.vehicles = h.vehicles.min(10 * h.lanes);
     spec.validate().unwrap();
     let scene = spec.build().unwrap();
     check_common(&spec, &scene);
@@ -820,6 +869,21 @@ proptest! {
             h.on_ramp.as_mut().unwrap().merge_request_s = request_s;
         });
         prop_assert!(spec.highway_params().on_ramp.is_some());
+    }
+
+    #[test]
+    fn exit_scenes_over_seeds(seed in any::<u64>(), lanes in 3usize..=5, request_s in 8.0f64..16.0) {
+        // no overlaps of the ego leaving by the ramp with the traffic, the
+        // rails and what is left of the roadside, within the car's limits
+        let (spec, scene) = checked_highway("highway-exit", seed, 36.0, 0, |h| {
+            h.lanes = lanes;
+            h.off_ramp.as_mut().unwrap().exit_request_s = request_s;
+        });
+        // it left: heading 30 deg right of the carriageway at the end
+        let end = scene.ego.trajectory.pose_at(spec.duration_s);
+        let forward = end.rotation * nalgebra::Vector3::x();
+        let heading = forward.y.atan2(forward.x);
+        prop_assert!((heading + 30f64.to_radians()).abs() < 0.03, "heading {}", heading);
     }
 
     #[test]

@@ -34,7 +34,7 @@ enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
         /// Scenario TOML file, a built-in scenario name (highway, urban, highway-dense,
-        /// urban-parked, highway-jam, urban-left), or `kitti` with --training and
+        /// urban-parked, highway-jam, highway-exit, urban-left), or `kitti` with --training and
         /// --sequence: the digital twin of a KITTI tracking sequence.
         scenario: String,
         /// With `kitti`: the KITTI tracking `training` dir (calib/, oxts/, label_02/).
@@ -332,11 +332,11 @@ enum EvalCommand {
 #[derive(clap::Args, Debug)]
 struct SuiteArgs {
     /// Scenario families: built-in names (highway, urban, highway-dense,
-    /// urban-parked, highway-jam, urban-left), TOML files, or `kitti` (the
+    /// urban-parked, highway-jam, highway-exit, urban-left), TOML files, or `kitti` (the
     /// digital twins of --sequences in --training), comma-separated.
     #[arg(
         long,
-        default_value = "highway,highway-dense,highway-jam,urban,urban-parked,urban-left"
+        default_value = "highway,highway-dense,highway-jam,highway-exit,urban,urban-parked,urban-left"
     )]
     families: String,
     /// Seeds, comma-separated (default: 1,2; a suite of KITTI twins only: 1).

@@ -148,7 +148,7 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuiteSpec {
     /// Scenario files or built-in names (highway, urban, highway-dense,
-    /// urban-parked, highway-jam, urban-left), or [`TWIN_FAMILY`] for the
+    /// urban-parked, highway-jam, highway-exit, urban-left), or [`TWIN_FAMILY`] for the
     /// twins of `twins`.
     pub families: Vec<String>,
     /// Seeds, each simulated per family.

@@ -5,8 +5,9 @@
 //! target lane's gap is safe (the traffic model's own lane-change logic).
 //! The long straight with parallel rails is the LiDAR-degenerate case.
 //! Optionally the ego starts on an on-ramp's acceleration lane and merges
-//! (`[highway.on_ramp]`), and jam heads ahead of it make the traffic stop
-//! and go (`[highway.jam]`).
+//! (`[highway.on_ramp]`), leaves by an off-ramp that curves away from the
+//! carriageway (`[highway.off_ramp]`), and jam heads ahead of it make the
+//! traffic stop and go (`[highway.jam]`).
 
 use super::common::{
     beside, cuboid_between, draw_body, ego_vehicle, generate_ground, pole, run_traffic, uniform,
@@ -14,10 +15,10 @@ use super::common::{
 };
 use super::roadside::{CrossSection, roadside};
 use super::{
-    HIGHWAY_EGO_FREE_SLOTS, HighwayParams, ScenarioError, ScenarioSpec, highway_min_spacing_m,
-    traffic_error,
+    HIGHWAY_EGO_FREE_SLOTS, HighwayParams, OffRampParams, ScenarioError, ScenarioSpec,
+    highway_min_spacing_m, traffic_error,
 };
-use crate::scene::{Scene, Shape, StaticKind, StaticObject};
+use crate::scene::{Ego, Scene, Shape, StaticKind, StaticObject};
 use crate::traffic::{JamFront, LaneChange, LanePath, PathPiece, TrafficSpec, VehicleSpec};
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Point2, Vector3};
@@ -52,11 +53,28 @@ const LANE_CHANGE_START_S: f64 = 3.0;
 const LANE_CHANGE_END_MARGIN_S: f64 = 10.0;
 /// Minimum time between two lane-change requests of one vehicle, s.
 const LANE_CHANGE_SPACING_S: f64 = 8.0;
+/// The off-ramp turns away from the carriageway by this angle, rad (30 deg).
+const OFF_RAMP_TURN_RAD: f64 = std::f64::consts::FRAC_PI_6;
+/// The ego keeps speed^2 * curvature near this on an off-ramp's curve, m/s^2.
+const OFF_RAMP_LATERAL_ACCEL_MPS2: f64 = 1.5;
+/// Past the diverge point by this much, the ego must be on the ramp, m.
+const OFF_RAMP_CHECK_AFTER_M: f64 = 30.0;
+
+/// The ego's off-ramp: its lane (the deceleration lane beside lane 0, then
+/// the ramp's curve and straight) and where it leaves the carriageway.
+struct OffRamp {
+    lane: LanePath,
+    /// Arc length of the diverge point, on the lane and on the reference line.
+    diverge_s_m: f64,
+}
 
 /// The whole highway scene for a validated spec.
 pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, ScenarioError> {
-    let (ground, statics, traffic) = layout(spec, rng)?;
+    let (ground, statics, traffic, exit) = layout(spec, rng)?;
     let (agents, ego) = run_traffic(spec, &ground, &|_, _| 0.0, &traffic)?;
+    if let (Some(exit), Some(params)) = (&exit, &spec.highway_params().off_ramp) {
+        check_ego_took_the_exit(spec, &traffic.lanes[0], exit, params, &ego)?;
+    }
     Ok(Scene {
         duration_s: spec.duration_s,
         ground,
@@ -68,10 +86,14 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
 
 /// The road and everything on it before the traffic runs: ground, statics,
 /// and the traffic spec (lanes, vehicles with their lane changes, the ego last).
-fn layout(
-    spec: &ScenarioSpec,
-    rng: &mut ChaCha8Rng,
-) -> Result<(crate::scene::Ground, Vec<StaticObject>, TrafficSpec), ScenarioError> {
+type Layout = (
+    crate::scene::Ground,
+    Vec<StaticObject>,
+    TrafficSpec,
+    Option<OffRamp>,
+);
+
+fn layout(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Layout, ScenarioError> {
     let h = spec.highway_params();
     // the main street and the highway's initial straight run along +x through the origin
     let ground = generate_ground(rng, &spec.ground, spec.seed, (Point2::origin(), 0.0));
@@ -96,6 +118,18 @@ fn layout(
         );
     }
 
+    // the off-ramp's lane after the acceleration lane (if any)
+    let exit = match &h.off_ramp {
+        None => None,
+        Some(params) => {
+            let diverge_s_m = ego_s + params.diverge_ahead_m;
+            let lane = off_ramp_lane(&h, &pieces, diverge_s_m, road_length, params)
+                .map_err(|e| traffic_error(spec, e))?;
+            lanes.push(lane.clone());
+            Some(OffRamp { lane, diverge_s_m })
+        }
+    };
+
     let mut statics = guard_rails(&h, &reference, &ground);
     statics.extend(poles_and_signs(&h, &reference, &ground, rng));
     // the roadside where the ego's LiDAR can see it
@@ -109,6 +143,10 @@ fn layout(
         (ego_s - view, reach + view),
         spec.seed,
     ));
+    if let Some(exit) = &exit {
+        clear_off_ramp(&h, exit, &mut statics);
+        statics.extend(off_ramp_rail(&h, exit, reach + view, &ground));
+    }
 
     let mut vehicles = place_vehicles(&h, spec.ego.lane, ego_s, rng);
     let fronts = jam_fronts(&h, ego_s);
@@ -135,13 +173,25 @@ fn layout(
         to_lane: spec.ego.lane,
         cooperative: true,
     });
+    // the off-ramp's lane is the last one
+    let exit_lane = lanes.len() - 1;
+    let leave = h.off_ramp.iter().map(|ramp| LaneChange {
+        t_s: ramp.exit_request_s,
+        to_lane: exit_lane,
+        cooperative: true,
+    });
     // traffic makes room for the ego's changes (the route must happen)
     ego.lane_changes = merge
         .chain(h.ego_lane_changes.iter().map(|change| LaneChange {
             cooperative: true,
             ..change.clone()
         }))
+        .chain(leave)
         .collect();
+    if exit.is_some() {
+        // it slows down for the ramp's curve
+        ego.driver.curve_lateral_accel_mps2 = Some(OFF_RAMP_LATERAL_ACCEL_MPS2);
+    }
     vehicles.push(ego);
     let traffic = TrafficSpec {
         lanes,
@@ -150,7 +200,110 @@ fn layout(
         jam_fronts: fronts,
         duration_s: spec.duration_s,
     };
-    Ok((ground, statics, traffic))
+    Ok((ground, statics, traffic, exit))
+}
+
+/// The off-ramp's lane: the deceleration lane one lane width right of lane 0
+/// up to the diverge point, then a right curve of the ramp's radius through
+/// `OFF_RAMP_TURN_RAD` and a straight to the road's end.
+fn off_ramp_lane(
+    h: &HighwayParams,
+    pieces: &[PathPiece],
+    diverge_s_m: f64,
+    road_length_m: f64,
+    params: &OffRampParams,
+) -> Result<LanePath, crate::traffic::TrafficError> {
+    let offset_m = lane_offset_m(h, 0) - h.lane_width_m;
+    let mut ramp = pieces_up_to(pieces, diverge_s_m);
+    // a lane `offset_m` (< 0) right of the reference line's curve has
+    // radius `reference - |offset_m|`: the reference's curve is that much wider
+    let reference_radius_m = params.curve_radius_m - offset_m;
+    ramp.push(PathPiece::Arc {
+        length_m: OFF_RAMP_TURN_RAD * reference_radius_m,
+        curvature_1pm: -1.0 / reference_radius_m,
+    });
+    ramp.push(PathPiece::Straight {
+        length_m: (road_length_m - diverge_s_m).max(END_MARGIN_M),
+    });
+    LanePath::from_pieces(Point2::origin(), 0.0, &ramp, offset_m)
+}
+
+/// Half the ramp's clear corridor: its lane, shoulder and rail, and a margin, m.
+fn off_ramp_clearance_m(h: &HighwayParams) -> f64 {
+    0.5 * h.lane_width_m + RIGHT_SHOULDER_M + RAIL_WIDTH_M + 0.5
+}
+
+/// Removes the statics in the ramp's way past its diverge point (the gore):
+/// everything whose footprint circle comes within the ramp's clear corridor.
+/// A thing and what it carries go together (a crown stands over its trunk,
+/// a board over its pole, a gantry's beam or an overpass's deck reaches over
+/// the carriageway and is wider than the corridor's distance to it).
+fn clear_off_ramp(h: &HighwayParams, exit: &OffRamp, statics: &mut Vec<StaticObject>) {
+    let clear_m = off_ramp_clearance_m(h);
+    statics.retain(|s| {
+        let radius_m = match s.shape {
+            Shape::Cuboid { half_extents_m } => half_extents_m.xy().norm(),
+            Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => radius_m,
+        };
+        let c = s.t_world_object.translation.vector;
+        match exit
+            .lane
+            .project_near(&Point2::new(c.x, c.y), clear_m + radius_m + 1.0)
+        {
+            Some((s_m, d_m)) => {
+                s_m < exit.diverge_s_m - radius_m || d_m.abs() >= clear_m + radius_m
+            }
+            None => true,
+        }
+    });
+}
+
+/// The guard rail along the ramp's right side, from the diverge point to
+/// `end_s_m` (or the ramp's end).
+fn off_ramp_rail(
+    h: &HighwayParams,
+    exit: &OffRamp,
+    end_s_m: f64,
+    ground: &crate::scene::Ground,
+) -> Vec<StaticObject> {
+    let offset = -(0.5 * h.lane_width_m + RIGHT_SHOULDER_M + 0.5 * RAIL_WIDTH_M);
+    let end = end_s_m.min(exit.lane.length_m());
+    let mut rails = Vec::new();
+    let mut s0 = exit.diverge_s_m;
+    while s0 + h.guard_rail_segment_m <= end {
+        rails.push(rail_segment(h, ground, &exit.lane, s0, offset));
+        s0 += h.guard_rail_segment_m;
+    }
+    rails
+}
+
+/// The ego, once past the diverge point, must be on the ramp: if it had not
+/// changed into the deceleration lane by then it drove on along the
+/// carriageway, which the scenario did not ask for.
+fn check_ego_took_the_exit(
+    spec: &ScenarioSpec,
+    lane0: &LanePath,
+    exit: &OffRamp,
+    params: &OffRampParams,
+    ego: &Ego,
+) -> Result<(), ScenarioError> {
+    let end = ego.trajectory.pose_at(spec.duration_s).translation.vector;
+    let end = Point2::new(end.x, end.y);
+    let (s_m, _) = lane0.project(&end);
+    let (_, off_ramp_m) = exit.lane.project(&end);
+    if s_m > exit.diverge_s_m + OFF_RAMP_CHECK_AFTER_M && off_ramp_m.abs() > 1.5 {
+        return Err(ScenarioError::Build {
+            scenario: spec.name.clone(),
+            message: format!(
+                "the ego passed the off-ramp's diverge point (highway.off_ramp.diverge_ahead_m \
+                 = {} m) before changing into its deceleration lane (requested at \
+                 highway.off_ramp.exit_request_s = {} s): request the exit earlier or move \
+                 the diverge point further ahead",
+                params.diverge_ahead_m, params.exit_request_s
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// The jam's heads (if any), one per lane.
@@ -200,9 +353,14 @@ fn lane_offset_m(h: &HighwayParams, i: usize) -> f64 {
 }
 
 /// Distance from the centre line to the right edge of the paved lanes:
-/// the carriageway's, and the on-ramp's acceleration lane beside it.
+/// the carriageway's, and the ramps' acceleration or deceleration lane
+/// beside it.
 fn right_edge_m(h: &HighwayParams) -> f64 {
-    let ramp = if h.on_ramp.is_some() { 1.0 } else { 0.0 };
+    let ramp = if h.on_ramp.is_some() || h.off_ramp.is_some() {
+        1.0
+    } else {
+        0.0
+    };
     (0.5 * h.lanes as f64 + ramp) * h.lane_width_m
 }
 
@@ -229,9 +387,7 @@ fn cross_section(h: &HighwayParams) -> CrossSection {
     }
 }
 
-/// Guard rail segments along both edges, each pitched to follow the ground:
-/// a beam on posts (the posts are roadside) or, without posts, solid down
-/// to the ground.
+/// Guard rail segments along both edges, each pitched to follow the ground.
 fn guard_rails(
     h: &HighwayParams,
     reference: &LanePath,
@@ -247,23 +403,35 @@ fn guard_rails(
     for offset in offsets {
         for k in 0..segments {
             let s0 = k as f64 * h.guard_rail_segment_m;
-            let s1 = s0 + h.guard_rail_segment_m;
-            let base = if h.rail_post_spacing_m > 0.0 {
-                RAIL_BEAM_BOTTOM_M
-            } else {
-                0.0
-            };
-            rails.push(cuboid_between(
-                ground,
-                StaticKind::GuardRail,
-                beside(reference, s0, offset),
-                beside(reference, s1, offset),
-                RAIL_WIDTH_M,
-                (base, RAIL_HEIGHT_M),
-            ));
+            rails.push(rail_segment(h, ground, reference, s0, offset));
         }
     }
     rails
+}
+
+/// One guard rail segment beside `path` from `s0_m` on, `offset_m` from it:
+/// a beam on posts (the posts are roadside) or, without posts, solid down to
+/// the ground.
+fn rail_segment(
+    h: &HighwayParams,
+    ground: &crate::scene::Ground,
+    path: &LanePath,
+    s0_m: f64,
+    offset_m: f64,
+) -> StaticObject {
+    let base = if h.rail_post_spacing_m > 0.0 {
+        RAIL_BEAM_BOTTOM_M
+    } else {
+        0.0
+    };
+    cuboid_between(
+        ground,
+        StaticKind::GuardRail,
+        beside(path, s0_m, offset_m),
+        beside(path, s0_m + h.guard_rail_segment_m, offset_m),
+        RAIL_WIDTH_M,
+        (base, RAIL_HEIGHT_M),
+    )
 }
 
 /// Light poles outside the right rail at a fixed spacing, and now and then a
@@ -433,6 +601,7 @@ fn add_lane_changes(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use limot_estimator::geometry::wrap_angle_rad as wrap;
     use rand::SeedableRng;
 
     #[test]
@@ -499,7 +668,7 @@ mod tests {
     /// (time, from lane, to lane) of every lane switch of the ego's track.
     fn ego_lane_switches(spec: &ScenarioSpec) -> Vec<(f64, usize, usize)> {
         let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-        let (_, _, traffic) = layout(spec, &mut rng).unwrap();
+        let (_, _, traffic, _) = layout(spec, &mut rng).unwrap();
         let tracks = crate::traffic::simulate_traffic(&traffic).unwrap();
         let ego = tracks.last().unwrap();
         assert_eq!(ego.id, super::super::common::EGO_TRAFFIC_ID);
@@ -555,7 +724,7 @@ mod tests {
         let spec = ScenarioSpec::builtin("highway").unwrap();
         let h = spec.highway_params();
         let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-        let (_, _, traffic) = layout(&spec, &mut rng).unwrap();
+        let (_, _, traffic, _) = layout(&spec, &mut rng).unwrap();
         assert_eq!(traffic.lanes.len(), h.lanes + 1);
         let ramp = &traffic.lanes[h.lanes];
         let ego = traffic.vehicles.last().unwrap();
@@ -574,6 +743,101 @@ mod tests {
         assert!((shift - h.lane_width_m).abs() < 1e-12);
     }
 
+    /// The off-ramp's lane runs one lane width right of lane 0 up to the
+    /// diverge point, then curves right with the ramp's radius through 30
+    /// degrees; past the diverge point nothing stands in the ramp's corridor
+    /// but its own rail, which lines its right side.
+    #[test]
+    fn the_off_ramp_curves_away_through_a_cleared_gore() {
+        let spec = ScenarioSpec::builtin("highway-exit").unwrap();
+        let h = spec.highway_params();
+        let params = h.off_ramp.clone().unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+        let (_, statics, traffic, exit) = layout(&spec, &mut rng).unwrap();
+        let exit = exit.unwrap();
+        assert_eq!(traffic.lanes.len(), h.lanes + 1);
+        let ramp = &traffic.lanes[h.lanes];
+        assert_eq!(ramp, &exit.lane);
+        let ego = traffic.vehicles.last().unwrap();
+        assert_eq!(ego.lane, 0);
+        let leave = ego.lane_changes.last().unwrap();
+        assert_eq!((leave.t_s, leave.to_lane), (params.exit_request_s, h.lanes));
+        assert!((exit.diverge_s_m - (ego.start_s_m + params.diverge_ahead_m)).abs() < 1e-9);
+        // parallel before the diverge point
+        let lane0 = &traffic.lanes[0];
+        for s_m in [100.0, exit.diverge_s_m - 1.0] {
+            let gap = (ramp.point_at(s_m) - lane0.point_at(s_m)).norm();
+            assert!((gap - h.lane_width_m).abs() < 1e-6, "{gap} at {s_m}");
+        }
+        // the curve: heading turns right by 30 deg over radius x 30 deg
+        let arc_m = params.curve_radius_m * OFF_RAMP_TURN_RAD;
+        let turned =
+            wrap(ramp.heading_at(exit.diverge_s_m + arc_m) - ramp.heading_at(exit.diverge_s_m));
+        assert!(
+            (turned + OFF_RAMP_TURN_RAD).abs() < 1e-3,
+            "turned {turned} rad"
+        );
+        let mid = exit.diverge_s_m + 0.5 * arc_m;
+        let rate = wrap(ramp.heading_at(mid + 1.0) - ramp.heading_at(mid - 1.0)) / 2.0;
+        assert!(
+            (rate + 1.0 / params.curve_radius_m).abs() < 1e-4,
+            "curvature {rate}"
+        );
+        // the gore: nothing but the ramp's rail within its corridor
+        let clear_m = 0.5 * h.lane_width_m + RIGHT_SHOULDER_M;
+        let mut ramp_rails = 0;
+        for st in &statics {
+            let c = st.t_world_object.translation.vector;
+            let (s_m, d_m) = ramp.project(&Point2::new(c.x, c.y));
+            if s_m > exit.diverge_s_m + 1.0 && s_m < ramp.length_m() - 1.0 {
+                if st.kind == StaticKind::GuardRail && d_m < 0.0 && d_m > -(clear_m + RAIL_WIDTH_M)
+                {
+                    ramp_rails += 1;
+                    continue;
+                }
+                assert!(
+                    d_m.abs() >= clear_m,
+                    "{:?} at {s_m}, {d_m} from the ramp",
+                    st.kind
+                );
+            }
+        }
+        assert!(
+            ramp_rails >= 20,
+            "{ramp_rails} rail segments along the ramp"
+        );
+    }
+
+    /// Over seeds the ego ends on the ramp, heading 30 deg right of the
+    /// carriageway; an exit requested too late is a build error naming it.
+    #[test]
+    fn the_ego_leaves_by_the_off_ramp_and_a_late_request_is_an_error() {
+        for seed in 1..=4 {
+            let mut spec = ScenarioSpec::builtin("highway-exit").unwrap();
+            spec.seed = seed;
+            spec.duration_s = 36.0;
+            let scene = spec.build().unwrap();
+            let end = scene.ego.trajectory.pose_at(spec.duration_s);
+            let forward = end.rotation * Vector3::x();
+            let heading = forward.y.atan2(forward.x);
+            assert!(
+                (heading + OFF_RAMP_TURN_RAD).abs() < 0.03,
+                "seed {seed}: heading {heading} rad at the end"
+            );
+        }
+        let mut spec = ScenarioSpec::builtin("highway-exit").unwrap();
+        spec.duration_s = 40.0;
+        spec.highway
+            .as_mut()
+            .unwrap()
+            .off_ramp
+            .as_mut()
+            .unwrap()
+            .exit_request_s = 35.0;
+        let err = spec.build().unwrap_err().to_string();
+        assert!(err.contains("highway.off_ramp.exit_request_s"), "{err}");
+    }
+
     #[test]
     fn in_the_jam_the_ego_and_its_neighbours_stop_and_go_in_waves() {
         for seed in 1..=4 {
@@ -581,7 +845,7 @@ mod tests {
             spec.seed = seed;
             let jam = spec.highway_params().jam.unwrap();
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let (_, _, traffic) = layout(&spec, &mut rng).unwrap();
+            let (_, _, traffic, _) = layout(&spec, &mut rng).unwrap();
             let tracks = crate::traffic::simulate_traffic(&traffic).unwrap();
             // (stands, top speed once in the jam) of a track
             let waves = |track: &crate::traffic::PlanarTrack| {

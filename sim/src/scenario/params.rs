@@ -210,6 +210,10 @@ pub struct HighwayParams {
     /// (`[highway.on_ramp]`); unset = it starts in `ego.lane`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub on_ramp: Option<OnRampParams>,
+    /// The ego leaves the highway by an off-ramp (`[highway.off_ramp]`);
+    /// unset = it stays on the highway.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub off_ramp: Option<OffRampParams>,
     /// A stop-and-go jam the ego drives into (`[highway.jam]`); unset =
     /// free-flowing traffic.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -238,6 +242,37 @@ impl Default for OnRampParams {
         OnRampParams {
             length_m: 250.0,
             merge_request_s: 5.0,
+        }
+    }
+}
+
+/// An off-ramp for the ego (`[highway.off_ramp]`): the ego asks at
+/// `exit_request_s` to change from lane 0 into the deceleration lane right
+/// of it (paved beside the carriageway like an on-ramp's acceleration lane:
+/// the right shoulder, rail and roadside move out by one lane width along
+/// the whole road); `diverge_ahead_m` ahead of the ego's start the ramp
+/// leaves the carriageway in a right curve of `curve_radius_m` through 30
+/// degrees and runs straight on. The roadside in its way is cleared (the
+/// gore) and a guard rail lines its right side. The ego must be in lane 0
+/// after its `ego_lane_changes` and change into the deceleration lane
+/// before the diverge point (the build reports it if it does not).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OffRampParams {
+    /// Where the ramp leaves the carriageway, ahead of the ego's start, m.
+    pub diverge_ahead_m: f64,
+    /// When the ego asks to change into the deceleration lane, s.
+    pub exit_request_s: f64,
+    /// Radius of the ramp's curve (its lane's centre line), m.
+    pub curve_radius_m: f64,
+}
+
+impl Default for OffRampParams {
+    fn default() -> Self {
+        OffRampParams {
+            diverge_ahead_m: 450.0,
+            exit_request_s: 14.0,
+            curve_radius_m: 150.0,
         }
     }
 }
@@ -339,6 +374,7 @@ impl Default for HighwayParams {
                 },
             ],
             on_ramp: None,
+            off_ramp: None,
             jam: None,
         }
     }

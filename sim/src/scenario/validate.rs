@@ -236,6 +236,26 @@ pub(super) fn validate_highway(h: &HighwayParams) -> Result<(), ScenarioError> {
             MAX_DURATION_S,
         )?;
     }
+    if let Some(ramp) = &h.off_ramp {
+        in_range(
+            "highway.off_ramp.diverge_ahead_m",
+            ramp.diverge_ahead_m,
+            100.0,
+            5000.0,
+        )?;
+        in_range(
+            "highway.off_ramp.exit_request_s",
+            ramp.exit_request_s,
+            0.0,
+            MAX_DURATION_S,
+        )?;
+        in_range(
+            "highway.off_ramp.curve_radius_m",
+            ramp.curve_radius_m,
+            50.0,
+            2000.0,
+        )?;
+    }
     // impossible geometry: the vehicles must fit into the spawn zone with
     // safe gaps (the zone around the ego stays free in its lane)
     let capacity = highway_capacity(h);
