@@ -137,8 +137,9 @@ const TURN_RADIUS_M: f64 = 8.0;
 /// The ego keeps speed^2 * curvature near this in its turn, m/s^2.
 const TURN_LATERAL_ACCEL_MPS2: f64 = 2.0;
 /// At the ego's turn, the movements it crosses stay red this long after the
-/// main street's green starts, so the ego (first or second at the light) has
-/// turned past their paths before they move, s.
+/// main street's green starts, so the ego, waiting at the light, has turned
+/// past their paths before they move (the scene properties check that nobody
+/// overlaps), s.
 const TURN_CLEARANCE_S: f64 = 12.0;
 /// Longest body of a pedestrian (`draw_body`), m.
 const PEDESTRIAN_LENGTH_MAX_M: f64 = 0.6;
