@@ -129,6 +129,11 @@ pub struct EstimatorConfig {
     /// the prediction from the previous sweep may miss. `false` filters with
     /// the dynamic tracks' predicted boxes only (the paper's rule).
     pub filter_unsettled_detections: bool,
+    /// `dynafilt` / `limot` also filter the tracks that have been dynamic and
+    /// stand now (a car in a queue or at a red light after driving, which
+    /// moves again; its speed alone makes it static). `false` filters by the
+    /// tracks' present state only (the paper's rule).
+    pub filter_stopped_movers: bool,
     /// Report every feature index per frame (for filter evaluation).
     pub record_feature_indices: bool,
     /// Ego states in the sliding window (the paper uses 5).
@@ -235,6 +240,7 @@ impl Default for EstimatorConfig {
             record_feature_indices: false,
             filter_confirmed_only: false,
             filter_unsettled_detections: true,
+            filter_stopped_movers: true,
             window_size: 5,
             gravity_mps2: 9.80511,
             estimate_gravity: true,

@@ -106,6 +106,8 @@ pub struct Track {
     fit: TrajectoryFit,
     lifecycle: Lifecycle,
     motion: Motion,
+    /// Whether `motion` has ever been `Dynamic`.
+    has_moved: bool,
     consecutive_hits: usize,
     consecutive_misses: usize,
     total_hits: usize,
@@ -144,6 +146,7 @@ impl Track {
             fit,
             lifecycle: Lifecycle::Tentative,
             motion: Motion::Static,
+            has_moved: false,
             consecutive_hits: 1,
             consecutive_misses: 0,
             total_hits: 1,
@@ -174,6 +177,12 @@ impl Track {
     /// Static or dynamic, with the hysteresis of the module documentation.
     pub fn motion(&self) -> Motion {
         self.motion
+    }
+
+    /// Whether the track has ever been dynamic: a car standing in a queue or
+    /// at a red light after driving is one that moves again.
+    pub fn has_moved(&self) -> bool {
+        self.has_moved
     }
 
     /// Horizontal average speed over the motion window (m/s).
@@ -395,6 +404,7 @@ impl Track {
             }
             unchanged => unchanged,
         };
+        self.has_moved |= self.motion == Motion::Dynamic;
     }
 }
 

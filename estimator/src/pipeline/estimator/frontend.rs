@@ -216,7 +216,7 @@ impl Estimator {
             ),
             Variant::Dynafilt | Variant::Limot => {
                 let moving = |t: &&Track| {
-                    t.motion() == Motion::Dynamic
+                    filters_as_moving(t, self.config.filter_stopped_movers)
                         && (t.lifecycle() == Lifecycle::Confirmed
                             || !self.config.filter_confirmed_only)
                 };
@@ -274,7 +274,7 @@ impl Estimator {
                 }) as Box<dyn BoxAtTime>
             };
             match nearest {
-                Some((t, _, p)) if t.motion() == Motion::Dynamic => {
+                Some((t, _, p)) if filters_as_moving(t, self.config.filter_stopped_movers) => {
                     boxes.push(moving_box(p.velocity_world_mps));
                 }
                 Some((t, _, p)) if t.lifecycle() == Lifecycle::Confirmed => {
@@ -418,6 +418,12 @@ impl Estimator {
     }
 }
 
+/// Whether the trajectory-based filter treats a track as moving: dynamic
+/// now, or (with `stopped_movers`) dynamic once and standing now.
+fn filters_as_moving(track: &Track, stopped_movers: bool) -> bool {
+    track.motion() == Motion::Dynamic || (stopped_movers && track.has_moved())
+}
+
 pub(super) fn summary(result: &ScanMatchResult, features: &SweepFeatures) -> ScanMatchSummary {
     ScanMatchSummary {
         edge_features: features.edge_lidar.len(),
@@ -454,6 +460,37 @@ mod tests {
             track.record_hit(at(k), config).unwrap();
         }
         track
+    }
+
+    /// A car that drives at 8 m/s for a second and then stands: static by
+    /// its speed, yet filtered as moving unless the rule is off; a car that
+    /// only ever stood is not.
+    #[test]
+    fn a_car_that_drove_and_stopped_is_filtered_as_moving() {
+        let config = TrackerConfig::default();
+        let parked = standing_track(&config);
+        assert!(!parked.has_moved());
+        assert!(!filters_as_moving(&parked, true));
+        let at = |k: usize| {
+            let x = 8.0 * 0.1 * k.min(10) as f64;
+            TimedBox {
+                t_s: 0.1 * k as f64,
+                center_world: Vector3::new(x, 0.0, 0.8),
+                yaw_rad: 0.0,
+                size_lwh: Vector3::new(4.2, 1.8, 1.6),
+            }
+        };
+        let mut track = Track::new(2, crate::input::ObjectClass::Car, at(0), &config).unwrap();
+        let mut was_dynamic = false;
+        for k in 1..40 {
+            track.record_hit(at(k), &config).unwrap();
+            was_dynamic |= track.motion() == Motion::Dynamic;
+        }
+        assert!(was_dynamic);
+        assert_eq!(track.motion(), Motion::Static, "{} m/s", track.speed_mps());
+        assert!(track.has_moved());
+        assert!(filters_as_moving(&track, true));
+        assert!(!filters_as_moving(&track, false));
     }
 
     #[test]
