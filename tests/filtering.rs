@@ -94,25 +94,31 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
             (c.removed_moving + c.removed_static_object) as f64 / c.removed.max(1) as f64;
         let moving_precision = score.precision.unwrap();
         let recall = score.recall.unwrap();
-        let parked_removed = c.static_object_removed_fraction().unwrap();
+        let standing_removed = c.static_object_removed_fraction().unwrap();
+        let parked_removed = c.parked_removed_fraction().unwrap();
         eprintln!(
-            "{}: {c:?}; moving precision {moving_precision:.3} (object precision {object_precision:.3}), recall {recall:.3}, parked features removed {parked_removed:.3}",
+            "{}: {c:?}; moving precision {moving_precision:.3} (object precision {object_precision:.3}), recall {recall:.3}, standing features removed {standing_removed:.3}, parked {parked_removed:.3}",
             variant.name()
         );
-        results.push((variant, moving_precision, recall, parked_removed));
+        results.push((variant, object_precision, recall, parked_removed));
     }
-    // Measured (seed 2, 30 s): dynafilt precision 0.86, recall 0.98, 6.6 %
-    // of the static-object features removed (stopped cars pulling away
-    // are filtered from their first departing detection); allfilt recall
-    // 0.94, 94 % of the static-object features removed. Of the moving
-    // features dynafilt keeps, 83 % lie on cars whose confirmed track is
-    // still static (pulling away, not yet past the departure bound).
-    let (_, precision, recall, parked) = results[0];
+    // Measured (seed 2, 30 s, 2026-12-07): dynafilt recall 0.996, 0.947 of
+    // what it removes lies on objects, and it keeps the parked cars
+    // (3.3 % of their features removed, as without the rule). The cars standing at the
+    // lights after driving are filtered as moving
+    // (`EstimatorConfig::filter_stopped_movers`), so against "moving faster
+    // than 1 m/s at that frame" its precision is 0.54 and 54 % of the
+    // standing objects' features go; allfilt recall 0.94, 94 % of the
+    // standing objects' features removed.
+    let (_, object_precision, recall, parked) = results[0];
     assert!(recall >= 0.9, "dynafilt recall {recall}");
-    assert!(precision >= 0.85, "dynafilt precision {precision}");
+    assert!(
+        object_precision >= 0.9,
+        "dynafilt removed {object_precision} on objects"
+    );
     assert!(
         parked < 0.08,
-        "dynafilt removed {parked} of the static-object features"
+        "dynafilt removed {parked} of the parked cars' features"
     );
     let (_, _, allfilt_recall, allfilt_parked) = results[1];
     // This sweep's detections that no settled static track explains are
@@ -124,7 +130,7 @@ fn dynafilt_removes_moving_features_and_keeps_parked_cars() {
     );
     assert!(
         allfilt_parked > 0.8,
-        "allfilt removed only {allfilt_parked} of static features"
+        "allfilt removed only {allfilt_parked} of the parked cars' features"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

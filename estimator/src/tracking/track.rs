@@ -35,6 +35,11 @@ use crate::input::ObjectClass;
 use nalgebra::{Isometry3, Vector3};
 use std::collections::VecDeque;
 
+/// A track counts as having moved ([`Track::has_moved`]) once its box
+/// stands this far from its first one (horizontally) while it is dynamic:
+/// a car's length, far beyond a parked car's detection noise (~0.15 m).
+pub const MOVED_DISTANCE_M: f64 = 4.0;
+
 /// How a track is predicted after its last measured box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Extrapolation {
@@ -106,8 +111,11 @@ pub struct Track {
     fit: TrajectoryFit,
     lifecycle: Lifecycle,
     motion: Motion,
-    /// Whether `motion` has ever been `Dynamic`.
+    /// Whether the track has ever been dynamic while its box stood more than
+    /// [`MOVED_DISTANCE_M`] from where the track started.
     has_moved: bool,
+    /// The first box's centre, world frame.
+    first_center_world: Vector3<f64>,
     consecutive_hits: usize,
     consecutive_misses: usize,
     total_hits: usize,
@@ -147,6 +155,7 @@ impl Track {
             lifecycle: Lifecycle::Tentative,
             motion: Motion::Static,
             has_moved: false,
+            first_center_world: first.center_world,
             consecutive_hits: 1,
             consecutive_misses: 0,
             total_hits: 1,
@@ -179,8 +188,11 @@ impl Track {
         self.motion
     }
 
-    /// Whether the track has ever been dynamic: a car standing in a queue or
-    /// at a red light after driving is one that moves again.
+    /// Whether the track has ever been dynamic with its box more than
+    /// [`MOVED_DISTANCE_M`] from where it started: a car standing in a queue
+    /// or at a red light after driving is one that moves again, while a
+    /// parked car judged dynamic for a moment by its boxes' noise has not
+    /// gone anywhere.
     pub fn has_moved(&self) -> bool {
         self.has_moved
     }
@@ -348,6 +360,9 @@ impl Track {
             b.center_world = t_new_old.transform_point(&b.center_world.into()).coords;
             b.yaw_rad = rotated_yaw(t_new_old, b.yaw_rad);
         }
+        self.first_center_world = t_new_old
+            .transform_point(&self.first_center_world.into())
+            .coords;
         self.refit(config)?;
         self.update_motion(config);
         Ok(())
@@ -404,7 +419,11 @@ impl Track {
             }
             unchanged => unchanged,
         };
-        self.has_moved |= self.motion == Motion::Dynamic;
+        let latest = samples
+            .last()
+            .map_or(self.first_center_world, |b| b.center_world);
+        let left_start = (latest - self.first_center_world).xy().norm() > MOVED_DISTANCE_M;
+        self.has_moved |= self.motion == Motion::Dynamic && left_start;
     }
 }
 

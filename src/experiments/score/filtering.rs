@@ -73,6 +73,13 @@ pub struct FilterEvaluation {
     pub static_object_features: usize,
     /// Of those, removed.
     pub removed_static_object: usize,
+    /// Features on parked objects (standing for the whole run, a subset of
+    /// the standing ones; absent from results written before it existed).
+    #[serde(default)]
+    pub parked_features: usize,
+    /// Of those, removed.
+    #[serde(default)]
+    pub removed_parked: usize,
     /// Why the kept features on moving objects were kept (trajectory-based
     /// filters only; absent from results written before it existed).
     #[serde(default)]
@@ -116,6 +123,12 @@ impl FilterEvaluation {
         (self.static_object_features > 0)
             .then(|| self.removed_static_object as f64 / self.static_object_features as f64)
     }
+
+    /// Share of the parked objects' features removed (structure no filter
+    /// needs to drop).
+    pub fn parked_removed_fraction(&self) -> Option<f64> {
+        (self.parked_features > 0).then(|| self.removed_parked as f64 / self.parked_features as f64)
+    }
 }
 
 /// What a filter is judged against at one frame.
@@ -127,6 +140,8 @@ pub struct FrameObjects {
     pub moving: BTreeSet<u32>,
     /// Standing objects (parked, or stopped).
     pub standing: BTreeSet<u32>,
+    /// Of those, the parked ones (they never move).
+    pub parked: BTreeSet<u32>,
 }
 
 impl FilterEvaluation {
@@ -139,6 +154,8 @@ impl FilterEvaluation {
             removed_moving: 0,
             static_object_features: 0,
             removed_static_object: 0,
+            parked_features: 0,
+            removed_parked: 0,
             kept_moving_causes: None,
         }
     }
@@ -167,6 +184,10 @@ impl FilterEvaluation {
             if objects.standing.contains(&label) {
                 self.static_object_features += 1;
                 self.removed_static_object += usize::from(r);
+            }
+            if objects.parked.contains(&label) {
+                self.parked_features += 1;
+                self.removed_parked += usize::from(r);
             }
         }
         labels.into_iter().zip(removed_mask).collect()
@@ -207,6 +228,11 @@ pub fn evaluate_filtering(
             standing: frame_boxes
                 .iter()
                 .filter(|b| !moving.contains(&b.id))
+                .map(|b| b.id)
+                .collect(),
+            parked: frame_boxes
+                .iter()
+                .filter(|b| b.parked)
                 .map(|b| b.id)
                 .collect(),
             moving,

@@ -198,6 +198,8 @@ fn filtering_table_scores_the_variants_that_filter() {
         removed_moving: 15,
         static_object_features: 30,
         removed_static_object: 3,
+        parked_features: 20,
+        removed_parked: 1,
         kept_moving_causes: Some(KeptMovingCauses {
             untracked: 2,
             tentative_static: 1,
