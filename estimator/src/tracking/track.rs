@@ -493,4 +493,39 @@ mod tests {
         let gap = (fit.predict(0.7).center_world - cv.predict(0.7).center_world).norm();
         assert!(gap > 0.02, "{gap}");
     }
+
+    /// A parked car whose boxes jump by a metre for a few frames (a swap
+    /// with a passing car, a bad detection) turns dynamic for a moment but
+    /// has not moved; a car that drives 12 m and stops has.
+    #[test]
+    fn a_track_has_moved_only_after_leaving_its_start() {
+        let config = TrackerConfig::default();
+        let run = |x_of: &dyn Fn(usize) -> f64| {
+            let at = |k: usize| TimedBox {
+                t_s: 0.1 * k as f64,
+                center_world: Vector3::new(x_of(k), 0.0, 0.8),
+                yaw_rad: 0.0,
+                size_lwh: Vector3::new(4.5, 1.8, 1.5),
+            };
+            let mut track = Track::new(0, ObjectClass::Car, at(0), &config).unwrap();
+            let mut was_dynamic = false;
+            for k in 1..40 {
+                track.record_hit(at(k), &config).unwrap();
+                was_dynamic |= track.motion() == Motion::Dynamic;
+            }
+            (was_dynamic, track)
+        };
+        let (jumped, parked) = run(&|k| {
+            if (10..14).contains(&k) {
+                1.5 * (k - 9) as f64 / 4.0
+            } else {
+                0.0
+            }
+        });
+        assert!(jumped, "the jump should make it dynamic for a moment");
+        assert!(!parked.has_moved());
+        let (drove, stopped) = run(&|k| 1.2 * k.min(10) as f64);
+        assert!(drove && stopped.motion() == Motion::Static);
+        assert!(stopped.has_moved());
+    }
 }
