@@ -21,5 +21,5 @@ set -euo pipefail
 OUT=${OUT:-reports/suite}
 N=${SLURM_ARRAY_TASK_COUNT:?run with sbatch --array=1-N}
 K=${SLURM_ARRAY_TASK_ID:?run with sbatch --array=1-N}
-exec limot eval suite --families highway,highway-dense,highway-jam,highway-exit,urban,urban-parked,urban-left \
+exec limot eval suite \
   --seeds 1,2,3,4 --duration 30 --out "$OUT" --shard "$K/$N" --jobs "${SLURM_CPUS_PER_TASK:-1}"

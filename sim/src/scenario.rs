@@ -165,12 +165,12 @@ fn urban_ground() -> GroundParams {
 
 const BUILTIN_NAMES: &[&str] = &[
     "highway",
-    "urban",
     "highway-dense",
-    "urban-parked",
     "highway-jam",
-    "urban-left",
     "highway-exit",
+    "urban",
+    "urban-parked",
+    "urban-left",
 ];
 
 impl ScenarioSpec {

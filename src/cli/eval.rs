@@ -128,7 +128,13 @@ pub(super) fn run_eval_suite(args: SuiteArgs) -> Result<(), Box<dyn std::error::
     use crate::experiments::{Ablation, KittiTwins, Shard, SuiteSpec, TWIN_FAMILY};
     use crate::experiments::{parse_list, parse_sequences, run_suite};
     use limot_estimator::Variant;
-    let families = parse_list("families", &args.families, |s| Ok(s.to_string()))?;
+    let families = match &args.families {
+        Some(list) => parse_list("families", list, |s| Ok(s.to_string()))?,
+        None => limot_sim::scenario::ScenarioSpec::builtin_names()
+            .iter()
+            .map(|name| name.to_string())
+            .collect(),
+    };
     let twins_only = families.iter().all(|f| f == TWIN_FAMILY);
     let twins = match (args.training, args.sequences) {
         (Some(training), Some(sequences)) => Some(KittiTwins {

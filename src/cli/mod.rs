@@ -333,12 +333,10 @@ enum EvalCommand {
 struct SuiteArgs {
     /// Scenario families: built-in names (highway, urban, highway-dense,
     /// urban-parked, highway-jam, highway-exit, urban-left), TOML files, or `kitti` (the
-    /// digital twins of --sequences in --training), comma-separated.
-    #[arg(
-        long,
-        default_value = "highway,highway-dense,highway-jam,highway-exit,urban,urban-parked,urban-left"
-    )]
-    families: String,
+    /// digital twins of --sequences in --training), comma-separated (default: every
+    /// built-in scenario).
+    #[arg(long)]
+    families: Option<String>,
     /// Seeds, comma-separated (default: 1,2; a suite of KITTI twins only: 1).
     #[arg(long)]
     seeds: Option<String>,

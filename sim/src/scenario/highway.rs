@@ -60,10 +60,11 @@ const OFF_RAMP_LATERAL_ACCEL_MPS2: f64 = 1.5;
 /// Past the diverge point by this much, the ego must be on the ramp, m.
 const OFF_RAMP_CHECK_AFTER_M: f64 = 30.0;
 
-/// The ego's off-ramp: its lane (the deceleration lane beside lane 0, then
-/// the ramp's curve and straight) and where it leaves the carriageway.
+/// The ego's off-ramp: its lane's index among the traffic lanes (the
+/// deceleration lane beside lane 0, then the ramp's curve and straight; the
+/// last lane) and where it leaves the carriageway.
 struct OffRamp {
-    lane: LanePath,
+    lane: usize,
     /// Arc length of the diverge point, on the lane and on the reference line.
     diverge_s_m: f64,
 }
@@ -73,7 +74,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let (ground, statics, traffic, exit) = layout(spec, rng)?;
     let (agents, ego) = run_traffic(spec, &ground, &|_, _| 0.0, &traffic)?;
     if let (Some(exit), Some(params)) = (&exit, &spec.highway_params().off_ramp) {
-        check_ego_took_the_exit(spec, &traffic.lanes[0], exit, params, &ego)?;
+        check_ego_took_the_exit(spec, &traffic.lanes, exit, params, &ego)?;
     }
     Ok(Scene {
         duration_s: spec.duration_s,
@@ -111,9 +112,8 @@ fn layout(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Layout, ScenarioE
     // the acceleration lane (index h.lanes) to where the on-ramp ends
     if let Some(ramp) = &h.on_ramp {
         let ramp_pieces = pieces_up_to(&pieces, ego_s + ramp.length_m);
-        let offset_m = lane_offset_m(&h, 0) - h.lane_width_m;
         lanes.push(
-            LanePath::from_pieces(Point2::origin(), 0.0, &ramp_pieces, offset_m)
+            LanePath::from_pieces(Point2::origin(), 0.0, &ramp_pieces, ramp_lane_offset_m(&h))
                 .map_err(|e| traffic_error(spec, e))?,
         );
     }
@@ -123,10 +123,14 @@ fn layout(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Layout, ScenarioE
         None => None,
         Some(params) => {
             let diverge_s_m = ego_s + params.diverge_ahead_m;
-            let lane = off_ramp_lane(&h, &pieces, diverge_s_m, road_length, params)
-                .map_err(|e| traffic_error(spec, e))?;
-            lanes.push(lane.clone());
-            Some(OffRamp { lane, diverge_s_m })
+            lanes.push(
+                off_ramp_lane(&h, &pieces, diverge_s_m, road_length, params)
+                    .map_err(|e| traffic_error(spec, e))?,
+            );
+            Some(OffRamp {
+                lane: lanes.len() - 1,
+                diverge_s_m,
+            })
         }
     };
 
@@ -144,8 +148,15 @@ fn layout(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Layout, ScenarioE
         spec.seed,
     ));
     if let Some(exit) = &exit {
-        clear_off_ramp(&h, exit, &mut statics);
-        statics.extend(off_ramp_rail(&h, exit, reach + view, &ground));
+        clear_off_ramp(&h, &lanes[exit.lane], exit.diverge_s_m, &mut statics);
+        let rail = off_ramp_rail(
+            &h,
+            &lanes[exit.lane],
+            exit.diverge_s_m,
+            reach + view,
+            &ground,
+        );
+        statics.extend(rail);
     }
 
     let mut vehicles = place_vehicles(&h, spec.ego.lane, ego_s, rng);
@@ -173,11 +184,9 @@ fn layout(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Layout, ScenarioE
         to_lane: spec.ego.lane,
         cooperative: true,
     });
-    // the off-ramp's lane is the last one
-    let exit_lane = lanes.len() - 1;
-    let leave = h.off_ramp.iter().map(|ramp| LaneChange {
+    let leave = h.off_ramp.iter().zip(&exit).map(|(ramp, exit)| LaneChange {
         t_s: ramp.exit_request_s,
-        to_lane: exit_lane,
+        to_lane: exit.lane,
         cooperative: true,
     });
     // traffic makes room for the ego's changes (the route must happen)
@@ -213,7 +222,7 @@ fn off_ramp_lane(
     road_length_m: f64,
     params: &OffRampParams,
 ) -> Result<LanePath, crate::traffic::TrafficError> {
-    let offset_m = lane_offset_m(h, 0) - h.lane_width_m;
+    let offset_m = ramp_lane_offset_m(h);
     let mut ramp = pieces_up_to(pieces, diverge_s_m);
     // a lane `offset_m` (< 0) right of the reference line's curve has
     // radius `reference - |offset_m|`: the reference's curve is that much wider
@@ -238,7 +247,12 @@ fn off_ramp_clearance_m(h: &HighwayParams) -> f64 {
 /// A thing and what it carries go together (a crown stands over its trunk,
 /// a board over its pole, a gantry's beam or an overpass's deck reaches over
 /// the carriageway and is wider than the corridor's distance to it).
-fn clear_off_ramp(h: &HighwayParams, exit: &OffRamp, statics: &mut Vec<StaticObject>) {
+fn clear_off_ramp(
+    h: &HighwayParams,
+    ramp: &LanePath,
+    diverge_s_m: f64,
+    statics: &mut Vec<StaticObject>,
+) {
     let clear_m = off_ramp_clearance_m(h);
     statics.retain(|s| {
         let radius_m = match s.shape {
@@ -246,13 +260,8 @@ fn clear_off_ramp(h: &HighwayParams, exit: &OffRamp, statics: &mut Vec<StaticObj
             Shape::Cylinder { radius_m, .. } | Shape::Ball { radius_m } => radius_m,
         };
         let c = s.t_world_object.translation.vector;
-        match exit
-            .lane
-            .project_near(&Point2::new(c.x, c.y), clear_m + radius_m + 1.0)
-        {
-            Some((s_m, d_m)) => {
-                s_m < exit.diverge_s_m - radius_m || d_m.abs() >= clear_m + radius_m
-            }
+        match ramp.project_near(&Point2::new(c.x, c.y), clear_m + radius_m + 1.0) {
+            Some((s_m, d_m)) => s_m < diverge_s_m - radius_m || d_m.abs() >= clear_m + radius_m,
             None => true,
         }
     });
@@ -262,16 +271,17 @@ fn clear_off_ramp(h: &HighwayParams, exit: &OffRamp, statics: &mut Vec<StaticObj
 /// `end_s_m` (or the ramp's end).
 fn off_ramp_rail(
     h: &HighwayParams,
-    exit: &OffRamp,
+    ramp: &LanePath,
+    diverge_s_m: f64,
     end_s_m: f64,
     ground: &crate::scene::Ground,
 ) -> Vec<StaticObject> {
     let offset = -(0.5 * h.lane_width_m + RIGHT_SHOULDER_M + 0.5 * RAIL_WIDTH_M);
-    let end = end_s_m.min(exit.lane.length_m());
+    let end = end_s_m.min(ramp.length_m());
     let mut rails = Vec::new();
-    let mut s0 = exit.diverge_s_m;
+    let mut s0 = diverge_s_m;
     while s0 + h.guard_rail_segment_m <= end {
-        rails.push(rail_segment(h, ground, &exit.lane, s0, offset));
+        rails.push(rail_segment(h, ground, ramp, s0, offset));
         s0 += h.guard_rail_segment_m;
     }
     rails
@@ -282,15 +292,15 @@ fn off_ramp_rail(
 /// carriageway, which the scenario did not ask for.
 fn check_ego_took_the_exit(
     spec: &ScenarioSpec,
-    lane0: &LanePath,
+    lanes: &[LanePath],
     exit: &OffRamp,
     params: &OffRampParams,
     ego: &Ego,
 ) -> Result<(), ScenarioError> {
     let end = ego.trajectory.pose_at(spec.duration_s).translation.vector;
     let end = Point2::new(end.x, end.y);
-    let (s_m, _) = lane0.project(&end);
-    let (_, off_ramp_m) = exit.lane.project(&end);
+    let (s_m, _) = lanes[0].project(&end);
+    let (_, off_ramp_m) = lanes[exit.lane].project(&end);
     if s_m > exit.diverge_s_m + OFF_RAMP_CHECK_AFTER_M && off_ramp_m.abs() > 1.5 {
         return Err(ScenarioError::Build {
             scenario: spec.name.clone(),
@@ -350,6 +360,12 @@ fn road_pieces(h: &HighwayParams, length_m: f64, rng: &mut ChaCha8Rng) -> Vec<Pa
 /// Lateral offset (+ = left) of lane `i` (0 = rightmost) from the centre line.
 fn lane_offset_m(h: &HighwayParams, i: usize) -> f64 {
     (i as f64 + 0.5 - 0.5 * h.lanes as f64) * h.lane_width_m
+}
+
+/// Lateral offset of the ramps' acceleration or deceleration lane: one lane
+/// width right of lane 0.
+fn ramp_lane_offset_m(h: &HighwayParams) -> f64 {
+    lane_offset_m(h, 0) - h.lane_width_m
 }
 
 /// Distance from the centre line to the right edge of the paved lanes:
@@ -757,7 +773,7 @@ mod tests {
         let exit = exit.unwrap();
         assert_eq!(traffic.lanes.len(), h.lanes + 1);
         let ramp = &traffic.lanes[h.lanes];
-        assert_eq!(ramp, &exit.lane);
+        assert_eq!(exit.lane, h.lanes);
         let ego = traffic.vehicles.last().unwrap();
         assert_eq!(ego.lane, 0);
         let leave = ego.lane_changes.last().unwrap();
