@@ -85,6 +85,10 @@ fn every_run_tracks_the_ego_to_half_a_metre_and_is_scored() {
             m.ego.ate_t_m
         );
         assert!(m.ego.ate_r_rad.is_finite() && m.ego.ate_r_rad < 0.1);
+        // the urban street constrains every direction of the scan match
+        let along = m.ego.ate_along_m.expect("the ego drives");
+        assert!(along <= m.ego.ate_t_m, "{v}: along {along} m");
+        assert_eq!(m.ego.degenerate_match_share, Some(0.0), "{v}");
         assert_eq!(m.frames_estimated, s.frames, "{v}: one estimate per frame");
         for (kind, thr) in [("3D", 0.25), ("3D", 0.5), ("BEV", 0.25), ("BEV", 0.5)] {
             let mot = m

@@ -47,7 +47,7 @@ use crate::simulate::{Overrides, prepare_output_dir, resolve_scenario, simulate}
 use indicatif::{ProgressBar, ProgressStyle};
 use limot_estimator::Variant;
 use limot_estimator::input::ObjectClass;
-use limot_estimator::pipeline::EstimatorConfig;
+use limot_estimator::pipeline::{EstimatorConfig, FrameEstimate};
 use limot_sim::record::Dataset;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -488,6 +488,17 @@ fn object_metrics(tracks: &TracksEvaluation) -> Vec<ObjectMetricsRecord> {
         .collect()
 }
 
+/// Share of the matched frames whose scan match was degenerate (see
+/// [`EgoMetrics::degenerate_match_share`]); `None` without a match.
+fn degenerate_match_share(estimates: &[FrameEstimate]) -> Option<f64> {
+    let matches: Vec<_> = estimates.iter().filter_map(|e| e.scan_match).collect();
+    let degenerate = matches
+        .iter()
+        .filter(|m| m.degenerate_directions > 0)
+        .count();
+    (!matches.is_empty()).then(|| degenerate as f64 / matches.len() as f64)
+}
+
 /// Runs one variant (with `ablation`'s override, if any) into `run_dir` and scores it.
 fn run_variant(
     source: &Source,
@@ -546,6 +557,8 @@ fn run_variant(
             pairs: ego.ate.n,
             rpe_t_m: ego.rpe.as_ref().map(|r| r.trans_rmse_m),
             rpe_r_rad: ego.rpe.as_ref().map(|r| r.rot_rmse_rad),
+            ate_along_m: ego.ate.along_rmse_m,
+            degenerate_match_share: degenerate_match_share(&output.estimates),
         },
         clear_mot: mot_metrics(&tracks, None),
         clear_mot_car: mot_metrics(&tracks, Some(ObjectClass::Car)),

@@ -10,6 +10,10 @@
 //! e_R,i   = ‖Log(rot(E_i))‖ = angle of (R·R_est,i)ᵀ·R_true,i        [rad]
 //! ATE_T   = sqrt(mean e_t,i²),   ATE_R = sqrt(mean e_R,i²)
 //! ```
+//!
+//! The translation error is also split along the true direction of travel
+//! ([`AteResult::along_rmse_m`]): a LiDAR odometry whose scan match cannot
+//! see along a featureless road drifts there alone.
 
 use super::align::{Alignment, umeyama};
 use super::{ErrorStats, EvalError, check_pose};
@@ -41,6 +45,10 @@ pub struct AteResult {
     pub median_m: f64,
     /// Largest translation error, m.
     pub max_m: f64,
+    /// RMSE of the translation errors' component along the true direction
+    /// of travel ([`travel_directions`]), m; `None` when the truth never
+    /// moves. Its square and the cross-track errors' add up to ATE_T².
+    pub along_rmse_m: Option<f64>,
     /// Number of associated pose pairs used.
     pub n: usize,
     /// Transform applied to the estimate (identity for [`AlignMode::None`]).
@@ -224,13 +232,18 @@ pub fn ate_with(
         AlignMode::Se3 => umeyama(&p_est, &p_true, false)?,
         AlignMode::Sim3 => umeyama(&p_est, &p_true, true)?,
     };
+    let directions = travel_directions(&p_true);
     let mut per_pose = Vec::with_capacity(pairs.len());
-    for &(ie, it) in &pairs {
+    let mut along_sq_sum = 0.0;
+    for (k, &(ie, it)) in pairs.iter().enumerate() {
         let aligned = alignment.transform_pose(&est[ie].1);
         let true_pose = &truth[it].1;
-        let e_t = (true_pose.translation.vector - aligned.translation.vector).norm();
+        let error = true_pose.translation.vector - aligned.translation.vector;
         let e_r = aligned.rotation.angle_to(&true_pose.rotation);
-        per_pose.push((est[ie].0, e_t, e_r));
+        per_pose.push((est[ie].0, error.norm(), e_r));
+        if let Some(d) = &directions {
+            along_sq_sum += error.dot(&d[k]).powi(2);
+        }
     }
     let t_errors: Vec<f64> = per_pose.iter().map(|e| e.1).collect();
     let r_errors: Vec<f64> = per_pose.iter().map(|e| e.2).collect();
@@ -243,10 +256,48 @@ pub fn ate_with(
         mean_m: t_stats.mean,
         median_m: t_stats.median,
         max_m: t_stats.max,
+        along_rmse_m: directions.map(|_| (along_sq_sum / pairs.len() as f64).sqrt()),
         n: t_stats.n,
         alignment,
         per_pose,
     })
+}
+
+/// The truth moves at least this far between a pair's neighbours for its
+/// direction of travel to be taken from them, m (above the centimetres of a
+/// GNSS/INS truth's jitter at rest).
+const TRAVEL_MIN_DISPLACEMENT_M: f64 = 0.1;
+
+/// Unit direction of travel at each of `p_true` (positions in time order):
+/// from the neighbouring positions (central difference, one-sided at the
+/// ends); where the truth moved less than [`TRAVEL_MIN_DISPLACEMENT_M`] (at
+/// rest) the direction of the nearest pose that moved, the last one before
+/// or else the first one after (a vehicle stands facing the way it drove).
+/// `None` when the truth never moves. Taken from positions, not from the
+/// poses' axes, so it holds in any body frame convention (KITTI's camera
+/// looks along z, a LiDAR along x).
+pub fn travel_directions(p_true: &[Vector3<f64>]) -> Option<Vec<Vector3<f64>>> {
+    let n = p_true.len();
+    let moving: Vec<Option<Vector3<f64>>> = (0..n)
+        .map(|k| {
+            let step = p_true[(k + 1).min(n - 1)] - p_true[k.saturating_sub(1)];
+            let length = step.norm();
+            (length >= TRAVEL_MIN_DISPLACEMENT_M).then(|| step / length)
+        })
+        .collect();
+    let first = moving.iter().flatten().next().copied()?;
+    let mut last = first;
+    Some(
+        moving
+            .into_iter()
+            .map(|d| {
+                if let Some(d) = d {
+                    last = d;
+                }
+                last
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -308,6 +359,84 @@ mod tests {
         assert!((r.ate_r_rmse_rad - (0.05f64).sqrt()).abs() < 1e-12);
         assert_eq!(r.median_m, 3.5);
         assert_eq!(r.max_m, 4.0);
+    }
+
+    fn at(t_s: f64, x: f64, y: f64) -> (f64, Isometry3<f64>) {
+        (t_s, Isometry3::translation(x, y, 0.0))
+    }
+
+    #[test]
+    fn along_track_error_is_the_component_along_the_travel() {
+        // The truth drives along +x at 10 m/s, then along +y.
+        let truth: Vec<_> = (0..40)
+            .map(|i| {
+                let t = 0.1 * i as f64;
+                if i < 20 {
+                    at(t, t * 10.0, 0.0)
+                } else {
+                    at(t, 20.0, (t - 2.0) * 10.0)
+                }
+            })
+            .collect();
+        // An estimate that lags along the path: all of its error is along.
+        let lagging: Vec<_> = truth
+            .iter()
+            .enumerate()
+            .map(|(i, (t, p))| {
+                let lag = 0.01 * i as f64;
+                let back = if i < 20 { (-lag, 0.0) } else { (0.0, -lag) };
+                at(*t, p.translation.x + back.0, p.translation.y + back.1)
+            })
+            .collect();
+        let r = ate_with(&lagging, &truth, 0.01, AlignMode::None).unwrap();
+        let along = r.along_rmse_m.unwrap();
+        // the corner's pose takes the diagonal between its neighbours
+        assert!(
+            (along - r.ate_t_rmse_m).abs() < 0.01 * r.ate_t_rmse_m,
+            "{along} {r:?}"
+        );
+        // One beside the path: none of it is along (the corner pose aside).
+        let beside: Vec<_> = truth
+            .iter()
+            .enumerate()
+            .map(|(i, (t, p))| {
+                let side = if i < 20 { (0.0, 0.5) } else { (-0.5, 0.0) };
+                at(*t, p.translation.x + side.0, p.translation.y + side.1)
+            })
+            .collect();
+        let r = ate_with(&beside, &truth, 0.01, AlignMode::None).unwrap();
+        assert!((r.ate_t_rmse_m - 0.5).abs() < 1e-12);
+        assert!(r.along_rmse_m.unwrap() < 0.1, "{r:?}");
+        let squares = r.along_rmse_m.unwrap().powi(2);
+        assert!(squares <= r.ate_t_rmse_m.powi(2) + 1e-12);
+    }
+
+    #[test]
+    fn travel_direction_at_rest_is_the_nearest_motions() {
+        let p = |x: f64, y: f64| Vector3::new(x, y, 0.0);
+        // stands, drives along +y, stands, drives along +x, stands
+        let path = [
+            p(0.0, 0.0),
+            p(0.0, 0.0),
+            p(0.0, 1.0),
+            p(0.0, 2.0),
+            p(0.0, 2.0),
+            p(0.0, 2.0),
+            p(0.0, 2.0),
+            p(1.0, 2.0),
+            p(2.0, 2.0),
+            p(2.0, 2.0),
+            p(2.0, 2.0),
+        ];
+        let d = travel_directions(&path).unwrap();
+        let y = Vector3::y();
+        let x = Vector3::x();
+        for (k, expected) in [y, y, y, y, y, y, x, x, x, x, x].iter().enumerate() {
+            assert!((d[k] - expected).norm() < 1e-12, "pose {k}: {:?}", d[k]);
+        }
+        // a truth that never moves (or only jitters) has no direction
+        assert!(travel_directions(&[p(0.0, 0.0), p(0.01, 0.0), p(0.0, 0.02)]).is_none());
+        assert!(travel_directions(&[p(0.0, 0.0)]).is_none());
     }
 
     #[test]

@@ -371,6 +371,8 @@ mod tests {
                     pairs: 10,
                     rpe_t_m: None,
                     rpe_r_rad: None,
+                    ate_along_m: None,
+                    degenerate_match_share: None,
                 },
                 clear_mot: vec![mot],
                 clear_mot_car: Vec::new(),

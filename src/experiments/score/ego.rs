@@ -501,6 +501,14 @@ impl EgoEvaluation {
             a.n.into(),
         ])?;
         table.push_row(vec![
+            Cell::from("ATE_T along the path [m]"),
+            a.along_rmse_m.into(),
+            Cell::Missing,
+            Cell::Missing,
+            Cell::Missing,
+            a.n.into(),
+        ])?;
+        table.push_row(vec![
             Cell::from("ATE_R [rad]"),
             a.ate_r_rmse_rad.into(),
             Cell::Missing,
@@ -607,6 +615,10 @@ impl EgoEvaluation {
                     ("t_mean_m", a.mean_m.into()),
                     ("t_median_m", a.median_m.into()),
                     ("t_max_m", a.max_m.into()),
+                    (
+                        "t_along_rmse_m",
+                        a.along_rmse_m.map_or(Json::Null, Json::from),
+                    ),
                     ("n", a.n.into()),
                 ]),
             ),

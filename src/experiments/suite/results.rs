@@ -64,6 +64,17 @@ pub struct EgoMetrics {
     pub rpe_t_m: Option<f64>,
     /// RPE rotation RMSE over one frame, rad.
     pub rpe_r_rad: Option<f64>,
+    /// RMSE of the translation error along the true direction of travel, m
+    /// ([`crate::metrics::AteResult::along_rmse_m`]; absent from results
+    /// written before it was measured).
+    #[serde(default)]
+    pub ate_along_m: Option<f64>,
+    /// Share of the scan matches that left a direction to the IMU's
+    /// prediction (a degenerate match, e.g. along a road whose sides look the
+    /// same everywhere), of the frames that were matched; absent for results
+    /// written before it was measured.
+    #[serde(default)]
+    pub degenerate_match_share: Option<f64>,
 }
 
 /// Class-agnostic CLEAR-MOT at one IoU kind and threshold (MOTA, MOTP as fractions).

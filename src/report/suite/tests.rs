@@ -34,6 +34,8 @@ fn metrics(ate_t_m: f64, motp: f64, total_ms: &[f64]) -> VariantMetrics {
             pairs: total_ms.len(),
             rpe_t_m: Some(0.01),
             rpe_r_rad: None,
+            ate_along_m: None,
+            degenerate_match_share: None,
         },
         clear_mot: ["3D", "BEV"]
             .into_iter()
@@ -168,6 +170,32 @@ fn ego_table_has_a_column_pair_per_variant_with_figures_and_a_mean() {
     // best per row in bold: dynafilt on s1, lio on s2; ATE_R at 4 decimals
     assert!(md.contains("**0.100**") && md.contains("**0.400**"), "{md}");
     assert!(md.contains("**0.0010**"), "{md}");
+}
+
+#[test]
+fn ego_error_split_table_splits_along_and_across_and_counts_degenerate_matches() {
+    let mut r = results();
+    let ego = &mut r.sequences[0].variants[1].metrics.as_mut().unwrap().ego;
+    // ATE_T 0.1 m: 0.08 along, so 0.06 across
+    ego.ate_along_m = Some(0.08);
+    ego.degenerate_match_share = Some(0.25);
+    let t = ego_error_split_table(&r).unwrap();
+    assert_eq!(
+        t.rows.len(),
+        4,
+        "a row per sequence and variant with figures"
+    );
+    assert_eq!(cell(&t, 1, "Variant"), Cell::Text("LIO-Dynafilt".into()));
+    let Cell::Num(across) = cell(&t, 1, "across [m]") else {
+        panic!("no across")
+    };
+    assert!((across - 0.06).abs() < 1e-12, "{across}");
+    assert_eq!(cell(&t, 1, "along the path [m]"), Cell::Num(0.08));
+    assert_eq!(cell(&t, 1, "degenerate matches [%]"), Cell::Num(25.0));
+    // results scored before the split was measured leave the cells empty
+    assert_eq!(cell(&t, 0, "along the path [m]"), Cell::Missing);
+    assert_eq!(cell(&t, 0, "across [m]"), Cell::Missing);
+    assert_eq!(cell(&t, 0, "degenerate matches [%]"), Cell::Missing);
 }
 
 #[test]
