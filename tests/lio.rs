@@ -218,6 +218,21 @@ fn lio_and_limot_track_the_urban_left_turn() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `parking-lot`: at walking pace among parked cars, round the double row
+/// (two left corners of 5 m, yaw rate ~0.4 rad/s) and forwards into a bay,
+/// then standing; `lio` and `limot` stay within centimetres.
+#[test]
+fn lio_and_limot_track_the_parking_manoeuvre() {
+    let spec = resolve_scenario("parking-lot").unwrap();
+    let dir = simulate(&spec, "parking-lot");
+    // three quarter turns: half round to the left, then a quarter right
+    let truth = Dataset::open(&dir).unwrap().ego_truth().unwrap();
+    let forward = truth.last().unwrap().t_world_lidar.rotation * nalgebra::Vector3::x();
+    assert!(forward.y > 0.99, "ends facing {forward}");
+    assert_lio_and_limot_within(&dir, 0.1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn lidar_only_on_real_kitti_scans_is_smooth_with_little_z_drift() {
     let Some(root) = common::data_root("LiDAR-only KITTI scans") else {

@@ -10,6 +10,7 @@
 
 pub(crate) mod common;
 mod highway;
+mod parking;
 pub(crate) mod roadside;
 mod streetscape;
 mod urban;
@@ -28,8 +29,12 @@ mod validate;
 
 pub use params::{
     EgoRoute, EgoSpec, Family, GroundParams, HighwayParams, JamParams, KittiParams, OffRampParams,
-    OnRampParams, UrbanParams,
+    OnRampParams, ParkingParams, UrbanParams,
 };
+
+/// The ego's desired speed in a car park unless `ego.speed_mps` says
+/// otherwise: a brisk walk, m/s.
+pub const PARKING_EGO_SPEED_MPS: f64 = 2.0;
 
 /// Longest simulated time span a scenario may have, s.
 pub const MAX_DURATION_S: f64 = 3600.0;
@@ -40,7 +45,7 @@ pub(crate) use validate::{
 };
 use validate::{
     positive_finite, validate_ego, validate_ego_lane_changes, validate_ground, validate_highway,
-    validate_kitti, validate_lidar, validate_urban,
+    validate_kitti, validate_lidar, validate_parking, validate_urban,
 };
 
 /// A complete scenario description, the contents of one scenario file.
@@ -76,6 +81,9 @@ pub struct ScenarioSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     /// The `[urban]` table (urban family only; defaults if absent).
     pub urban: Option<UrbanParams>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// The `[parking]` table (parking family only; defaults if absent).
+    pub parking: Option<ParkingParams>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     /// The `[kitti]` table (kitti family only, required there).
     pub kitti: Option<KittiParams>,
@@ -163,6 +171,14 @@ fn urban_ground() -> GroundParams {
     }
 }
 
+/// A car park's paving: the urban street's texture, no road crown.
+fn parking_ground() -> GroundParams {
+    GroundParams {
+        crown_height_m: 0.0,
+        ..urban_ground()
+    }
+}
+
 const BUILTIN_NAMES: &[&str] = &[
     "highway",
     "highway-dense",
@@ -171,6 +187,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "urban",
     "urban-parked",
     "urban-left",
+    "parking-lot",
 ];
 
 impl ScenarioSpec {
@@ -305,6 +322,18 @@ impl ScenarioSpec {
                 },
                 ..base(Family::Urban, 2)
             }),
+            // The default car park: the ego from aisle 1 round the double
+            // row into aisle 2 and forwards into a free bay, at walking pace.
+            "parking-lot" => Some(ScenarioSpec {
+                ground: parking_ground(),
+                parking: Some(ParkingParams::default()),
+                ego: EgoSpec {
+                    lane: 0,
+                    ..EgoSpec::default()
+                },
+                duration_s: 40.0,
+                ..base(Family::Parking, 1)
+            }),
             _ => None,
         }
     }
@@ -333,6 +362,7 @@ impl ScenarioSpec {
             ground: GroundParams::default(),
             highway: None,
             urban: None,
+            parking: None,
             kitti: None,
         }
     }
@@ -399,6 +429,7 @@ impl ScenarioSpec {
         match self.family {
             Family::Highway => highway::build(self, &mut rng),
             Family::Urban => urban::build(self, &mut rng),
+            Family::Parking => parking::build(self, &mut rng),
             Family::Kitti => Err(invalid(
                 "family",
                 "a kitti scenario is built from its KITTI files (limot simulate reads them)",
@@ -416,6 +447,11 @@ impl ScenarioSpec {
         self.urban.clone().unwrap_or_default()
     }
 
+    /// The parking parameters in effect (the table, or its defaults).
+    pub fn parking_params(&self) -> ParkingParams {
+        self.parking.clone().unwrap_or_default()
+    }
+
     /// Desired ego speed in effect (a kitti twin's ego follows its OXTS
     /// record instead; this is then `ego.speed_mps` or 10 m/s).
     pub fn ego_speed_mps(&self) -> f64 {
@@ -429,6 +465,7 @@ impl ScenarioSpec {
                 let u = self.urban_params();
                 0.5 * (u.car_speed_min_mps + u.car_speed_max_mps)
             }
+            Family::Parking => PARKING_EGO_SPEED_MPS,
         })
     }
 
@@ -462,28 +499,27 @@ impl ScenarioSpec {
             _ => invalid("detector", e.to_string()),
         })?;
         validate_ground(&self.ground)?;
-        if self.family != Family::Kitti && self.kitti.is_some() {
-            return Err(invalid("kitti", "given for a non-kitti scenario"));
+        for (table, given, family) in [
+            ("highway", self.highway.is_some(), Family::Highway),
+            ("urban", self.urban.is_some(), Family::Urban),
+            ("parking", self.parking.is_some(), Family::Parking),
+            ("kitti", self.kitti.is_some(), Family::Kitti),
+        ] {
+            if given && self.family != family {
+                return Err(invalid(
+                    table,
+                    format!("given for a {} scenario", self.family.name()),
+                ));
+            }
         }
         match self.family {
             Family::Kitti => {
-                for (table, given) in [
-                    ("highway", self.highway.is_some()),
-                    ("urban", self.urban.is_some()),
-                ] {
-                    if given {
-                        return Err(invalid(table, "given for a kitti scenario"));
-                    }
-                }
                 let Some(k) = &self.kitti else {
                     return Err(invalid("kitti", "a kitti scenario needs a [kitti] table"));
                 };
                 validate_kitti(k)?;
             }
             Family::Highway => {
-                if self.urban.is_some() {
-                    return Err(invalid("urban", "given for a highway scenario"));
-                }
                 let h = self.highway_params();
                 validate_highway(&h)?;
                 if self.ego.lane >= h.lanes {
@@ -528,10 +564,20 @@ impl ScenarioSpec {
                     }
                 }
             }
-            Family::Urban => {
-                if self.highway.is_some() {
-                    return Err(invalid("highway", "given for an urban scenario"));
+            Family::Parking => {
+                let p = self.parking_params();
+                validate_parking(&p, &self.ego)?;
+                if self.ego.lane != 0 {
+                    return Err(invalid(
+                        "ego.lane",
+                        format!(
+                            "= {}: a car park's aisle has one lane: set ego.lane = 0",
+                            self.ego.lane
+                        ),
+                    ));
                 }
+            }
+            Family::Urban => {
                 let u = self.urban_params();
                 validate_urban(&u, self.duration_s)?;
                 if self.ego.lane >= u.lanes_per_direction {

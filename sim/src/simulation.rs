@@ -10,7 +10,7 @@ use crate::record::{
     WriteMode, points_per_instance, pose_to_array,
 };
 use crate::replay::{ReplayInput, ReplayReport};
-use crate::scenario::{Family, ScenarioError, ScenarioSpec};
+use crate::scenario::{ScenarioError, ScenarioSpec};
 use crate::scene::Scene;
 use crate::sensors::{DetectionWithTruth, Detector, DetectorError};
 use crate::sensors::{ImuError, ImuSimulator, ImuStream};
@@ -323,12 +323,7 @@ impl Simulation {
         Meta {
             format_version: FORMAT_VERSION,
             name: self.spec.name.clone(),
-            family: match self.spec.family {
-                Family::Highway => "highway",
-                Family::Urban => "urban",
-                Family::Kitti => "kitti",
-            }
-            .to_string(),
+            family: self.spec.family.name().to_string(),
             seed: self.spec.seed,
             duration_s: self.scene.duration_s,
             frame_count: self.frame_count(),

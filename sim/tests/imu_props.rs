@@ -517,3 +517,27 @@ fn noise_free_imu_dead_reckons_the_urban_turns() {
         );
     }
 }
+
+/// The car park's ego at walking pace: down aisle 1, round the double row
+/// through two tight left corners, along aisle 2, into its bay through a
+/// right corner, and standing there: its noise-free IMU dead-reckons the
+/// whole run, at 400 Hz as the other manoeuvres (pulling away and braking
+/// into the bay), onto its own pose.
+#[test]
+fn noise_free_imu_dead_reckons_the_parking_manoeuvre() {
+    let spec = limot_sim::scenario::ScenarioSpec::builtin("parking-lot").unwrap();
+    let scene = spec.build().unwrap();
+    let ego = &scene.ego;
+    // it turns half round and back a quarter: its heading ends at +90 deg
+    let forward = |t: f64| ego.trajectory.pose_at(t).rotation * Vector3::x();
+    let end = forward(spec.duration_s);
+    assert!(forward(0.0).x > 0.99 && end.y > 0.99, "{end}");
+    let (pos_err, rot_err) = dead_reckoning_error_at(ego, spec.duration_s, 400.0);
+    println!("parking-lot: position error {pos_err} m, rotation error {rot_err} rad");
+    assert!(pos_err < 1e-3, "position error {pos_err} m");
+    assert!(
+        rot_err < 0.01f64.to_radians(),
+        "rotation error {} deg",
+        rot_err.to_degrees()
+    );
+}

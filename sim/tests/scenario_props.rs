@@ -3,7 +3,7 @@
 //! determinism, stop-and-go, ground contact).
 
 use limot_estimator::input::ObjectClass;
-use limot_sim::scenario::{EgoRoute, Family, ScenarioError, ScenarioSpec};
+use limot_sim::scenario::{EgoRoute, Family, PARKING_EGO_SPEED_MPS, ScenarioError, ScenarioSpec};
 use limot_sim::scene::{Scene, Shape, StaticKind};
 use limot_sim::traffic::first_overlap;
 use proptest::prelude::*;
@@ -311,13 +311,67 @@ fn bad_files_name_file_line_and_field() {
         let want = format!("{}:{}", path.display(), line_of(&text, key));
         assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
     }
-    // a table of the other family
-    let text = format!(
-        "{}\n[urban]\nlanes_per_direction = 1\n",
-        std::fs::read_to_string(scenario_file("highway")).unwrap()
-    );
-    let (_, err) = load_text("wrong_family", &text);
-    assert!(err.to_string().contains("`urban`"), "{err}");
+    // the car park: its fields, a bay the ego cannot turn into, an ego
+    // that does not fit the bays, a second lane
+    let parking = std::fs::read_to_string(scenario_file("parking-lot")).unwrap();
+    for (tag, from, to, key, field) in [
+        (
+            "parking_occupancy_above_one",
+            "occupancy = 0.75",
+            "occupancy = 1.5",
+            "occupancy",
+            "parking.occupancy",
+        ),
+        (
+            "parking_bay_at_the_aisle_start",
+            "ego_bay = 4 ",
+            "ego_bay = 1 ",
+            "ego_bay",
+            "parking.ego_bay",
+        ),
+        (
+            "parking_bay_beyond_the_row",
+            "ego_bay = 4 ",
+            "ego_bay = 30 ",
+            "ego_bay",
+            "parking.ego_bay",
+        ),
+        (
+            "parking_shallow_bays",
+            "bay_depth_m = 5.3",
+            "bay_depth_m = 4.8",
+            "bay_depth_m",
+            "parking.bay_depth_m",
+        ),
+        (
+            "parking_second_lane",
+            "lane = 0 ",
+            "lane = 1 ",
+            "lane",
+            "ego.lane",
+        ),
+    ] {
+        assert!(parking.contains(from), "{tag}");
+        let text = parking.replace(from, to);
+        let (path, err) = load_text(tag, &text);
+        let msg = err.to_string();
+        let want = format!("{}:{}", path.display(), line_of(&text, key));
+        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+    }
+    // a table of another family
+    for (base, table) in [
+        ("highway", "[urban]\nlanes_per_direction = 1"),
+        ("urban", "[parking]\nbays_per_row = 10"),
+        ("parking-lot", "[highway]\nlanes = 3"),
+    ] {
+        let text = format!(
+            "{}\n{table}\n",
+            std::fs::read_to_string(scenario_file(base)).unwrap()
+        );
+        let (_, err) = load_text("wrong_family", &text);
+        let name = table.split(']').next().unwrap().trim_start_matches('[');
+        assert!(err.to_string().contains(&format!("`{name}`")), "{err}");
+    }
 }
 
 fn speed_at(scene: &Scene, id: u32, t_s: f64) -> f64 {
@@ -756,6 +810,84 @@ fn urban_without_cross_traffic_has_no_cross_cars() {
 /// The ego's lateral position on the initial straight over time: it is in
 /// its lane at the first request, in the target lane some time after it,
 /// and back in its own lane when the run ends.
+/// The car park's ego: at walking pace throughout, within a car's limits in
+/// its corners, and at the end standing in its bay (centre within 0.3 m,
+/// facing into it within 0.05 rad); the bay and its neighbours free, the
+/// other bays taken as the occupancy says, the walkers walking.
+fn check_parking(spec: &ScenarioSpec, scene: &Scene) {
+    let p = spec.parking.clone().unwrap_or_default();
+    let mut top_speed = 0.0f64;
+    for t in sample_times(scene, 0.1) {
+        top_speed = top_speed.max(ego_speed_at(scene, t));
+    }
+    // the LiDAR, ahead of the body's centre, swings out in the corners
+    assert!(
+        top_speed <= 1.1 * PARKING_EGO_SPEED_MPS,
+        "{} seed {}: ego at {top_speed} m/s",
+        spec.name,
+        spec.seed
+    );
+    let (lateral, _) = ego_lateral_accel_and_yaw_rate(scene);
+    assert!(lateral <= 2.0, "ego lateral acceleration {lateral} m/s^2");
+    // the layout, from the parameters: aisle 1 along y = 0 from x = 0, the
+    // ego's bay counted from the rows' east end in the far row
+    let (a, d, w) = (p.aisle_width_m, p.bay_depth_m, p.bay_width_m);
+    let bay = nalgebra::Vector2::new(
+        (p.bays_per_row as f64 - (p.ego_bay as f64 - 0.5)) * w,
+        1.5 * a + 2.5 * d,
+    );
+    let end = scene.ego.trajectory.end_s();
+    let pose = scene.ego.trajectory.pose_at(end);
+    let center = (pose * nalgebra::Translation3::from(scene.ego.box_center_lidar_m))
+        .translation
+        .vector
+        .xy();
+    assert!(
+        (center - bay).norm() < 0.3,
+        "{} seed {}: the ego ends at {center} for its bay at {bay}",
+        spec.name,
+        spec.seed
+    );
+    let forward = pose.rotation * nalgebra::Vector3::x();
+    assert!(
+        (forward.y.atan2(forward.x) - std::f64::consts::FRAC_PI_2).abs() < 0.05,
+        "{forward}"
+    );
+    assert!(ego_speed_at(scene, end) < 0.05);
+    let parked: Vec<_> = scene.agents.iter().filter(|a| a.parked).collect();
+    for car in &parked {
+        let xy = car.trajectory.pose_at(0.0).translation.vector.xy();
+        assert!(
+            (xy.x - bay.x).abs() > 1.5 * w - 0.5 || (xy.y - bay.y).abs() > d,
+            "a car parked in the ego's bay or beside it at {xy}"
+        );
+    }
+    let bays = 4 * p.bays_per_row - 3;
+    let expected = p.occupancy * bays as f64;
+    let spread = 4.0 * (bays as f64 * p.occupancy * (1.0 - p.occupancy)).sqrt() + 1.0;
+    assert!(
+        (parked.len() as f64 - expected).abs() <= spread,
+        "{} parked cars in {bays} bays at occupancy {}",
+        parked.len(),
+        p.occupancy
+    );
+    let walkers = scene
+        .agents
+        .iter()
+        .filter(|a| a.class == ObjectClass::Pedestrian)
+        .count();
+    assert!(walkers <= p.pedestrians && walkers + 2 >= p.pedestrians.min(8));
+}
+
+#[test]
+fn default_parking_lot_is_valid() {
+    let spec = ScenarioSpec::builtin("parking-lot").unwrap();
+    assert_eq!(spec.family, Family::Parking);
+    let scene = spec.build().unwrap();
+    check_common(&spec, &scene);
+    check_parking(&spec, &scene);
+}
+
 fn check_ego_overtakes(spec: &ScenarioSpec, scene: &Scene) {
     let h = spec.highway.clone().unwrap_or_default();
     let y_at = |t: f64| {
@@ -887,6 +1019,29 @@ proptest! {
     }
 
     #[test]
+    fn parking_scenes_over_seeds(
+        seed in any::<u64>(),
+        bays in 8usize..=30,
+        occupancy in 0.3f64..=1.0,
+        ego_bay in 2usize..=6,
+        aisle in 6.0f64..=8.0,
+        start in 3.0f64..=20.0,
+    ) {
+        let mut spec = ScenarioSpec::builtin("parking-lot").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 50.0;
+        let parking = spec.parking.as_mut().unwrap();
+        parking.bays_per_row = bays;
+        parking.occupancy = occupancy;
+        parking.ego_bay = ego_bay;
+        parking.aisle_width_m = aisle;
+        parking.ego_start_before_end_m = start;
+        let scene = spec.build().unwrap();
+        check_common(&spec, &scene);
+        check_parking(&spec, &scene);
+    }
+
+    #[test]
     fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2, route in 0usize..3) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
         spec.seed = seed;
@@ -945,6 +1100,7 @@ fn full_length_scenes_over_seeds() {
                     assert!(cars_across_main_street(&spec, &scene) >= 1, "seed {seed}");
                     assert!(cars_across_in_front_of_waiting_ego(&spec, &scene) >= 1);
                 }
+                Family::Parking => check_parking(&spec, &scene),
                 Family::Kitti => unreachable!("no built-in scenario is a kitti twin"),
             }
         }

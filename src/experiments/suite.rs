@@ -147,8 +147,8 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuiteSpec {
-    /// Scenario files or built-in names (highway, urban, highway-dense,
-    /// urban-parked, highway-jam, highway-exit, urban-left), or [`TWIN_FAMILY`] for the
+    /// Scenario files or built-in names (highway, highway-dense, highway-jam,
+    /// highway-exit, urban, urban-parked, urban-left, parking-lot), or [`TWIN_FAMILY`] for the
     /// twins of `twins`.
     pub families: Vec<String>,
     /// Seeds, each simulated per family.

@@ -191,6 +191,37 @@ pub(crate) fn box_on_ground(
     }
 }
 
+/// Buildings reach this far below the lowest ground point of their footprint.
+pub(crate) const BUILDING_SINK_M: f64 = 0.5;
+
+/// A building: an axis-aligned box of `height_m` over the footprint
+/// `centre` +- (`half_x_m`, `half_y_m`), its base below the lowest corner of
+/// the footprint by [`BUILDING_SINK_M`].
+pub(crate) fn building(
+    ground: &Ground,
+    centre: Point2<f64>,
+    half_x_m: f64,
+    half_y_m: f64,
+    height_m: f64,
+) -> StaticObject {
+    let lowest = [-half_x_m, half_x_m]
+        .iter()
+        .flat_map(|&dx| [-half_y_m, half_y_m].map(|dy| (centre.x + dx, centre.y + dy)))
+        .map(|(x, y)| ground.height(x, y))
+        .fold(f64::INFINITY, f64::min);
+    let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
+    upright_static(
+        ground,
+        StaticKind::Building,
+        Shape::Cuboid {
+            half_extents_m: Vector3::new(half_x_m, half_y_m, 0.5 * (height_m + BUILDING_SINK_M)),
+        },
+        centre,
+        base,
+        0.0,
+    )
+}
+
 /// A tree: a trunk cylinder and a crown ball half a crown radius above its
 /// top, sized within `trunk_height_m`, `trunk_radius_m`, `crown_radius_m`.
 pub(crate) fn tree(

@@ -12,10 +12,25 @@ pub enum Family {
     Highway,
     /// City street with intersections, parked cars, cyclists and pedestrians.
     Urban,
+    /// A surface car park: rows of bays either side of its aisles, the ego
+    /// at walking pace round a row's end and into a free bay.
+    Parking,
     /// A digital twin of a KITTI tracking sequence: the ego and the labelled
     /// objects replayed, a static scene generated along the driven corridor
     /// (see [`crate::replay`]; the `[kitti]` table names the sequence).
     Kitti,
+}
+
+impl Family {
+    /// The family's name, as scenario files and datasets' `meta.toml` spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Highway => "highway",
+            Family::Urban => "urban",
+            Family::Parking => "parking",
+            Family::Kitti => "kitti",
+        }
+    }
 }
 
 /// The `[kitti]` table of a `kitti` scenario: which KITTI tracking sequence
@@ -490,6 +505,50 @@ impl Default for UrbanParams {
             building_fraction: 1.0,
             street_furniture: true,
             ego_route: EgoRoute::TurnRight,
+        }
+    }
+}
+
+/// The `[parking]` table: a surface car park of two one-way aisles along x.
+/// Across it (y up): a building's front, a walkway, a row of bays, aisle 1
+/// (driven towards +x), a double row of bays (head to head), aisle 2
+/// (driven towards -x), a row of bays, a walkway and trees. The ego drives
+/// down aisle 1, turns round the double row's end through two tight left
+/// corners into aisle 2 and parks forwards in a free bay of the far row.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ParkingParams {
+    /// Bays in each row, side by side along x.
+    pub bays_per_row: usize,
+    /// Width of a bay (along the row), m.
+    pub bay_width_m: f64,
+    /// Depth of a bay (across the row), m.
+    pub bay_depth_m: f64,
+    /// Width of an aisle, m.
+    pub aisle_width_m: f64,
+    /// Fraction of the bays that hold a parked car (the ego's bay and its
+    /// two neighbours are always free).
+    pub occupancy: f64,
+    /// Pedestrians on the two walkways, both directions together.
+    pub pedestrians: usize,
+    /// The bay of the far row the ego parks in, counted from the aisle's
+    /// start (its east end, where the ego enters it), 1 = the first.
+    pub ego_bay: usize,
+    /// How far before the end of aisle 1 the ego starts, m.
+    pub ego_start_before_end_m: f64,
+}
+
+impl Default for ParkingParams {
+    fn default() -> Self {
+        ParkingParams {
+            bays_per_row: 24,
+            bay_width_m: 2.6,
+            bay_depth_m: 5.3,
+            aisle_width_m: 6.5,
+            occupancy: 0.75,
+            pedestrians: 8,
+            ego_bay: 4,
+            ego_start_before_end_m: 15.0,
         }
     }
 }

@@ -90,8 +90,6 @@ const BUILDING_SETBACK_M: (f64, f64) = (1.0, 3.0);
 /// ChaCha stream (of the scenario seed) for the building lots' keep/skip
 /// draws; the generator's main stream is 0.
 const BUILDING_LOT_STREAM: u64 = 0x0042_5549_4c44; // "BUILD" in ASCII
-/// Buildings reach this far below the lowest ground point of their footprint.
-const BUILDING_SINK_M: f64 = 0.5;
 const POLE_RADIUS_M: f64 = 0.12;
 const POLE_HEIGHT_M: f64 = 7.0;
 const SIGNAL_POLE_HEIGHT_M: f64 = 5.0;

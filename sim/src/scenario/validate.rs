@@ -2,8 +2,8 @@
 //! rely on (capacities, spacings, signal timing).
 
 use super::{
-    EgoSpec, GroundParams, HighwayParams, JamParams, KittiParams, MAX_DURATION_S, ScenarioError,
-    UrbanParams, invalid,
+    EgoSpec, GroundParams, HighwayParams, JamParams, KittiParams, MAX_DURATION_S, ParkingParams,
+    ScenarioError, UrbanParams, invalid,
 };
 use crate::sensors::LidarConfig;
 use crate::traffic::LaneChange;
@@ -532,6 +532,34 @@ pub(crate) fn urban_spawn_length_m(u: &UrbanParams, _duration_s: f64) -> f64 {
 }
 
 /// Checks the `[kitti]` table (the files themselves are read by the caller).
+pub(super) fn validate_parking(p: &ParkingParams, ego: &EgoSpec) -> Result<(), ScenarioError> {
+    count_in_range("parking.bays_per_row", p.bays_per_row, 4, 400)?;
+    in_range("parking.bay_width_m", p.bay_width_m, 2.2, 4.0)?;
+    in_range("parking.bay_depth_m", p.bay_depth_m, 4.5, 7.0)?;
+    in_range("parking.aisle_width_m", p.aisle_width_m, 5.5, 10.0)?;
+    in_range("parking.occupancy", p.occupancy, 0.0, 1.0)?;
+    count_in_range("parking.pedestrians", p.pedestrians, 0, 200)?;
+    count_in_range("parking.ego_bay", p.ego_bay, 1, p.bays_per_row)?;
+    in_range(
+        "parking.ego_start_before_end_m",
+        p.ego_start_before_end_m,
+        0.0,
+        2000.0,
+    )?;
+    let [length, width, _] = ego.size_lwh_m;
+    if length > p.bay_depth_m - 0.2 || width > p.bay_width_m - 0.4 {
+        return Err(invalid(
+            "parking.bay_depth_m",
+            format!(
+                "bays of {} x {} m do not take the ego ({length} x {width} m) with 0.2 m to \
+                 spare in depth and 0.4 m in width",
+                p.bay_width_m, p.bay_depth_m
+            ),
+        ));
+    }
+    super::parking::checked_ego_route(p, ego).map(|_| ())
+}
+
 pub(super) fn validate_kitti(k: &KittiParams) -> Result<(), ScenarioError> {
     if k.training.trim().is_empty() {
         return Err(invalid("kitti.training", "must name a directory"));

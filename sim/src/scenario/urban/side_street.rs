@@ -14,13 +14,12 @@
 //! for its -y half (a right turn's) and turned half a turn about the
 //! crossing for its +y half (a left turn's), so both are lined alike.
 
-use super::statics::building;
 use super::{
     BUILDING_DEPTH_M, BUILDING_GAP_M, BUILDING_HEIGHT_M, BUILDING_LENGTH_M, BUILDING_SETBACK_M,
     CORNER_CLEARANCE_M, CROWN_RADIUS_M, PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, Street,
     TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
-use crate::scenario::common::{draw_body, parked_agent, pole, tree, uniform};
+use crate::scenario::common::{building, draw_body, parked_agent, pole, tree, uniform};
 use crate::scenario::streetscape::{StreetLayout, building_detail};
 use crate::scene::{Agent, Ground, StaticObject};
 use limot_estimator::input::ObjectClass;

@@ -3,14 +3,13 @@
 
 use super::{
     BUILDING_DEPTH_M, BUILDING_GAP_M, BUILDING_HEIGHT_M, BUILDING_LENGTH_M, BUILDING_LOT_STREAM,
-    BUILDING_SETBACK_M, BUILDING_SINK_M, CORNER_CLEARANCE_M, CROWN_RADIUS_M, FURNITURE_FROM_KERB_M,
-    PARKING_PLACE_M, POLE_HEIGHT_M, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M, Street,
-    TREE_POLE_CLEARANCE_M, TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
+    BUILDING_SETBACK_M, CORNER_CLEARANCE_M, CROWN_RADIUS_M, FURNITURE_FROM_KERB_M, PARKING_PLACE_M,
+    POLE_HEIGHT_M, POLE_RADIUS_M, SIGNAL_POLE_HEIGHT_M, Street, TREE_POLE_CLEARANCE_M,
+    TRUNK_HEIGHT_M, TRUNK_RADIUS_M,
 };
-use crate::scenario::common::{draw_body, parked_agent, pole, tree, uniform, upright_static};
-use crate::scene::{Agent, Ground, Shape, StaticKind, StaticObject};
+use crate::scenario::common::{building, draw_body, parked_agent, pole, tree, uniform};
+use crate::scene::{Agent, Ground, StaticObject};
 use limot_estimator::input::ObjectClass;
-use nalgebra::{Point2, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -106,34 +105,6 @@ pub(super) fn buildings(
         }
     }
     out
-}
-
-/// A building: an axis-aligned box of `height_m` over the footprint
-/// `centre` +- (`half_x_m`, `half_y_m`), its base below the lowest corner of
-/// the footprint by `BUILDING_SINK_M`.
-pub(super) fn building(
-    ground: &Ground,
-    centre: Point2<f64>,
-    half_x_m: f64,
-    half_y_m: f64,
-    height_m: f64,
-) -> StaticObject {
-    let lowest = [-half_x_m, half_x_m]
-        .iter()
-        .flat_map(|&dx| [-half_y_m, half_y_m].map(|dy| (centre.x + dx, centre.y + dy)))
-        .map(|(x, y)| ground.height(x, y))
-        .fold(f64::INFINITY, f64::min);
-    let base = lowest - BUILDING_SINK_M - ground.height(centre.x, centre.y);
-    upright_static(
-        ground,
-        StaticKind::Building,
-        Shape::Cuboid {
-            half_extents_m: Vector3::new(half_x_m, half_y_m, 0.5 * (height_m + BUILDING_SINK_M)),
-        },
-        centre,
-        base,
-        0.0,
-    )
 }
 
 /// Signal poles at every corner, light poles at a regular spacing and trees
