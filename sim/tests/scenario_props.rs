@@ -1042,12 +1042,18 @@ proptest! {
     }
 
     #[test]
-    fn urban_scenes_over_seeds(seed in any::<u64>(), lanes in 1usize..=2, route in 0usize..3) {
+    fn urban_scenes_over_seeds(
+        seed in any::<u64>(),
+        lanes in 1usize..=2,
+        route in 0usize..3,
+        give_way in prop::sample::select(vec![0.0, 0.5, 1.0]),
+    ) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
         spec.seed = seed;
         spec.duration_s = 30.0;
         let urban = spec.urban.as_mut().unwrap();
         urban.lanes_per_direction = lanes;
+        urban.give_way_fraction = give_way;
         // a right turn starts from the kerb lane; a left turn and the
         // straight route from the inner lane
         let (route, lane) = [
@@ -1066,6 +1072,43 @@ proptest! {
         let in_front = cars_across_in_front_of_waiting_ego(&spec, &scene);
         prop_assert!(across >= 1 && in_front >= 1, "{} across, {} in front", across, in_front);
     }
+}
+
+/// Intersections without lights: no signal poles and no stop lines for the
+/// main street there, and the cross street's cars still cross, in the gaps
+/// of the main street's traffic (pedestrians on its sidewalks included):
+/// `check_common` finds no overlaps. Over seeds 1-2, 45 s, every intersection
+/// but the ego's first without lights.
+#[test]
+fn cross_cars_give_way_at_intersections_without_lights() {
+    let mut crossed = 0;
+    for seed in 1..=2 {
+        let mut spec = ScenarioSpec::builtin("urban").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 45.0;
+        spec.urban.as_mut().unwrap().give_way_fraction = 1.0;
+        let scene = spec.build().unwrap();
+        check_common(&spec, &scene);
+        check_urban(&spec, &scene);
+        // the ego still waits at its first light and turns there
+        assert!(ego_stop_and_go(&spec, &scene), "seed {seed}");
+        let signal_poles = scene
+            .statics
+            .iter()
+            .filter(|s| s.kind == StaticKind::Pole)
+            .filter(|s| match s.shape {
+                Shape::Cylinder { half_height_m, .. } => (2.0 * half_height_m - 5.0).abs() < 0.5,
+                _ => false,
+            })
+            .count();
+        assert!(
+            signal_poles <= 4,
+            "seed {seed}: {signal_poles} signal poles"
+        );
+        crossed += cars_across_main_street(&spec, &scene);
+    }
+    println!("{crossed} cross-street cars crossed");
+    assert!(crossed >= 3, "{crossed} cross-street cars crossed");
 }
 
 #[test]

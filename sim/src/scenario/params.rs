@@ -474,6 +474,13 @@ pub struct UrbanParams {
     /// first traffic light (where it always waits at red) into the cross
     /// street, which it then follows.
     pub ego_route: EgoRoute,
+    /// Share of the intersections without traffic lights, in [0, 1] (each
+    /// decides independently; the ego's first intersection always has them):
+    /// there the main street has priority and drives on, and the cross
+    /// street's cars give way to every road user on it, pedestrians on its
+    /// sidewalks included, taking a gap long enough to cross. 0 = every
+    /// intersection signalled.
+    pub give_way_fraction: f64,
 }
 
 impl Default for UrbanParams {
@@ -505,6 +512,7 @@ impl Default for UrbanParams {
             building_fraction: 1.0,
             street_furniture: true,
             ego_route: EgoRoute::TurnRight,
+            give_way_fraction: 0.0,
         }
     }
 }

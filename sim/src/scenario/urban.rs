@@ -45,8 +45,8 @@ use crate::traffic::{
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry2, Point2};
-use rand::RngExt;
 use rand::seq::SliceRandom;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
@@ -87,6 +87,18 @@ const BUILDING_DEPTH_M: (f64, f64) = (10.0, 25.0);
 const BUILDING_HEIGHT_M: (f64, f64) = (6.0, 30.0);
 const BUILDING_GAP_M: (f64, f64) = (0.0, 4.0);
 const BUILDING_SETBACK_M: (f64, f64) = (1.0, 3.0);
+/// ChaCha stream (of the scenario seed) that decides which intersections
+/// have no traffic lights (`urban.give_way_fraction`), so that the decisions
+/// never shift the generator's other draws.
+const GIVE_WAY_STREAM: u64 = 0x0047_4956_4557; // "GIVEW" in ASCII
+/// At an intersection without lights a cross-street car takes a gap when no
+/// road user of the main street (its sidewalks included) will be in the strip
+/// its lane sweeps for this long: the time to cross the main street from the
+/// stop line, from a standstill, with a margin (see [`give_way_red_s`]).
+const GIVE_WAY_MARGIN_S: f64 = 1.5;
+/// The strip a cross-street car sweeps: its lane's centre +- this, m (half
+/// the widest car with room to spare).
+const GIVE_WAY_STRIP_HALF_M: f64 = 1.5;
 /// ChaCha stream (of the scenario seed) for the building lots' keep/skip
 /// draws; the generator's main stream is 0.
 const BUILDING_LOT_STREAM: u64 = 0x0042_5549_4c44; // "BUILD" in ASCII
@@ -205,6 +217,8 @@ struct Street {
     crossings: Vec<f64>,
     /// Index of the first crossing ahead of the ego.
     ego_crossing: usize,
+    /// Per crossing: no traffic lights, the cross street gives way.
+    give_way: Vec<bool>,
     /// Cross-street lanes run along x = crossing +- lane_width / 2 from
     /// y = -+cross_half_length_m to y = +-cross_half_length_m.
     cross_half_length_m: f64,
@@ -304,7 +318,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         if street.turn.as_ref().map(|t| t.crossing) == Some(cross.crossing) {
             join_traffic(&mut lanes, &mut vehicles, &mut stop_lines, traffic);
         } else {
-            cross_specs.push(traffic);
+            cross_specs.push((cross.crossing, traffic));
         }
     }
     let ego = match &street.turn {
@@ -330,7 +344,26 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     // ids: main street 1..=N, cross streets N+1..=M, parked cars from M+1
     // pedestrians walk on the raised sidewalks
     let (mut agents, ego) = run_traffic(spec, &ground, &|x, y| layout.raised_m(x, y), &traffic)?;
-    for traffic in &cross_specs {
+    // the cross streets without lights give way to the main street as it was
+    // simulated: their stop lines are red while it is busy
+    let main_street: Vec<Occupant> = agents
+        .iter()
+        .map(|a| Occupant::of(&a.trajectory, None, &a.size_lwh_m))
+        .chain([Occupant::of(
+            &ego.trajectory,
+            Some(&ego.box_center_lidar_m),
+            &ego.size_lwh_m,
+        )])
+        .collect();
+    for (crossing, traffic) in &mut cross_specs {
+        if street.give_way[*crossing] {
+            for line in &mut traffic.stop_lines {
+                let lane_x = traffic.lanes[line.lane].point_at(0.0).x;
+                line.red_intervals_s = give_way_red_s(&street, lane_x, &main_street, spec);
+            }
+        }
+    }
+    for (_, traffic) in &cross_specs {
         agents.extend(simulate_agents(spec, &ground, traffic)?);
     }
     let first_parked_id = next_id;
@@ -361,6 +394,100 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents,
         ego,
     })
+}
+
+/// Which crossings have no traffic lights: each with probability
+/// `give_way_fraction`, drawn from the seed's own stream, never the ego's
+/// first (where it waits at red, and turns).
+fn give_way_crossings(count: usize, ego_crossing: usize, u: &UrbanParams, seed: u64) -> Vec<bool> {
+    if u.give_way_fraction <= 0.0 {
+        return vec![false; count];
+    }
+    let mut stream = ChaCha8Rng::seed_from_u64(seed);
+    stream.set_stream(GIVE_WAY_STREAM);
+    (0..count)
+        .map(|k| stream.random::<f64>() < u.give_way_fraction && k != ego_crossing)
+        .collect()
+}
+
+/// A main-street road user as the cross street sees it: the footprint's
+/// centre over time and the radius of a circle round the footprint.
+struct Occupant<'a> {
+    trajectory: &'a crate::trajectory::Trajectory,
+    /// Box centre in the trajectory's body frame (None: the body origin).
+    box_center_body: Option<nalgebra::Vector3<f64>>,
+    radius_m: f64,
+}
+
+impl<'a> Occupant<'a> {
+    fn of(
+        trajectory: &'a crate::trajectory::Trajectory,
+        box_center_body: Option<&nalgebra::Vector3<f64>>,
+        size_lwh_m: &nalgebra::Vector3<f64>,
+    ) -> Occupant<'a> {
+        Occupant {
+            trajectory,
+            box_center_body: box_center_body.copied(),
+            radius_m: 0.5 * size_lwh_m.x.hypot(size_lwh_m.y),
+        }
+    }
+
+    fn center_at(&self, t_s: f64) -> Point2<f64> {
+        let pose = self.trajectory.pose_at(t_s);
+        let c = match &self.box_center_body {
+            Some(d) => pose * nalgebra::Point3::from(*d),
+            None => nalgebra::Point3::from(pose.translation.vector),
+        };
+        Point2::new(c.x, c.y)
+    }
+}
+
+/// Red intervals of a give-way line on the cross-street lane at x =
+/// `lane_x`: red from the time a cross-street car needs to cross the main
+/// street (kerb to kerb and both sidewalks, from a standstill at its stop
+/// line, plus its length and [`GIVE_WAY_MARGIN_S`]) before any main-street
+/// road user reaches the strip the lane sweeps until it has left it, sampled
+/// every 0.1 s (the first interval from t = 0 when one is there already).
+fn give_way_red_s(
+    street: &Street,
+    lane_x: f64,
+    main_street: &[Occupant<'_>],
+    spec: &ScenarioSpec,
+) -> Vec<(f64, f64)> {
+    const STEP_S: f64 = 0.1;
+    let u = &street.u;
+    let half_y = street.kerb_m() + u.sidewalk_width_m;
+    let across_m = STOP_LINE_SETBACK_M + 2.0 * half_y + 5.0;
+    let driver = crate::traffic::DriverParams::car();
+    let clear_s = earliest_travel_time_s(across_m, CROSS_SPEED_MAX_MPS, driver.max_accel_mps2)
+        + driver.accel_lag_s
+        + GIVE_WAY_MARGIN_S;
+    let (x0, x1) = (
+        lane_x - GIVE_WAY_STRIP_HALF_M,
+        lane_x + GIVE_WAY_STRIP_HALF_M,
+    );
+    let in_strip = |p: Point2<f64>, r: f64| {
+        let dx = (x0 - p.x).max(p.x - x1).max(0.0);
+        let dy = (p.y.abs() - half_y).max(0.0);
+        dx.hypot(dy) <= r
+    };
+    let steps = (spec.duration_s / STEP_S).ceil() as usize;
+    let mut red: Vec<(f64, f64)> = Vec::new();
+    for k in 0..=steps {
+        let t = (k as f64 * STEP_S).min(spec.duration_s);
+        if !main_street
+            .iter()
+            .any(|o| in_strip(o.center_at(t), o.radius_m))
+        {
+            continue;
+        }
+        let (from, to) = ((t - clear_s).max(0.0), t + STEP_S);
+        match red.last_mut() {
+            Some(last) if from <= last.1 => last.1 = last.1.max(to),
+            _ => red.push((from, to)),
+        }
+    }
+    red
 }
 
 /// Adds `other`'s lanes, vehicles and stop lines to the joint traffic
@@ -643,6 +770,7 @@ fn layout(
         x_max,
         view_lo,
         view_hi,
+        give_way: give_way_crossings(crossings.len(), ego_crossing, u, spec.seed),
         crossings,
         ego_crossing,
         cross_half_length_m: cross_half_length,
@@ -1029,6 +1157,73 @@ mod tests {
         let t1 = earliest_travel_time_s(d + 1e-9, v, a);
         assert!((t0 - t1).abs() < 1e-6 && (t0 - v / a).abs() < 1e-6);
         assert!((earliest_travel_time_s(d + 50.0, v, a) - (v / a + 5.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn give_way_lines_are_red_while_the_main_street_is_in_the_lanes_strip() {
+        let mut spec = ScenarioSpec::builtin("urban").unwrap();
+        spec.duration_s = 30.0;
+        let mut u = spec.urban_params();
+        u.give_way_fraction = 1.0;
+        spec.urban = Some(u.clone());
+        let street = layout(&spec, &u, 10.0, &mut ChaCha8Rng::seed_from_u64(3)).unwrap();
+        // every crossing but the ego's first has no lights
+        for (k, &give_way) in street.give_way.iter().enumerate() {
+            assert_eq!(give_way, k != street.ego_crossing, "crossing {k}");
+        }
+        let c = street.crossings[street.ego_crossing + 1];
+        let lane_x = c + 0.5 * u.lane_width_m;
+        let standing = |x: f64, y: f64, t0: f64, t1: f64| {
+            let pose = nalgebra::Isometry3::translation(x, y, 0.0);
+            crate::trajectory::Trajectory::stationary(t0, t1, &pose)
+        };
+        let size = nalgebra::Vector3::new(4.5, 1.8, 1.5);
+        // a car standing on the main street, its footprint reaching into the
+        // lane's strip, all the run, and one standing a block away
+        let in_strip = standing(lane_x + 2.0, -5.0, 0.0, 30.0);
+        let away = standing(c + 40.0, -5.0, 0.0, 30.0);
+        let occupants = [
+            Occupant::of(&away, None, &size),
+            Occupant::of(&in_strip, None, &size),
+        ];
+        let red = give_way_red_s(&street, lane_x, &occupants, &spec);
+        assert_eq!(red.len(), 1);
+        assert_eq!(red[0].0, 0.0);
+        assert!(red[0].1 >= 30.0, "{red:?}");
+        // nobody near: never red
+        assert!(give_way_red_s(&street, lane_x, &occupants[..1], &spec).is_empty());
+        // a pedestrian walking along the far sidewalk through the strip at
+        // 1.25 m/s: red from the crossing time before it reaches the strip
+        // until it has left it
+        let knots: Vec<_> = (0..=300)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                let x = lane_x - 15.0 + 1.25 * t;
+                crate::trajectory::Knot {
+                    position: [
+                        crate::trajectory::Jet::new(x, 1.25, 0.0),
+                        crate::trajectory::Jet::new(street.kerb_m() + 2.0, 0.0, 0.0),
+                        crate::trajectory::Jet::new(0.0, 0.0, 0.0),
+                    ],
+                    euler: [crate::trajectory::Jet::new(0.0, 0.0, 0.0); 3],
+                }
+            })
+            .collect();
+        let walking = crate::trajectory::Trajectory::new(0.0, 0.1, knots);
+        let body = nalgebra::Vector3::new(0.5, 0.6, 1.7);
+        let red = give_way_red_s(
+            &street,
+            lane_x,
+            &[Occupant::of(&walking, None, &body)],
+            &spec,
+        );
+        assert_eq!(red.len(), 1, "{red:?}");
+        // it reaches the strip (1.5 m + its radius 0.39 m) at 10.49 s and
+        // leaves it at 13.51 s; the red starts the crossing time (~7.7 s)
+        // before
+        let (from, to) = red[0];
+        assert!(from > 0.0 && from < 10.49 - 5.0, "{red:?}");
+        assert!((13.5..13.7).contains(&to), "{red:?}");
     }
 
     #[test]

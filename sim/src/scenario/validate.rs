@@ -424,6 +424,7 @@ pub(super) fn validate_urban(u: &UrbanParams, duration_s: f64) -> Result<(), Sce
     )?;
     in_range("urban.parking_occupancy", u.parking_occupancy, 0.0, 1.0)?;
     in_range("urban.building_fraction", u.building_fraction, 0.0, 1.0)?;
+    in_range("urban.give_way_fraction", u.give_way_fraction, 0.0, 1.0)?;
     in_range("urban.signal_cycle_s", u.signal_cycle_s, 10.0, 600.0)?;
     in_range("urban.red_s", u.red_s, 0.0, u.signal_cycle_s * 0.8)?;
     count_in_range(

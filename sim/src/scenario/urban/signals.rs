@@ -40,6 +40,12 @@ pub(super) fn signals(
         } else {
             uniform(rng, EARLIEST_RED_S, EARLIEST_RED_S + u.signal_cycle_s)
         };
+        if street.give_way[k] {
+            // no lights: the main street drives on; the cross street's give-way
+            // lines get their red from the simulated main street
+            plans.push(SignalPlan::default());
+            continue;
+        }
         let plan = signal_plan(first_red, u, spec.duration_s, walk_clear);
         let has_cross_traffic = street.cross_streets.iter().any(|x| x.crossing == k);
         for (index, lane) in street.lanes.iter().enumerate() {
@@ -70,8 +76,9 @@ pub(super) fn signals(
     (plans, lines)
 }
 
-/// Red intervals of one intersection's approaches.
-#[derive(Debug, Clone, PartialEq)]
+/// Red intervals of one intersection's approaches (none at all for an
+/// intersection without lights).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub(super) struct SignalPlan {
     /// Main-street car and bike lanes.
     pub(super) main_red: Vec<(f64, f64)>,

@@ -107,8 +107,9 @@ pub(super) fn buildings(
     out
 }
 
-/// Signal poles at every corner, light poles at a regular spacing and trees
-/// in between, all in the furniture strip next to the kerb.
+/// Signal poles at every corner of an intersection with lights, light poles
+/// at a regular spacing and trees in between, all in the furniture strip next
+/// to the kerb.
 pub(super) fn furniture(
     street: &Street,
     ground: &Ground,
@@ -120,7 +121,13 @@ pub(super) fn furniture(
     let mut out = Vec::new();
     for side in [-1.0, 1.0] {
         let mut pole_xs = Vec::new();
-        for &c in &street.crossings {
+        // signal poles at the corners of the intersections with lights
+        let signalled = street
+            .crossings
+            .iter()
+            .zip(&street.give_way)
+            .filter(|(_, give_way)| !**give_way);
+        for (&c, _) in signalled {
             for x in [c - half - 1.0, c + half + 1.0] {
                 if (street.view_lo..=street.view_hi).contains(&x) {
                     pole_xs.push(x);
