@@ -218,6 +218,23 @@ fn lio_and_limot_track_the_urban_left_turn() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `urban-uturn`: the ego waits at its first light in the kerb lane, turns
+/// round into the oncoming kerb lane (half a circle of 4.95 m, peak yaw rate
+/// ~34 deg/s at ~27 s) and drives back; `lio` and `limot` keep their rotation
+/// and stay within centimetres through it.
+#[test]
+fn lio_and_limot_track_the_urban_u_turn() {
+    let mut spec = resolve_scenario("urban-uturn").unwrap();
+    assert_eq!(spec.urban_params().ego_route, EgoRoute::UTurn);
+    spec.duration_s = 38.0;
+    let dir = simulate(&spec, "urban-uturn");
+    let truth = Dataset::open(&dir).unwrap().ego_truth().unwrap();
+    let forward = truth.last().unwrap().t_world_lidar.rotation * nalgebra::Vector3::x();
+    assert!(forward.x < -0.99, "ends facing {forward}");
+    assert_lio_and_limot_within(&dir, 0.1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `parking-lot`: at walking pace among parked cars, round the double row
 /// (two left corners of 5 m, yaw rate ~0.4 rad/s) and forwards into a bay,
 /// then standing; `lio` and `limot` stay within centimetres.

@@ -36,6 +36,10 @@ pub use params::{
 /// otherwise: a brisk walk, m/s.
 pub const PARKING_EGO_SPEED_MPS: f64 = 2.0;
 
+/// The tightest half circle the urban ego's U-turn may take (its path's
+/// radius; a car's turning circle), m.
+pub const U_TURN_MIN_RADIUS_M: f64 = 4.5;
+
 /// Longest simulated time span a scenario may have, s.
 pub const MAX_DURATION_S: f64 = 3600.0;
 pub(crate) use validate::{
@@ -187,6 +191,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "urban",
     "urban-parked",
     "urban-left",
+    "urban-uturn",
     "parking-lot",
 ];
 
@@ -318,6 +323,21 @@ impl ScenarioSpec {
                 }),
                 ego: EgoSpec {
                     lane: UrbanParams::default().lanes_per_direction - 1,
+                    ..EgoSpec::default()
+                },
+                ..base(Family::Urban, 2)
+            }),
+            // The default street and seed, the ego turning round at its
+            // first crossing from the kerb lane into the oncoming kerb lane
+            // and driving back along the main street.
+            "urban-uturn" => Some(ScenarioSpec {
+                ground: urban_ground(),
+                urban: Some(UrbanParams {
+                    ego_route: EgoRoute::UTurn,
+                    ..UrbanParams::default()
+                }),
+                ego: EgoSpec {
+                    lane: 0,
                     ..EgoSpec::default()
                 },
                 ..base(Family::Urban, 2)
@@ -593,7 +613,19 @@ impl ScenarioSpec {
                     EgoRoute::Straight => (self.ego.lane, "", ""),
                     EgoRoute::TurnRight => (0, "turn-right", "kerb lane"),
                     EgoRoute::TurnLeft => (u.lanes_per_direction - 1, "turn-left", "inner lane"),
+                    EgoRoute::UTurn => (0, "u-turn", "kerb lane"),
                 };
+                let u_turn_radius_m = (u.lanes_per_direction as f64 - 0.5) * u.lane_width_m;
+                if u.ego_route == EgoRoute::UTurn && u_turn_radius_m < U_TURN_MIN_RADIUS_M {
+                    return Err(invalid(
+                        "urban.ego_route",
+                        format!(
+                            "= \"u-turn\": from the kerb lane into the oncoming one is a half \
+                             circle of {u_turn_radius_m} m radius, tighter than a car turns \
+                             ({U_TURN_MIN_RADIUS_M} m): it needs lanes_per_direction = 2"
+                        ),
+                    ));
+                }
                 if self.ego.lane != needed {
                     return Err(invalid(
                         "ego.lane",

@@ -470,15 +470,17 @@ fn noise_free_imu_dead_reckons_the_jam_and_the_exit() {
     }
 }
 
-/// The ego's right turn of the default urban scenario and its left turn in
+/// The ego's right turn of the default urban scenario, its left turn in
 /// `urban-left` (quarter circles of 8 m at a few m/s, yaw rates near
-/// 30 deg/s): its noise-free IMU dead-reckons from before the turn until well
+/// 30 deg/s) and its U-turn in `urban-uturn` (half a circle of 4.95 m, near
+/// 34 deg/s): its noise-free IMU dead-reckons from before the turn until well
 /// after it onto its own pose.
 #[test]
 fn noise_free_imu_dead_reckons_the_urban_turns() {
     for (name, route) in [
         ("urban", EgoRoute::TurnRight),
         ("urban-left", EgoRoute::TurnLeft),
+        ("urban-uturn", EgoRoute::UTurn),
     ] {
         let spec = limot_sim::scenario::ScenarioSpec::builtin(name).unwrap();
         assert_eq!(spec.urban_params().ego_route, route);
@@ -491,10 +493,10 @@ fn noise_free_imu_dead_reckons_the_urban_turns() {
             .max_by(|&a, &b| yaw_rate(a).abs().total_cmp(&yaw_rate(b).abs()))
             .unwrap();
         // turning the right way (left = +z)
-        let expected_sign = if route == EgoRoute::TurnLeft {
-            1.0
-        } else {
+        let expected_sign = if route == EgoRoute::TurnRight {
             -1.0
+        } else {
+            1.0
         };
         assert!(
             yaw_rate(t_turn) * expected_sign > 0.3,

@@ -224,6 +224,7 @@ fn bad_files_name_file_line_and_field() {
     // but the inner lane, a route that is none of the names
     let urban = std::fs::read_to_string(scenario_file("urban")).unwrap();
     let urban_left = std::fs::read_to_string(scenario_file("urban-left")).unwrap();
+    let urban_uturn = std::fs::read_to_string(scenario_file("urban-uturn")).unwrap();
     for (tag, base, from, to, key, field) in [
         (
             "urban_turn_from_lane_1",
@@ -245,7 +246,7 @@ fn bad_files_name_file_line_and_field() {
             "urban_route_unknown",
             &urban,
             "ego_route = \"turn-right\"",
-            "ego_route = \"u-turn\"",
+            "ego_route = \"roundabout\"",
             "ego_route",
             "urban.ego_route",
         ),
@@ -254,6 +255,22 @@ fn bad_files_name_file_line_and_field() {
             &urban,
             "ego_route = \"turn-right\"",
             "ego_route = true",
+            "ego_route",
+            "urban.ego_route",
+        ),
+        (
+            "urban_u_turn_from_lane_1",
+            &urban_uturn,
+            "lane = 0 ",
+            "lane = 1 ",
+            "lane",
+            "ego.lane",
+        ),
+        (
+            "urban_u_turn_on_one_lane",
+            &urban_uturn,
+            "lanes_per_direction = 2",
+            "lanes_per_direction = 1",
             "ego_route",
             "urban.ego_route",
         ),
@@ -1045,7 +1062,7 @@ proptest! {
     fn urban_scenes_over_seeds(
         seed in any::<u64>(),
         lanes in 1usize..=2,
-        route in 0usize..3,
+        route in 0usize..4,
         give_way in prop::sample::select(vec![0.0, 0.5, 1.0]),
     ) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
@@ -1060,6 +1077,8 @@ proptest! {
             (EgoRoute::Straight, lanes - 1),
             (EgoRoute::TurnRight, 0),
             (EgoRoute::TurnLeft, lanes - 1),
+            // a U-turn needs two lanes per direction
+            if lanes == 2 { (EgoRoute::UTurn, 0) } else { (EgoRoute::TurnRight, 0) },
         ][route];
         urban.ego_route = route;
         spec.ego.lane = lane;

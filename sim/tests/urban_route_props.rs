@@ -80,7 +80,7 @@ fn route_spec(seed: u64, duration_s: f64, lanes: usize, route: EgoRoute) -> Scen
     u.lanes_per_direction = lanes;
     u.ego_route = route;
     spec.ego.lane = match route {
-        EgoRoute::TurnRight => 0,
+        EgoRoute::TurnRight | EgoRoute::UTurn => 0,
         EgoRoute::Straight | EgoRoute::TurnLeft => lanes - 1,
     };
     spec
@@ -94,6 +94,7 @@ fn check_turn(spec: &ScenarioSpec, scene: &Scene) -> Result<TurnFigures, TestCas
     let heading = match route {
         EgoRoute::TurnRight => -0.5 * std::f64::consts::PI,
         EgoRoute::TurnLeft => 0.5 * std::f64::consts::PI,
+        EgoRoute::UTurn => std::f64::consts::PI,
         EgoRoute::Straight => 0.0,
     };
     prop_assert!(
@@ -147,6 +148,41 @@ fn urban_left_ego_turns_left_at_its_first_crossing() {
     assert_eq!(scene, spec.build().unwrap());
 }
 
+/// The U-turn: from the kerb lane half round into the oncoming kerb lane at
+/// the first light, then back along the main street (-x), past its start.
+#[test]
+fn u_turn_ego_turns_round_at_its_first_crossing_and_drives_back() {
+    let spec = route_spec(2, 45.0, 2, EgoRoute::UTurn);
+    let scene = spec.build().unwrap();
+    let f = check_turn(&spec, &scene).unwrap();
+    assert!(f.yaw_rate_radps > 0.3, "{f:?}");
+    // in the oncoming kerb lane (y = +1.5 lane widths) at the end, heading
+    // back, and behind the point where it turned
+    let u = spec.urban_params();
+    let end = scene
+        .ego
+        .trajectory
+        .pose_at(spec.duration_s)
+        .translation
+        .vector;
+    assert!((end.y - 1.5 * u.lane_width_m).abs() < 0.3, "ends at {end}");
+    let turned_at = (0..=(spec.duration_s * 10.0) as usize)
+        .map(|k| {
+            scene
+                .ego
+                .trajectory
+                .pose_at(k as f64 * 0.1)
+                .translation
+                .vector
+                .x
+        })
+        .fold(f64::MIN, f64::max);
+    assert!(
+        end.x < turned_at - 30.0,
+        "ends at {end}, turned at x = {turned_at}"
+    );
+}
+
 #[test]
 fn straight_route_never_turns() {
     let spec = route_spec(2, 40.0, 2, EgoRoute::Straight);
@@ -162,9 +198,14 @@ proptest! {
     fn urban_routes_turn_without_overlaps_within_car_limits(
         seed in 0u64..1_000_000,
         lanes in 1usize..=2,
-        left in any::<bool>(),
+        route in 0usize..3,
     ) {
-        let route = if left { EgoRoute::TurnLeft } else { EgoRoute::TurnRight };
+        // a U-turn needs two lanes per direction
+        let route = match route {
+            0 => EgoRoute::TurnLeft,
+            2 if lanes == 2 => EgoRoute::UTurn,
+            _ => EgoRoute::TurnRight,
+        };
         let spec = route_spec(seed, 40.0, lanes, route);
         let scene = spec.build().unwrap();
         check_turn(&spec, &scene)?;

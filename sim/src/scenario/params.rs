@@ -410,6 +410,13 @@ pub enum EgoRoute {
     /// oncoming traffic and the pedestrians and cyclists on the far side of
     /// the main street wait until it has turned.
     TurnLeft,
+    /// From the kerb lane (`ego.lane = 0`) round through half a circle across
+    /// the inner and the oncoming lanes into the oncoming kerb lane, inside the
+    /// intersection, then back along the main street; in a protected phase:
+    /// the ego's other lanes and the oncoming lanes wait until it has turned.
+    /// Its radius is (lanes_per_direction - 0.5) x lane_width_m, which must
+    /// be a car's (two lanes per direction).
+    UTurn,
 }
 
 /// The `[urban]` table.

@@ -13,15 +13,18 @@
 //! turns at its first traffic light, on the main street's green, through an
 //! arc of `TURN_RADIUS_M` into the cross street's lane away from the main
 //! street, which it then follows to its end: right from the kerb lane, or
-//! left from the inner lane across the oncoming lanes. The turn is
-//! protected: at that light the movements it crosses keep their red
-//! `TURN_CLEARANCE_S` longer than the main street (a right turn crosses the
-//! pedestrians and cyclists on the ego's side of the main street; a left turn
-//! the oncoming cars and the pedestrians and cyclists on the far side). That
-//! cross street's traffic is simulated together with the main street's, so
-//! the ego follows the cross street's cars and they follow it, and the cross
-//! street is lined with buildings, parked cars, poles and trees
-//! (`side_street`).
+//! left from the inner lane across the oncoming lanes, or turns round there
+//! (a U-turn from the kerb lane into the oncoming kerb lane, back along the
+//! main street). The turn is protected: at that light the movements it
+//! crosses keep their red `TURN_CLEARANCE_S` longer than the main street (a
+//! right turn crosses the pedestrians and cyclists on the ego's side of the
+//! main street; a left turn the oncoming cars and the pedestrians and
+//! cyclists on the far side; a U-turn the ego's other lanes and the oncoming
+//! cars). At the intersections without lights (`urban.give_way_fraction`)
+//! the cross streets' cars give way to the main street instead. The traffic
+//! of a cross street the ego turns into is simulated together with the main
+//! street's, so the ego follows its cars and they follow it, and that street
+//! is lined with buildings, parked cars, poles and trees (`side_street`).
 //!
 //! Cross-section (the ego drives along +x on the right, y < 0 side; the
 //! street is mirror-symmetric about y = 0):
@@ -146,6 +149,9 @@ const CROSS_SPEED_MAX_MPS: f64 = 12.0;
 const TURN_RADIUS_M: f64 = 8.0;
 /// The ego keeps speed^2 * curvature near this in its turn, m/s^2.
 const TURN_LATERAL_ACCEL_MPS2: f64 = 2.0;
+/// The same for a U-turn's half circle (about 5 m, taken at ~2.7 m/s): the
+/// tighter curve's entry asks more of the steering's lag.
+const U_TURN_LATERAL_ACCEL_MPS2: f64 = 1.5;
 /// At the ego's turn, the movements it crosses stay red this long after the
 /// main street's green starts, so the ego, waiting at the light, has turned
 /// past their paths before they move (the scene properties check that nobody
@@ -186,21 +192,32 @@ fn cross_forward(i: usize) -> bool {
 struct EgoTurn {
     /// Index into `Street::crossings`.
     crossing: usize,
-    /// Left (across the oncoming lanes, into the cross street's +y half) or
-    /// right (into its -y half).
-    left: bool,
+    /// Right (into the cross street's -y half), left (across the oncoming
+    /// lanes, into its +y half) or round (into the oncoming kerb lane).
+    route: EgoRoute,
     /// The ego's lane from the street's start up to the turn (the kerb lane
-    /// for a right turn, the inner lane for a left one), an arc of
-    /// `TURN_RADIUS_M`, then the cross street's lane away from the main
-    /// street (-y to the right, +y to the left) to its end.
+    /// for a right turn or a U-turn, the inner lane for a left one), an arc
+    /// of `TURN_RADIUS_M` (a U-turn's: half a circle from kerb lane to kerb
+    /// lane), then the cross street's lane away from the main street (-y to
+    /// the right, +y to the left) or the oncoming kerb lane to its end.
     path: LanePath,
 }
 
 impl EgoTurn {
-    /// The direction the ego drives along the cross street after the turn:
-    /// -1 = -y (right), +1 = +y (left).
-    fn away_sign(&self) -> f64 {
-        if self.left { 1.0 } else { -1.0 }
+    /// The direction the ego drives along the cross street after a turn into
+    /// it: -1 = -y (right), +1 = +y (left); None after a U-turn, which keeps
+    /// it on the main street.
+    fn away_sign(&self) -> Option<f64> {
+        match self.route {
+            EgoRoute::TurnRight => Some(-1.0),
+            EgoRoute::TurnLeft => Some(1.0),
+            EgoRoute::UTurn | EgoRoute::Straight => None,
+        }
+    }
+
+    /// Whether the ego leaves the main street into the cross street.
+    fn leaves_main_street(&self) -> bool {
+        self.away_sign().is_some()
     }
 }
 
@@ -315,7 +332,11 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         let plan = &plans[cross.crossing];
         let traffic = cross_traffic(&street, cross, plan, next_id, spec.duration_s, rng);
         next_id += traffic.vehicles.len() as u32;
-        if street.turn.as_ref().map(|t| t.crossing) == Some(cross.crossing) {
+        let turns_into = street
+            .turn
+            .as_ref()
+            .is_some_and(|t| t.crossing == cross.crossing && t.leaves_main_street());
+        if turns_into {
             join_traffic(&mut lanes, &mut vehicles, &mut stop_lines, traffic);
         } else {
             cross_specs.push((cross.crossing, traffic));
@@ -329,7 +350,12 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
             stop_lines.extend(route_stop_lines(&street, turn, &plans, route_lane));
             protect_turn(&street, turn, &plans[turn.crossing], &mut stop_lines);
             let mut ego = ego_vehicle(&spec.ego, route_lane, ego_s, ego_speed);
-            ego.driver.curve_lateral_accel_mps2 = Some(TURN_LATERAL_ACCEL_MPS2);
+            let lateral_accel = if turn.route == EgoRoute::UTurn {
+                U_TURN_LATERAL_ACCEL_MPS2
+            } else {
+                TURN_LATERAL_ACCEL_MPS2
+            };
+            ego.driver.curve_lateral_accel_mps2 = Some(lateral_accel);
             ego
         }
     };
@@ -370,7 +396,11 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let parked = parked_cars(&street, &ground, first_parked_id, spec.duration_s, rng);
     let first_side_id = first_parked_id + parked.len() as u32;
     agents.extend(parked);
-    if let Some(turn) = &street.turn {
+    if let Some((turn, away_sign)) = street
+        .turn
+        .as_ref()
+        .and_then(|t| t.away_sign().map(|sign| (t, sign)))
+    {
         let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
         let far_m = (ego_speed * spec.duration_s + view).min(street.cross_half_length_m);
         let c = street.crossings[turn.crossing];
@@ -378,7 +408,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
             &street,
             &ground,
             c,
-            turn.away_sign(),
+            away_sign,
             far_m,
             first_side_id,
             spec.duration_s,
@@ -512,7 +542,8 @@ fn join_traffic(
 
 /// Stop lines on the ego's route lane (index `route_lane`): the main street's
 /// before every crossing up to the one it turns at, with their main-street
-/// red, so it turns on the main street's green.
+/// red, so it turns on the main street's green; after a U-turn, the
+/// oncoming direction's before every crossing it passes on the way back.
 fn route_stop_lines(
     street: &Street,
     turn: &EgoTurn,
@@ -520,18 +551,53 @@ fn route_stop_lines(
     route_lane: usize,
 ) -> Vec<StopLine> {
     let half = 0.5 * street.u.cross_street_width_m;
-    street.crossings[..=turn.crossing]
+    let length_m = turn.path.length_m();
+    let line = |s: f64, plan: &SignalPlan| {
+        (s > 0.0 && s < length_m && !plan.main_red.is_empty()).then(|| StopLine {
+            lane: route_lane,
+            s_m: s,
+            red_intervals_s: plan.main_red.clone(),
+        })
+    };
+    let mut lines: Vec<StopLine> = street.crossings[..=turn.crossing]
         .iter()
         .zip(plans)
-        .filter_map(|(&c, plan)| {
-            let s = street.s_of(true, c - half - STOP_LINE_SETBACK_M);
-            (s > 0.0 && !plan.main_red.is_empty()).then(|| StopLine {
-                lane: route_lane,
-                s_m: s,
-                red_intervals_s: plan.main_red.clone(),
-            })
-        })
-        .collect()
+        .filter_map(|(&c, plan)| line(street.s_of(true, c - half - STOP_LINE_SETBACK_M), plan))
+        .collect();
+    if turn.route == EgoRoute::UTurn {
+        // the route's arc length at a point x on the way back: its length at
+        // the half circle's end plus the distance driven back from there
+        let (end_s, end_x) = u_turn_end(street, turn);
+        lines.extend(
+            street.crossings[..turn.crossing]
+                .iter()
+                .zip(plans)
+                .rev()
+                .filter_map(|(&c, plan)| {
+                    line(end_s + end_x - (c + half + STOP_LINE_SETBACK_M), plan)
+                }),
+        );
+    }
+    lines
+}
+
+/// Arc length and x where a U-turn's half circle ends on `turn.path`.
+fn u_turn_end(street: &Street, turn: &EgoTurn) -> (f64, f64) {
+    let radius = u_turn_radius_m(&street.u);
+    let start_x = u_turn_start_x(street.crossings[turn.crossing], radius);
+    (start_x - street.x_min + PI * radius, start_x)
+}
+
+/// A U-turn's radius: from the kerb lane's centre to the oncoming one's.
+fn u_turn_radius_m(u: &UrbanParams) -> f64 {
+    (u.lanes_per_direction as f64 - 0.5) * u.lane_width_m
+}
+
+/// Where a U-turn's half circle starts at the crossing at x = `c`: half its
+/// radius before the cross street's centre, so that the half circle (and the
+/// car round it) stays inside the intersection.
+fn u_turn_start_x(c: f64, radius_m: f64) -> f64 {
+    c - 0.5 * radius_m
 }
 
 /// The protected turn: at the crossing the ego turns at, the stop lines of
@@ -554,14 +620,19 @@ fn protect_turn(
             .map(|&(a, b)| (a, b + TURN_CLEARANCE_S))
             .collect()
     };
+    let crosses_oncoming = matches!(turn.route, EgoRoute::TurnLeft | EgoRoute::UTurn);
     for (index, lane) in street.lanes.iter().enumerate() {
-        let turn_side = lane.path.point_at(0.0).y * turn.away_sign() > 0.0;
+        let turn_side = turn
+            .away_sign()
+            .is_some_and(|away| lane.path.point_at(0.0).y * away > 0.0);
         let sign = if lane.forward { -1.0 } else { 1.0 };
+        // a U-turn from the kerb lane crosses the ego's other lanes too
+        let crossed_beside = turn.route == EgoRoute::UTurn && lane.forward && index != 0;
         let (line_x, red) = match lane.kind {
             LaneKind::Bike if turn_side => {
                 (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
             }
-            LaneKind::Car if turn.left && !lane.forward => {
+            LaneKind::Car if (crosses_oncoming && !lane.forward) || crossed_beside => {
                 (c + sign * (half + STOP_LINE_SETBACK_M), &plan.main_red)
             }
             LaneKind::Walk if turn_side => (
@@ -623,7 +694,13 @@ fn layout(
     let x_max = spawn_hi + reach + END_MARGIN_M;
     let view = spec.lidar.max_range_m + VIEW_MARGIN_M;
     let ego_reach = ego_speed_mps * (spec.duration_s - spec.ego.depart_s).max(0.0);
-    let view_lo = (-view).max(x_min);
+    // after a U-turn the ego drives back past its start
+    let behind = if u.ego_route == EgoRoute::UTurn {
+        ego_reach
+    } else {
+        0.0
+    };
+    let view_lo = (-view - behind).max(x_min);
     let view_hi = (ego_reach + view).min(x_max);
 
     // cross streets: the first one ahead of the ego, then every block both ways
@@ -707,7 +784,7 @@ fn layout(
     }];
     let turn_crossing = match u.ego_route {
         EgoRoute::Straight => None,
-        EgoRoute::TurnRight | EgoRoute::TurnLeft => Some(ego_crossing),
+        EgoRoute::TurnRight | EgoRoute::TurnLeft | EgoRoute::UTurn => Some(ego_crossing),
     };
     let mut cross_streets = Vec::new();
     if u.cross_cars_per_intersection > 0 {
@@ -731,6 +808,30 @@ fn layout(
     // (x = c + w / 2), and follows it to the cross street's end
     let turn = match turn_crossing {
         None => None,
+        Some(k) if u.ego_route == EgoRoute::UTurn => {
+            // from the kerb lane half round into the oncoming kerb lane,
+            // then back to the street's start
+            let radius = u_turn_radius_m(u);
+            let start_x = u_turn_start_x(crossings[k], radius);
+            let pieces = [
+                PathPiece::Straight {
+                    length_m: start_x - x_min,
+                },
+                PathPiece::Arc {
+                    length_m: PI * radius,
+                    curvature_1pm: 1.0 / radius,
+                },
+                PathPiece::Straight {
+                    length_m: start_x - x_min,
+                },
+            ];
+            let start = Point2::new(x_min, -radius);
+            Some(EgoTurn {
+                crossing: k,
+                route: EgoRoute::UTurn,
+                path: LanePath::from_pieces(start, 0.0, &pieces, 0.0)?,
+            })
+        }
         Some(k) => {
             let left = u.ego_route == EgoRoute::TurnLeft;
             // the lane's y, where the arc starts, its curvature's sign and
@@ -759,7 +860,7 @@ fn layout(
             let start = Point2::new(x_min, lane_y);
             Some(EgoTurn {
                 crossing: k,
-                left,
+                route: u.ego_route,
                 path: LanePath::from_pieces(start, 0.0, &pieces, 0.0)?,
             })
         }
