@@ -73,12 +73,13 @@ const BUILDING_HEIGHT_M: (f64, f64) = (6.0, 9.0);
 /// Where everything in the car park is.
 pub(crate) struct ParkingLayout {
     /// Rows' length along x (from x = 0), m.
-    pub length_m: f64,
-    pub bay_width_m: f64,
-    pub bay_depth_m: f64,
-    pub aisle_width_m: f64,
+    length_m: f64,
+    /// A bay's width along its row and depth across it, m.
+    bay_width_m: f64,
+    bay_depth_m: f64,
+    aisle_width_m: f64,
     /// Aisle 2's centre line (aisle 1's is y = 0), m.
-    pub aisle2_y_m: f64,
+    aisle2_y_m: f64,
 }
 
 /// One row of bays: its bays' y range and the way a car nosed into it faces.
