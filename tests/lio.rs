@@ -220,7 +220,7 @@ fn lio_and_limot_track_the_urban_left_turn() {
 
 /// `urban-uturn`: the ego waits at its first light in the kerb lane, turns
 /// round into the oncoming kerb lane (half a circle of 4.95 m, peak yaw rate
-/// ~34 deg/s at ~27 s) and drives back; `lio` and `limot` keep their rotation
+/// ~34 deg/s at ~26 s) and drives back; `lio` and `limot` keep their rotation
 /// and stay within centimetres through it.
 #[test]
 fn lio_and_limot_track_the_urban_u_turn() {

@@ -2,9 +2,9 @@
 //! with file/line/field error reporting, and the seeded generators that turn
 //! a spec into a [`Scene`].
 //!
-//! A spec names a family (highway or urban), a seed and the sensor settings;
-//! the family table (`[highway]` or `[urban]`) holds the road and traffic
-//! parameters. Building is deterministic: all randomness comes from a
+//! A spec names a family (highway, urban, parking or a KITTI twin), a seed
+//! and the sensor settings; the family table (`[highway]`, `[urban]`,
+//! `[parking]`, `[kitti]`) holds the road and traffic parameters. Building is deterministic: all randomness comes from a
 //! `ChaCha8Rng` seeded with `seed`, so the same spec always gives the same
 //! scene.
 

@@ -62,6 +62,18 @@ fn highway_with(key: &str, value: &str) -> String {
     out
 }
 
+/// Loads `text` (a scratch file named after `tag`) and asserts that the
+/// error names the file with line `line` and the dotted `field`.
+fn assert_error_at(tag: &str, text: &str, line: usize, field: &str) {
+    let (path, err) = load_text(tag, text);
+    let msg = err.to_string();
+    let want = format!("{}:{line}", path.display());
+    assert!(
+        msg.contains(&want) && msg.contains(field),
+        "{tag}: {msg} lacks {want} or {field}"
+    );
+}
+
 fn line_of(text: &str, key: &str) -> usize {
     text.lines()
         .position(|l| l.starts_with(&format!("{key} ")))
@@ -104,31 +116,25 @@ fn bad_files_name_file_line_and_field() {
     ];
     for (tag, key, value, field) in cases {
         let text = highway_with(key, value);
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{}", path.display(), line_of(&text, key));
-        assert!(msg.contains(&want), "{tag}: {msg} lacks {want}");
-        assert!(msg.contains(field), "{tag}: {msg} lacks {field}");
+        assert_error_at(tag, &text, line_of(&text, key), field);
     }
     // unknown key
     let text = highway_with("lanes", "4\nwheels = 18");
-    let (path, err) = load_text("unknown_key", &text);
-    let msg = err.to_string();
-    let want = format!("{}:{}", path.display(), line_of(&text, "wheels"));
-    assert!(
-        msg.contains(&want) && msg.contains("highway.wheels"),
-        "{msg}"
+    assert_error_at(
+        "unknown_key",
+        &text,
+        line_of(&text, "wheels"),
+        "highway.wheels",
     );
     // urban: too many cars for the street
     let text = std::fs::read_to_string(scenario_file("urban"))
         .unwrap()
         .replace("moving_cars = 14", "moving_cars = 150");
-    let (path, err) = load_text("urban_crowded", &text);
-    let msg = err.to_string();
-    let want = format!("{}:{}", path.display(), line_of(&text, "moving_cars"));
-    assert!(
-        msg.contains(&want) && msg.contains("urban.moving_cars"),
-        "{msg}"
+    assert_error_at(
+        "urban_crowded",
+        &text,
+        line_of(&text, "moving_cars"),
+        "urban.moving_cars",
     );
     // urban: cross traffic needs room and a long enough red
     for (tag, from, to, field) in [
@@ -173,10 +179,7 @@ fn bad_files_name_file_line_and_field() {
             .unwrap()
             .replace(from, to);
         let key = field.trim_start_matches("urban.");
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{}", path.display(), line_of(&text, key));
-        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+        assert_error_at(tag, &text, line_of(&text, key), field);
     }
     // the ego's lane changes: each entry's own line and field
     let highway = std::fs::read_to_string(scenario_file("highway")).unwrap();
@@ -215,10 +218,7 @@ fn bad_files_name_file_line_and_field() {
         assert!(highway.contains(from), "{from}");
         let text = highway.replace(from, to);
         let line = text.lines().position(|l| l.contains(to)).unwrap() + 1;
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{line}", path.display());
-        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+        assert_error_at(tag, &text, line, field);
     }
     // a right turn from any lane but the kerb lane, a left turn from any
     // but the inner lane, a route that is none of the names
@@ -277,10 +277,7 @@ fn bad_files_name_file_line_and_field() {
     ] {
         assert!(base.contains(from), "{tag}");
         let text = base.replace(from, to);
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{}", path.display(), line_of(&text, key));
-        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+        assert_error_at(tag, &text, line_of(&text, key), field);
     }
     // the off-ramp: its fields, and a route that does not end in lane 0
     let exit = std::fs::read_to_string(scenario_file("highway-exit")).unwrap();
@@ -323,10 +320,7 @@ fn bad_files_name_file_line_and_field() {
     ] {
         assert!(exit.contains(from), "{tag}");
         let text = exit.replace(from, to);
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{}", path.display(), line_of(&text, key));
-        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+        assert_error_at(tag, &text, line_of(&text, key), field);
     }
     // the car park: its fields, a bay the ego cannot turn into, an ego
     // that does not fit the bays, a second lane
@@ -370,10 +364,7 @@ fn bad_files_name_file_line_and_field() {
     ] {
         assert!(parking.contains(from), "{tag}");
         let text = parking.replace(from, to);
-        let (path, err) = load_text(tag, &text);
-        let msg = err.to_string();
-        let want = format!("{}:{}", path.display(), line_of(&text, key));
-        assert!(msg.contains(&want) && msg.contains(field), "{tag}: {msg}");
+        assert_error_at(tag, &text, line_of(&text, key), field);
     }
     // a table of another family
     for (base, table) in [

@@ -370,6 +370,12 @@ pub(crate) fn draw_body(rng: &mut ChaCha8Rng, class: ObjectClass) -> (Vector3<f6
     }
 }
 
+/// The ego's steering looks this far ahead (at least) through a tight
+/// manoeuvre at walking pace: a car's default 5 m cuts a corner of about
+/// 5 m by decimetres on the way in and swings out on the way out (into the
+/// next lane after a U-turn, askew into a parking bay), m.
+pub(crate) const MANOEUVRE_LOOKAHEAD_M: f64 = 2.5;
+
 /// The ego as a traffic participant: a car held at rest until `depart_s`.
 pub(crate) fn ego_vehicle(
     ego: &EgoSpec,

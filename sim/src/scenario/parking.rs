@@ -16,8 +16,8 @@
 //! the rows the ego turns across a circulation lane, lined by trees.
 
 use super::common::{
-    building, draw_body, ego_vehicle, generate_ground, parked_agent, pole, run_traffic, tree,
-    uniform,
+    MANOEUVRE_LOOKAHEAD_M, building, draw_body, ego_vehicle, generate_ground, parked_agent, pole,
+    run_traffic, tree, uniform,
 };
 use super::{
     EgoSpec, ParkingParams, ScenarioError, ScenarioSpec, URBAN_PEDESTRIAN_SPACING_M, invalid,
@@ -39,9 +39,6 @@ const CORNER_PAST_ROWS_M: f64 = 1.5;
 const AISLE2_SWING_M: f64 = 1.5;
 /// The ego keeps speed^2 * curvature near this in its corners, m/s^2.
 const CORNER_LATERAL_ACCEL_MPS2: f64 = 1.5;
-/// The ego's steering looks this far ahead at walking pace (a car's default
-/// 5 m cuts a 5 m corner by decimetres and leaves it askew in its bay), m.
-const MANOEUVRE_LOOKAHEAD_M: f64 = 2.5;
 /// Islands at the rows' ends, m along x.
 const ISLAND_LENGTH_M: f64 = 1.5;
 /// Walkway width, m; pedestrians walk on two lines across it.

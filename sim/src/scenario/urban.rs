@@ -36,7 +36,9 @@
 //! Sidewalk: street furniture (poles, tree trunks) in a strip next to the kerb;
 //! pedestrians walk in two lines further out, one per walking direction.
 
-use super::common::{draw_body, ego_vehicle, generate_ground, run_traffic, uniform};
+use super::common::{
+    MANOEUVRE_LOOKAHEAD_M, draw_body, ego_vehicle, generate_ground, run_traffic, uniform,
+};
 use super::streetscape::{StreetLayout, streetscape};
 use super::{
     EgoRoute, ScenarioError, ScenarioSpec, URBAN_CAR_SPACING_M, URBAN_CYCLIST_SPACING_M,
@@ -351,6 +353,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
             protect_turn(&street, turn, &plans[turn.crossing], &mut stop_lines);
             let mut ego = ego_vehicle(&spec.ego, route_lane, ego_s, ego_speed);
             let lateral_accel = if turn.route == EgoRoute::UTurn {
+                ego.driver.min_lookahead_m = MANOEUVRE_LOOKAHEAD_M;
                 U_TURN_LATERAL_ACCEL_MPS2
             } else {
                 TURN_LATERAL_ACCEL_MPS2
