@@ -1,8 +1,10 @@
 //! Property tests of the urban ego's turning routes (`urban.ego_route`):
 //! over generated streets the ego turns right or left into the cross street
-//! and follows it, nobody overlaps anybody (ego included: a left turn crosses
-//! the oncoming lanes and the far side's pedestrians and cyclists), and the
-//! ego's yaw rate and lateral acceleration stay within a car's limits.
+//! and follows it, or turns round into the oncoming kerb lane and drives
+//! back; nobody overlaps anybody (ego included: a left turn crosses the
+//! oncoming lanes and the far side's pedestrians and cyclists, a U-turn the
+//! ego's other lane and the oncoming ones), and the ego's yaw rate and
+//! lateral acceleration stay within a car's limits.
 
 use limot_estimator::geometry::wrap_angle_rad;
 use limot_sim::scenario::{EgoRoute, ScenarioSpec};
