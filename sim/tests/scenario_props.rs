@@ -355,6 +355,13 @@ fn bad_files_name_file_line_and_field() {
             "parking.bay_depth_m",
         ),
         (
+            "parking_crowded_walkways",
+            "pedestrians = 8 ",
+            "pedestrians = 80 ",
+            "pedestrians",
+            "parking.pedestrians",
+        ),
+        (
             "parking_second_lane",
             "lane = 0 ",
             "lane = 1 ",
@@ -884,7 +891,7 @@ fn check_parking(spec: &ScenarioSpec, scene: &Scene) {
         .iter()
         .filter(|a| a.class == ObjectClass::Pedestrian)
         .count();
-    assert!(walkers <= p.pedestrians && walkers + 2 >= p.pedestrians.min(8));
+    assert_eq!(walkers, p.pedestrians);
 }
 
 #[test]
@@ -1034,6 +1041,8 @@ proptest! {
         ego_bay in 2usize..=6,
         aisle in 6.0f64..=8.0,
         start in 3.0f64..=20.0,
+        // at most what 8 bays' walkways take (16)
+        pedestrians in 0usize..=16,
     ) {
         let mut spec = ScenarioSpec::builtin("parking-lot").unwrap();
         spec.seed = seed;
@@ -1044,6 +1053,7 @@ proptest! {
         parking.ego_bay = ego_bay;
         parking.aisle_width_m = aisle;
         parking.ego_start_before_end_m = start;
+        parking.pedestrians = pedestrians;
         let scene = spec.build().unwrap();
         check_common(&spec, &scene);
         check_parking(&spec, &scene);

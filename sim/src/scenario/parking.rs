@@ -251,7 +251,7 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let mut statics = islands(&layout, &ground, rng);
     statics.extend(surroundings(&layout, &ground, rng));
 
-    let (walk_lanes, mut vehicles) = pedestrians(&layout, &p, rng);
+    let (walk_lanes, mut vehicles) = pedestrians(spec, &layout, &p, rng)?;
     let mut lanes = walk_lanes;
     let ego_lane = lanes.len();
     lanes.push(route);
@@ -285,13 +285,30 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     })
 }
 
+/// Walk lines: two on each walkway, one per direction.
+const WALK_LINE_COUNT: usize = 4;
+
+/// The most pedestrians a car park of `p` takes: a quarter of the places
+/// [`URBAN_PEDESTRIAN_SPACING_M`] apart on its walk lines, so that drawing
+/// free places at random finds one within a few draws.
+pub(crate) fn max_pedestrians(p: &ParkingParams) -> usize {
+    let line_m = p.bays_per_row as f64 * p.bay_width_m + 2.0 * SURROUND_M;
+    let places = (line_m / URBAN_PEDESTRIAN_SPACING_M).floor() as usize;
+    WALK_LINE_COUNT * (places / 4)
+}
+
 /// Pedestrians on the two walkways, in both directions: their walk lines
 /// (lanes) and the walkers, ids from 1.
+///
+/// # Errors
+/// [`ScenarioError::Build`] should a walker find no free place in 20 draws
+/// (not within [`max_pedestrians`], which validation enforces).
 fn pedestrians(
+    spec: &ScenarioSpec,
     layout: &ParkingLayout,
     p: &ParkingParams,
     rng: &mut ChaCha8Rng,
-) -> (Vec<LanePath>, Vec<VehicleSpec>) {
+) -> Result<(Vec<LanePath>, Vec<VehicleSpec>), ScenarioError> {
     let rows = layout.rows();
     let (x0, x1) = (-SURROUND_M, layout.length_m + SURROUND_M);
     // (inner edge of the walkway, direction away from the rows)
@@ -324,7 +341,14 @@ fn pedestrians(
                 .iter()
                 .all(|t| (t - s).abs() >= URBAN_PEDESTRIAN_SPACING_M)
         }) else {
-            continue;
+            return Err(ScenarioError::Build {
+                scenario: spec.name.clone(),
+                message: format!(
+                    "parking.pedestrians: no free place for walker {} of {} on its walk line",
+                    n + 1,
+                    p.pedestrians
+                ),
+            });
         };
         taken[lane].push(s);
         let (size, driver) = draw_body(rng, ObjectClass::Pedestrian);
@@ -342,7 +366,8 @@ fn pedestrians(
             driver,
         });
     }
-    (lanes, walkers)
+    debug_assert_eq!(lanes.len(), WALK_LINE_COUNT);
+    Ok((lanes, walkers))
 }
 
 /// Parked cars in the bays, with probability `occupancy` each; the ego's

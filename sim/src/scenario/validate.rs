@@ -539,7 +539,12 @@ pub(super) fn validate_parking(p: &ParkingParams, ego: &EgoSpec) -> Result<(), S
     in_range("parking.bay_depth_m", p.bay_depth_m, 4.5, 7.0)?;
     in_range("parking.aisle_width_m", p.aisle_width_m, 5.5, 10.0)?;
     in_range("parking.occupancy", p.occupancy, 0.0, 1.0)?;
-    count_in_range("parking.pedestrians", p.pedestrians, 0, 200)?;
+    count_in_range(
+        "parking.pedestrians",
+        p.pedestrians,
+        0,
+        super::parking::max_pedestrians(p),
+    )?;
     count_in_range("parking.ego_bay", p.ego_bay, 1, p.bays_per_row)?;
     in_range(
         "parking.ego_start_before_end_m",
