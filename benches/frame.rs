@@ -21,6 +21,10 @@ use limot_estimator::pipeline::{EstimatorConfig, Variant};
 use std::path::PathBuf;
 use std::time::Duration;
 
+/// The allocator of the `limot` binary, so the figures are its figures.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn mean_p95(mut v: Vec<f64>) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
     let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
@@ -39,6 +43,7 @@ fn value_of<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
 }
 
 fn main() {
+    limot::allocator::keep_freed_pages();
     let args: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| a != "--bench")

@@ -38,6 +38,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    limot::allocator::keep_freed_pages();
     let seconds: f64 = std::env::args()
         .skip(1)
         .filter(|a| a != "--bench")

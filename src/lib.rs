@@ -1,5 +1,6 @@
 //! `limot`: data sources, file formats and evaluation around the estimator.
 //!
+//! - [`allocator`]: the binary's allocator settings;
 //! - [`cli`]: the command line, one module per subcommand;
 //! - [`io`]: datasets for the estimator ([`io::Source`]) and every file format
 //!   (KITTI tracking, raw and odometry files, the KITTI copy of a simulation);
@@ -14,6 +15,7 @@
 
 #![warn(missing_docs)]
 
+pub mod allocator;
 pub mod cli;
 pub mod demo;
 pub mod experiments;

@@ -11,7 +11,7 @@ use crate::input::LidarScan;
 use crate::lidar::LocalMapError;
 use crate::lidar::ScanFeatures;
 use crate::lidar::{DeskewError, SweepMotion};
-use crate::lidar::{ScanMatchResult, match_scan};
+use crate::lidar::{ScanMatchConfig, ScanMatchResult, match_scan};
 use crate::object_removal::{BoxAtTime, ConstantVelocityBox, moving_box_mask};
 use crate::pipeline::config::Variant;
 use crate::pipeline::estimate::{ModuleTimings, ScanMatchSummary};
@@ -358,6 +358,16 @@ impl Estimator {
         features: &SweepFeatures,
         initial_t_world_lidar: &Isometry3<f64>,
     ) -> Option<ScanMatchResult> {
+        self.match_features_with(features, initial_t_world_lidar, &self.config.scan_match)
+    }
+
+    /// [`Estimator::match_features`] with other matcher settings.
+    pub(super) fn match_features_with(
+        &self,
+        features: &SweepFeatures,
+        initial_t_world_lidar: &Isometry3<f64>,
+        config: &ScanMatchConfig,
+    ) -> Option<ScanMatchResult> {
         if self.map.is_empty() {
             return None;
         }
@@ -366,7 +376,7 @@ impl Estimator {
             &features.edge_lidar,
             &features.planar_lidar,
             initial_t_world_lidar,
-            &self.config.scan_match,
+            config,
         )
         .ok()
     }

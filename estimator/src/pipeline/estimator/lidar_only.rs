@@ -2,11 +2,11 @@
 //! motion model on mid-sweep poses, for sources without an IMU and for the
 //! sweeps before the inertial initialization.
 
-use super::frontend::summary;
+use super::frontend::{SweepFeatures, summary};
 use super::{Estimator, EstimatorError};
 use crate::imu::ImuBias;
 use crate::input::LidarScan;
-use crate::lidar::SweepMotion;
+use crate::lidar::{ScanMatchConfig, ScanMatchResult, SweepMotion};
 use crate::lie;
 use crate::pipeline::estimate::{FrameEstimate, ModuleTimings};
 use nalgebra::{Isometry3, Vector3, Vector6};
@@ -141,7 +141,15 @@ impl Estimator {
     /// when the static world lies more than the correspondence distance
     /// away; the speed that explains the most of the scene wins instead.
     ///
+    /// Each speed's match gets at most
+    /// [`EstimatorConfig::start_speed_max_iterations`]: a speed near the true
+    /// one starts within a quarter step of the answer and settles in a few,
+    /// the far ones would run to the matcher's limit without settling. The
+    /// speeds whose match converged compete; only when none did, the most
+    /// correspondences among all, whose match is then run to the limit.
+    ///
     /// [`EstimatorConfig::start_speed_step_mps`]: crate::pipeline::config::EstimatorConfig::start_speed_step_mps
+    /// [`EstimatorConfig::start_speed_max_iterations`]: crate::pipeline::config::EstimatorConfig::start_speed_max_iterations
     fn search_start_speed(
         &mut self,
         frame_index: u64,
@@ -157,7 +165,16 @@ impl Estimator {
         } else {
             0
         };
-        let mut best: Option<(usize, Isometry3<f64>, Vector6<f64>)> = None;
+        let capped = ScanMatchConfig {
+            max_iterations: self
+                .config
+                .start_speed_max_iterations
+                .clamp(1, self.config.scan_match.max_iterations),
+            ..self.config.scan_match
+        };
+        // (correspondences, converged, guess, features, match) of the best
+        // speed so far: converged beats unconverged, then more correspondences.
+        let mut best: Option<(usize, bool, Isometry3<f64>, SweepFeatures, ScanMatchResult)> = None;
         for k in 0..=speeds {
             let mut twist = Vector6::zeros();
             twist[0] = k as f64 * step;
@@ -176,15 +193,30 @@ impl Estimator {
             let filter = self.feature_filter(scan, &motion);
             let features = self.sweep_features(scan, &motion, mid_s, &filter, timings);
             let clock = Instant::now();
-            let matched = self.match_features(&features, &guess);
+            let matched = self.match_features_with(&features, &guess, &capped);
             timings.scan_matching += clock.elapsed();
             let Some(m) = matched else { continue };
             let found = m.edge_matches + m.planar_matches;
-            if best.as_ref().is_none_or(|(most, ..)| found > *most) {
-                let twist = lie::se3_log(&(pose_b.inverse() * m.t_world_lidar)) / (mid_s - t_b);
-                best = Some((found, m.t_world_lidar, twist));
+            let better = best
+                .as_ref()
+                .is_none_or(|(most, converged, ..)| (m.converged, found) > (*converged, *most));
+            if better {
+                best = Some((found, m.converged, guess, features, m));
             }
         }
-        Ok(best.map_or((pose_b, Vector6::zeros()), |(_, pose, twist)| (pose, twist)))
+        let Some((_, converged, guess, features, mut m)) = best else {
+            return Ok((pose_b, Vector6::zeros()));
+        };
+        if !converged && capped.max_iterations < self.config.scan_match.max_iterations {
+            let clock = Instant::now();
+            let full = self.match_features(&features, &guess);
+            timings.scan_matching += clock.elapsed();
+            match full {
+                Some(full) => m = full,
+                None => return Ok((pose_b, Vector6::zeros())),
+            }
+        }
+        let twist = lie::se3_log(&(pose_b.inverse() * m.t_world_lidar)) / (mid_s - t_b);
+        Ok((m.t_world_lidar, twist))
     }
 }
