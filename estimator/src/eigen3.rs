@@ -33,39 +33,129 @@ use nalgebra::{Matrix3, Vector3};
 /// }
 /// ```
 pub fn symmetric_eigen3(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
-    let mut sym = *m;
-    sym.fill_upper_triangle_with_lower_triangle();
-    let shift = sym.trace() / 3.0;
-    let scaled = sym - Matrix3::identity() * shift;
-    let scale = match scaled.amax() {
-        s if s > 0.0 => s,
-        _ => 1.0,
-    };
-    let scaled = scaled / scale;
-    let values = cubic_roots(&scaled);
+    let parts = Decomposition::of(m);
     let mut vectors = Matrix3::identity();
-    // All three equal (or the input not finite): any basis.
-    if values[2] - values[0] > f64::EPSILON {
-        // The eigenvector of the most distinct eigenvalue first.
-        let (d0, d1) = (values[2] - values[1], values[1] - values[0]);
-        let (k, l, gap) = if d0 > d1 { (2, 0, d1) } else { (0, 2, d0) };
-        let (v_k, representative) = kernel(&(scaled - Matrix3::identity() * values[k]));
-        // The roots of a repeated pair carry √ε of error: below a
-        // millionth of the larger gap the pair counts as repeated.
-        let v_l = if gap <= 1e-6 * d0.max(d1) {
-            // Any unit vector orthogonal to v_k in the pair's plane; the
-            // saved row is orthogonal to v_k already.
-            representative
-        } else {
-            kernel(&(scaled - Matrix3::identity() * values[l])).0
-        };
-        let v_l = (v_l - v_k * v_k.dot(&v_l)).normalize();
+    if let Some(extreme) = parts.most_distinct() {
+        let (k, l) = (extreme.index, 2 - extreme.index);
+        let v_k = extreme.vector;
+        let v_l = parts.other_extreme(&extreme);
         vectors.set_column(k, &v_k);
         vectors.set_column(l, &v_l);
         let v_mid = vectors.column(2).cross(&vectors.column(0)).normalize();
         vectors.set_column(1, &v_mid);
     }
-    (values * scale + Vector3::repeat(shift), vectors)
+    (parts.values(), vectors)
+}
+
+/// The eigenvector of an extreme eigenvalue.
+struct Extreme {
+    /// 0 (smallest eigenvalue) or 2 (largest).
+    index: usize,
+    /// Unit eigenvector.
+    vector: Vector3<f64>,
+    /// A row of the shifted matrix whose kernel `vector` spans (orthogonal
+    /// to it).
+    row: Vector3<f64>,
+}
+
+/// The eigenvalues of a symmetric 3×3 matrix, with what it takes to find an
+/// extreme eigenvector on demand: [`symmetric_eigen3`]'s results, bit for
+/// bit, without computing the vectors a caller does not read (a line fit
+/// that its eigenvalues reject reads none, a plane fit only the normal).
+///
+/// ```
+/// use limot_estimator::eigen3::{Decomposition, symmetric_eigen3};
+/// use nalgebra::Matrix3;
+///
+/// let m = Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 5.0);
+/// let (values, vectors) = symmetric_eigen3(&m);
+/// let d = Decomposition::of(&m);
+/// assert_eq!(d.values(), values);
+/// assert_eq!(d.extreme_vector(false), vectors.column(0).into_owned());
+/// assert_eq!(d.extreme_vector(true), vectors.column(2).into_owned());
+/// ```
+pub struct Decomposition {
+    scaled: Matrix3<f64>,
+    /// Eigenvalues of `scaled`, ascending.
+    values: Vector3<f64>,
+    shift: f64,
+    scale: f64,
+}
+
+/// `scaled` is the matrix shifted by its mean eigenvalue and scaled to
+/// [-1, 1] (only its lower triangle read).
+
+impl Decomposition {
+    /// The eigenvalues of the symmetric `m` (only its lower triangle is
+    /// read).
+    pub fn of(m: &Matrix3<f64>) -> Self {
+        let mut sym = *m;
+        sym.fill_upper_triangle_with_lower_triangle();
+        let shift = sym.trace() / 3.0;
+        let scaled = sym - Matrix3::identity() * shift;
+        let scale = match scaled.amax() {
+            s if s > 0.0 => s,
+            _ => 1.0,
+        };
+        let scaled = scaled / scale;
+        let values = cubic_roots(&scaled);
+        Self {
+            scaled,
+            values,
+            shift,
+            scale,
+        }
+    }
+
+    /// The input's eigenvalues, ascending.
+    pub fn values(&self) -> Vector3<f64> {
+        self.values * self.scale + Vector3::repeat(self.shift)
+    }
+
+    /// The unit eigenvector of the smallest eigenvalue or, with `largest`,
+    /// of the largest: [`symmetric_eigen3`]'s column 0 or 2.
+    pub fn extreme_vector(&self, largest: bool) -> Vector3<f64> {
+        let column = if largest { 2 } else { 0 };
+        match self.most_distinct() {
+            Some(extreme) if extreme.index == column => extreme.vector,
+            Some(extreme) => self.other_extreme(&extreme),
+            None => Matrix3::identity().column(column).into_owned(),
+        }
+    }
+
+    /// The index (0 or 2) and unit eigenvector of the extreme eigenvalue
+    /// farther from the middle one; `None` when all three are equal (or the
+    /// input is not finite), where any basis is an eigenbasis.
+    fn most_distinct(&self) -> Option<Extreme> {
+        let values = &self.values;
+        if values[2] - values[0] <= f64::EPSILON {
+            return None;
+        }
+        let (d0, d1) = (values[2] - values[1], values[1] - values[0]);
+        let index = if d0 > d1 { 2 } else { 0 };
+        let (vector, row) = kernel(&(self.scaled - Matrix3::identity() * values[index]));
+        Some(Extreme { index, vector, row })
+    }
+
+    /// The unit eigenvector of the other extreme eigenvalue, orthogonal to
+    /// the one [`Decomposition::most_distinct`] found.
+    fn other_extreme(&self, extreme: &Extreme) -> Vector3<f64> {
+        let values = &self.values;
+        let (k, v_k) = (extreme.index, &extreme.vector);
+        let l = 2 - k;
+        let (d0, d1) = (values[2] - values[1], values[1] - values[0]);
+        let gap = if k == 2 { d1 } else { d0 };
+        // The roots of a repeated pair carry √ε of error: below a
+        // millionth of the larger gap the pair counts as repeated.
+        let v_l = if gap <= 1e-6 * d0.max(d1) {
+            // Any unit vector orthogonal to v_k in the pair's plane; the
+            // saved row is orthogonal to v_k already.
+            extreme.row
+        } else {
+            kernel(&(self.scaled - Matrix3::identity() * values[l])).0
+        };
+        (v_l - v_k * v_k.dot(&v_l)).normalize()
+    }
 }
 
 /// The three real roots, ascending, of the characteristic polynomial of

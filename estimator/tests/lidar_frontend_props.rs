@@ -981,7 +981,7 @@ fn features_with_range_noise() {
 }
 
 mod symmetric_eigen3_props {
-    use limot_estimator::eigen3::symmetric_eigen3;
+    use limot_estimator::eigen3::{Decomposition, symmetric_eigen3};
     use nalgebra::{Matrix3, Rotation3, SymmetricEigen, Vector3};
     use proptest::prelude::*;
 
@@ -1032,6 +1032,11 @@ mod symmetric_eigen3_props {
             }
             prop_assert!((vectors.transpose() * vectors - Matrix3::identity()).norm() < 1e-9);
             prop_assert!((vectors.determinant() - 1.0).abs() < 1e-9);
+            // The on-demand form gives the same bits.
+            let lazy = Decomposition::of(&m);
+            prop_assert_eq!(lazy.values(), ours);
+            prop_assert_eq!(lazy.extreme_vector(false), vectors.column(0).into_owned());
+            prop_assert_eq!(lazy.extreme_vector(true), vectors.column(2).into_owned());
         }
     }
 }

@@ -346,7 +346,74 @@ impl NeighbourGrid {
                 }
             }
         }
+        // The top-k list as distances and point indices (sorted, closest
+        // first; a tie goes after the equal ones), moved as 12 bytes instead
+        // of a 32-byte `Neighbour` per shift; up to `MAX_STACK_K` on the stack.
+        const MAX_STACK_K: usize = 16;
+        if k > MAX_STACK_K {
+            return self.nearest_k_within_heap(q, k, &near[..count], bound, out);
+        }
+        let mut dists = [0.0f64; MAX_STACK_K];
+        let mut indices = [0u32; MAX_STACK_K];
+        let mut len = 0usize;
         for &(gap, cell) in &near[..count] {
+            if gap > bound {
+                break;
+            }
+            let Some((start, cell_len)) = self.cells.get(pack_cell(cell)) else {
+                continue;
+            };
+            let cell = &self.points_world[start as usize..(start + cell_len) as usize];
+            for (offset, p) in cell.iter().enumerate() {
+                let d_sq = (p - q).norm_squared();
+                // One well-predicted test per candidate: `bound` is r²
+                // until the list is full, then the k-th distance.
+                if d_sq > bound {
+                    continue;
+                }
+                // A tie with the k-th changes nothing and is skipped.
+                let mut at = if len < k {
+                    len += 1;
+                    len - 1
+                } else if d_sq < bound {
+                    k - 1
+                } else {
+                    continue;
+                };
+                while at > 0 && dists[at - 1] > d_sq {
+                    dists[at] = dists[at - 1];
+                    indices[at] = indices[at - 1];
+                    at -= 1;
+                }
+                dists[at] = d_sq;
+                indices[at] = start + offset as u32;
+                if len == k {
+                    bound = dists[k - 1];
+                }
+            }
+        }
+        out.extend(
+            dists[..len]
+                .iter()
+                .zip(&indices[..len])
+                .map(|(&d, &i)| Neighbour {
+                    point_world: self.points_world[i as usize],
+                    dist_sq_m2: d,
+                }),
+        );
+    }
+
+    /// The search's cell loop with the list in `out` itself, for `k` beyond
+    /// the stack list.
+    fn nearest_k_within_heap(
+        &self,
+        q: &Vector3<f64>,
+        k: usize,
+        near: &[(f64, (i64, i64, i64))],
+        mut bound: f64,
+        out: &mut Vec<Neighbour>,
+    ) {
+        for &(gap, cell) in near {
             if gap > bound {
                 break;
             }
@@ -356,14 +423,9 @@ impl NeighbourGrid {
             let cell = &self.points_world[start as usize..(start + len) as usize];
             for p in cell {
                 let d_sq = (p - q).norm_squared();
-                // One well-predicted test per candidate: `bound` is r²
-                // until the list is full, then the k-th distance.
                 if d_sq > bound {
                     continue;
                 }
-                // Insertion into the sorted top-k list: a tie with the k-th
-                // changes nothing and is skipped; a tie inside the list goes
-                // after the equal ones.
                 let found = Neighbour {
                     point_world: *p,
                     dist_sq_m2: d_sq,

@@ -34,7 +34,7 @@ use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SymmetricEigen, Vector3, 
 use thiserror::Error;
 
 use super::local_map::{LocalMap, MapCloud, Neighbour};
-use crate::eigen3::symmetric_eigen3;
+use crate::eigen3::Decomposition;
 use crate::graph::RobustKernel;
 use crate::lie::{self, skew};
 
@@ -349,13 +349,14 @@ pub(crate) fn fit_line(neigh: &[Neighbour], ratio: f64) -> Option<MapFeature> {
         return None;
     }
     let (mean, cov) = mean_and_covariance(neigh);
+    let eigen = Decomposition::of(&cov);
     // eigenvalues ascending
-    let (ev, vectors) = symmetric_eigen3(&cov);
+    let ev = eigen.values();
     // NaN eigenvalues compare false and reject the fit too.
     if ev[2].partial_cmp(&(ratio * ev[1])) != Some(std::cmp::Ordering::Greater) || ev[2] <= 0.0 {
         return None;
     }
-    let dir = vectors.column(2).normalize();
+    let dir = eigen.extreme_vector(true).normalize();
     Some(MapFeature::Line {
         point_world: mean,
         direction_world: dir,
@@ -370,7 +371,7 @@ pub(crate) fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapF
     }
     let (mean, cov) = mean_and_covariance(neigh);
     // eigenvalues ascending: the normal is the first eigenvector
-    let normal = symmetric_eigen3(&cov).1.column(0).normalize();
+    let normal = Decomposition::of(&cov).extreme_vector(false).normalize();
     if !normal.iter().all(|v| v.is_finite()) {
         return None;
     }
