@@ -75,15 +75,13 @@ struct Extreme {
 /// assert_eq!(d.extreme_vector(true), vectors.column(2).into_owned());
 /// ```
 pub struct Decomposition {
+    /// The matrix shifted by its mean eigenvalue and scaled to [-1, 1].
     scaled: Matrix3<f64>,
     /// Eigenvalues of `scaled`, ascending.
     values: Vector3<f64>,
     shift: f64,
     scale: f64,
 }
-
-/// `scaled` is the matrix shifted by its mean eigenvalue and scaled to
-/// [-1, 1] (only its lower triangle read).
 
 impl Decomposition {
     /// The eigenvalues of the symmetric `m` (only its lower triangle is
