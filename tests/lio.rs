@@ -235,6 +235,23 @@ fn lio_and_limot_track_the_urban_u_turn() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `urban-give-way`'s first 36 s: the ego stands at its yield line from
+/// about 16 s to 28 s while the oncoming traffic passes, then turns left at
+/// the intersection without lights into the cross street; `lio` and `limot`
+/// stay within centimetres.
+#[test]
+fn lio_and_limot_track_the_left_turn_without_lights() {
+    let mut spec = resolve_scenario("urban-give-way").unwrap();
+    assert!(spec.urban_params().ego_turn_give_way);
+    spec.duration_s = 36.0;
+    let dir = simulate(&spec, "urban-give-way");
+    let truth = Dataset::open(&dir).unwrap().ego_truth().unwrap();
+    let forward = truth.last().unwrap().t_world_lidar.rotation * nalgebra::Vector3::x();
+    assert!(forward.y > 0.99, "ends facing {forward}");
+    assert_lio_and_limot_within(&dir, 0.1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `parking-lot`: at walking pace among parked cars, round the double row
 /// (two left corners of 5 m, yaw rate ~0.4 rad/s) and forwards into a bay,
 /// then standing; `lio` and `limot` stay within centimetres.

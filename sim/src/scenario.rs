@@ -192,6 +192,7 @@ const BUILTIN_NAMES: &[&str] = &[
     "urban-parked",
     "urban-left",
     "urban-uturn",
+    "urban-give-way",
     "parking-lot",
 ];
 
@@ -338,6 +339,24 @@ impl ScenarioSpec {
                 }),
                 ego: EgoSpec {
                     lane: 0,
+                    ..EgoSpec::default()
+                },
+                ..base(Family::Urban, 2)
+            }),
+            // The default street and seed, the ego turning left at its first
+            // crossing, which has no lights (nor has every other one, a
+            // draw): it yields to the oncoming traffic and the far side's
+            // cyclists and pedestrians.
+            "urban-give-way" => Some(ScenarioSpec {
+                ground: urban_ground(),
+                urban: Some(UrbanParams {
+                    ego_route: EgoRoute::TurnLeft,
+                    ego_turn_give_way: true,
+                    give_way_fraction: 0.5,
+                    ..UrbanParams::default()
+                }),
+                ego: EgoSpec {
+                    lane: UrbanParams::default().lanes_per_direction - 1,
                     ..EgoSpec::default()
                 },
                 ..base(Family::Urban, 2)
@@ -634,6 +653,21 @@ impl ScenarioSpec {
                              from the {lane_name}: set ego.lane = {needed}, or \
                              urban.ego_route = \"straight\"",
                             self.ego.lane
+                        ),
+                    ));
+                }
+                if u.ego_turn_give_way
+                    && !matches!(u.ego_route, EgoRoute::TurnRight | EgoRoute::TurnLeft)
+                {
+                    let route = match u.ego_route {
+                        EgoRoute::Straight => "straight",
+                        _ => "u-turn",
+                    };
+                    return Err(invalid(
+                        "urban.ego_turn_give_way",
+                        format!(
+                            "= true needs a turn into the cross street (urban.ego_route = \
+                             \"turn-right\" or \"turn-left\"), not \"{route}\""
                         ),
                     ));
                 }

@@ -274,6 +274,22 @@ fn bad_files_name_file_line_and_field() {
             "ego_route",
             "urban.ego_route",
         ),
+        (
+            "urban_u_turn_without_lights",
+            &urban_uturn,
+            "ego_turn_give_way = false",
+            "ego_turn_give_way = true",
+            "ego_turn_give_way",
+            "urban.ego_turn_give_way",
+        ),
+        (
+            "urban_give_way_not_a_bool",
+            &urban,
+            "ego_turn_give_way = false",
+            "ego_turn_give_way = 0.5",
+            "ego_turn_give_way",
+            "urban.ego_turn_give_way",
+        ),
     ] {
         assert!(base.contains(from), "{tag}");
         let text = base.replace(from, to);
@@ -1065,6 +1081,7 @@ proptest! {
         lanes in 1usize..=2,
         route in 0usize..4,
         give_way in prop::sample::select(vec![0.0, 0.5, 1.0]),
+        ego_turn_give_way in any::<bool>(),
     ) {
         let mut spec = ScenarioSpec::builtin("urban").unwrap();
         spec.seed = seed;
@@ -1082,16 +1099,140 @@ proptest! {
             if lanes == 2 { (EgoRoute::UTurn, 0) } else { (EgoRoute::TurnRight, 0) },
         ][route];
         urban.ego_route = route;
+        // the ego's turn without lights: it yields instead of waiting at red
+        let yields = ego_turn_give_way && matches!(route, EgoRoute::TurnRight | EgoRoute::TurnLeft);
+        urban.ego_turn_give_way = yields;
         spec.ego.lane = lane;
         let scene = spec.build().unwrap();
         check_common(&spec, &scene);
         check_urban(&spec, &scene);
-        prop_assert!(ego_stop_and_go(&spec, &scene));
-        // cross traffic (check_common found no overlaps with it)
         let across = cars_across_main_street(&spec, &scene);
-        let in_front = cars_across_in_front_of_waiting_ego(&spec, &scene);
-        prop_assert!(across >= 1 && in_front >= 1, "{} across, {} in front", across, in_front);
+        if yields {
+            check_turn_without_lights(&spec, &scene);
+        } else {
+            prop_assert!(ego_stop_and_go(&spec, &scene));
+            // cross traffic (check_common found no overlaps with it)
+            let in_front = cars_across_in_front_of_waiting_ego(&spec, &scene);
+            prop_assert!(in_front >= 1, "{} in front", in_front);
+        }
+        prop_assert!(across >= 1, "{} across", across);
     }
+}
+
+/// The traffic signals' poles (5 m tall; the street lights are 7 m).
+fn signal_poles(scene: &Scene) -> impl Iterator<Item = &limot_sim::scene::StaticObject> {
+    scene
+        .statics
+        .iter()
+        .filter(|s| s.kind == StaticKind::Pole)
+        .filter(|s| match s.shape {
+            Shape::Cylinder { half_height_m, .. } => (2.0 * half_height_m - 5.0).abs() < 0.5,
+            _ => false,
+        })
+}
+
+/// Where the ego turns at an intersection without lights
+/// (`urban.ego_turn_give_way`): no signal poles at that intersection, and
+/// the ego was never within 2 m (footprint circles) of a main-street road
+/// user its turn crosses while it turned (`check_common` finds no overlaps
+/// at all). Returns None when the run ended before the ego left its lane
+/// (it stood waiting for a gap then), else the lowest speed of the ego, m/s,
+/// in the 40 m before its turn, and whether it was past the main street's
+/// far kerb by the end.
+fn check_turn_without_lights(spec: &ScenarioSpec, scene: &Scene) -> Option<(f64, bool)> {
+    let u = spec.urban_params();
+    let away = match u.ego_route {
+        EgoRoute::TurnLeft => 1.0,
+        _ => -1.0,
+    };
+    let times = sample_times(scene, 0.05);
+    let ego_at = |t: f64| scene.ego.trajectory.pose_at(t).translation.vector;
+    let end = ego_at(scene.duration_s);
+    let through = end.y * away > kerb_m(spec);
+    // where it turns: the x at which it leaves its lane's band
+    let lane_y =
+        -0.5 * u.lane_width_m * (2.0 * (u.lanes_per_direction - spec.ego.lane) as f64 - 1.0);
+    let turn_t = times
+        .iter()
+        .copied()
+        .find(|&t| (ego_at(t).y - lane_y).abs() > 0.5);
+    // before its turn it waits near the intersection
+    let turn_x = turn_t.map_or(end.x, |t| ego_at(t).x);
+    let signal_poles_there = signal_poles(scene)
+        .filter(|s| (s.t_world_object.translation.x - turn_x).abs() < 25.0)
+        .count();
+    assert_eq!(signal_poles_there, 0, "{} seed {}", spec.name, spec.seed);
+    let turn_t = turn_t?;
+    // turning: from leaving its lane until beyond the far sidewalk; the
+    // users it crosses: on the side it turns to, along the main street, but
+    // for the cars going its own way
+    let ego_radius = 0.5 * spec.ego.size_lwh_m[0].hypot(spec.ego.size_lwh_m[1]);
+    for &t in times.iter().filter(|&&t| t >= turn_t) {
+        let e = ego_at(t);
+        if e.y * away > kerb_m(spec) + u.sidewalk_width_m {
+            break;
+        }
+        for a in scene.agents.iter().filter(|a| !a.parked) {
+            let p = a.trajectory.pose_at(t).translation.vector;
+            let heading = a.trajectory.pose_at(t).rotation * nalgebra::Vector3::x();
+            let with_ego = a.class == ObjectClass::Car && heading.x > 0.9;
+            if heading.x.abs() < 0.9 || with_ego || p.y * away < 0.0 {
+                continue;
+            }
+            let r = 0.5 * a.size_lwh_m.x.hypot(a.size_lwh_m.y);
+            let gap = (p.xy() - e.xy()).norm() - r - ego_radius;
+            assert!(
+                gap > 2.0,
+                "{} seed {}: {:?} {} {gap:.2} m from the turning ego at {t} s",
+                spec.name,
+                spec.seed,
+                a.class,
+                a.id
+            );
+        }
+    }
+    let slowest = times
+        .iter()
+        .filter(|&&t| t < turn_t && ego_at(t).x > turn_x - 40.0)
+        .map(|&t| ego_speed_at(scene, t))
+        .fold(f64::INFINITY, f64::min);
+    Some((slowest, through))
+}
+
+/// The built-in `urban-give-way`: the ego turns left at its first
+/// intersection, which has no lights, yielding: it slows below walking pace
+/// before its turn, for the oncoming traffic, and then turns without coming
+/// near anybody (`check_turn_without_lights`). Over seeds 1-4 both ways.
+#[test]
+fn ego_yields_where_it_turns_without_lights() {
+    let mut slowest = Vec::new();
+    for (route, seed) in [
+        (EgoRoute::TurnLeft, 2),
+        (EgoRoute::TurnLeft, 3),
+        (EgoRoute::TurnRight, 1),
+        (EgoRoute::TurnRight, 4),
+    ] {
+        let mut spec = ScenarioSpec::builtin("urban-give-way").unwrap();
+        spec.seed = seed;
+        spec.duration_s = 40.0;
+        let u = spec.urban.as_mut().unwrap();
+        u.ego_route = route;
+        if route == EgoRoute::TurnRight {
+            spec.ego.lane = 0;
+        }
+        let scene = spec.build().unwrap();
+        check_common(&spec, &scene);
+        check_urban(&spec, &scene);
+        let (speed, through) = check_turn_without_lights(&spec, &scene).expect("the ego turns");
+        assert!(
+            through,
+            "{route:?} seed {seed}: the ego has not turned through"
+        );
+        slowest.push(speed);
+    }
+    println!("slowest before the turn: {slowest:.2?} m/s");
+    // the built-in itself waits for its gap
+    assert!(slowest[0] < 1.0, "{slowest:?}");
 }
 
 /// Intersections without lights: no signal poles and no stop lines for the
@@ -1112,15 +1253,7 @@ fn cross_cars_give_way_at_intersections_without_lights() {
         check_urban(&spec, &scene);
         // the ego still waits at its first light and turns there
         assert!(ego_stop_and_go(&spec, &scene), "seed {seed}");
-        let signal_poles = scene
-            .statics
-            .iter()
-            .filter(|s| s.kind == StaticKind::Pole)
-            .filter(|s| match s.shape {
-                Shape::Cylinder { half_height_m, .. } => (2.0 * half_height_m - 5.0).abs() < 0.5,
-                _ => false,
-            })
-            .count();
+        let signal_poles = signal_poles(&scene).count();
         assert!(
             signal_poles <= 4,
             "seed {seed}: {signal_poles} signal poles"

@@ -34,7 +34,7 @@ enum Command {
     /// Simulate a scenario into a dataset (limot format plus a KITTI-style copy in OUT/kitti).
     Simulate {
         /// Scenario TOML file, a built-in scenario name (highway, highway-dense, highway-jam,
-        /// highway-exit, urban, urban-parked, urban-left, urban-uturn, parking-lot), or `kitti` with --training and
+        /// highway-exit, urban, urban-parked, urban-left, urban-uturn, urban-give-way, parking-lot), or `kitti` with --training and
         /// --sequence: the digital twin of a KITTI tracking sequence.
         scenario: String,
         /// With `kitti`: the KITTI tracking `training` dir (calib/, oxts/, label_02/).
@@ -332,7 +332,7 @@ enum EvalCommand {
 #[derive(clap::Args, Debug)]
 struct SuiteArgs {
     /// Scenario families: built-in names (highway, highway-dense, highway-jam, highway-exit,
-    /// urban, urban-parked, urban-left, urban-uturn, parking-lot), TOML files, or `kitti` (the
+    /// urban, urban-parked, urban-left, urban-uturn, urban-give-way, parking-lot), TOML files, or `kitti` (the
     /// digital twins of --sequences in --training), comma-separated (default: every
     /// built-in scenario).
     #[arg(long)]

@@ -148,7 +148,7 @@ pub type Result<T, E = SuiteError> = std::result::Result<T, E>;
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuiteSpec {
     /// Scenario files or built-in names (highway, highway-dense, highway-jam,
-    /// highway-exit, urban, urban-parked, urban-left, urban-uturn, parking-lot), or [`TWIN_FAMILY`] for the
+    /// highway-exit, urban, urban-parked, urban-left, urban-uturn, urban-give-way, parking-lot), or [`TWIN_FAMILY`] for the
     /// twins of `twins`.
     pub families: Vec<String>,
     /// Seeds, each simulated per family.

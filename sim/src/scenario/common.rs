@@ -294,20 +294,7 @@ pub(crate) fn parked_agent(
     yaw_rad: f64,
     duration_s: f64,
 ) -> Agent {
-    let sample = PlanarSample {
-        x: xy.x,
-        y: xy.y,
-        yaw: yaw_rad,
-        speed_mps: 0.0,
-        accel_mps2: 0.0,
-        yaw_rate_radps: 0.0,
-        yaw_accel_radps2: 0.0,
-        vx_mps: 0.0,
-        vy_mps: 0.0,
-        ax_mps2: 0.0,
-        ay_mps2: 0.0,
-        lane: 0,
-    };
+    let sample = PlanarSample::at_rest(xy.x, xy.y, yaw_rad);
     let track = PlanarTrack {
         id,
         t0_s: 0.0,

@@ -482,12 +482,22 @@ pub struct UrbanParams {
     /// street, which it then follows.
     pub ego_route: EgoRoute,
     /// Share of the intersections without traffic lights, in [0, 1] (each
-    /// decides independently; the ego's first intersection always has them):
+    /// decides independently; the ego's first intersection has them unless
+    /// `ego_turn_give_way`):
     /// there the main street has priority and drives on, and the cross
     /// street's cars give way to every road user on it, pedestrians on its
     /// sidewalks included, taking a gap long enough to cross. 0 = every
     /// intersection signalled.
     pub give_way_fraction: f64,
+    /// The intersection where the ego turns (`ego_route` = `turn-right` or
+    /// `turn-left`) has no traffic lights either: the ego, on the main
+    /// street, has right of way over the cross street, whose cars give way
+    /// to it, and waits at a yield line before its turn until the road
+    /// users its path crosses leave a gap long enough to turn through: the
+    /// pedestrians and cyclists going straight across the cross street's
+    /// mouth on the side it turns to and, turning left, the oncoming cars.
+    /// There the cross street's cars all come towards the main street.
+    pub ego_turn_give_way: bool,
 }
 
 impl Default for UrbanParams {
@@ -520,6 +530,7 @@ impl Default for UrbanParams {
             street_furniture: true,
             ego_route: EgoRoute::TurnRight,
             give_way_fraction: 0.0,
+            ego_turn_give_way: false,
         }
     }
 }

@@ -46,7 +46,8 @@ use super::{
 };
 use crate::scene::{Agent, Ground, Scene};
 use crate::traffic::{
-    LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec, simulate_traffic_lifted,
+    LanePath, PathPiece, StopLine, TrafficSpec, VehicleSpec, simulate_traffic,
+    simulate_traffic_lifted,
 };
 use limot_estimator::input::ObjectClass;
 use nalgebra::{Isometry2, Point2};
@@ -55,6 +56,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
+mod ego_yield;
 mod side_street;
 mod signals;
 mod statics;
@@ -330,15 +332,32 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
     let mut stop_lines = stop_lines;
     let mut next_id = vehicles.len() as u32 + 1;
     let mut cross_specs = Vec::new();
+    // the ego's turn at a crossing without lights: it yields there (below)
+    let yielding_turn = street.turn.as_ref().filter(|t| street.give_way[t.crossing]);
     for cross in &street.cross_streets {
         let plan = &plans[cross.crossing];
-        let traffic = cross_traffic(&street, cross, plan, next_id, spec.duration_s, rng);
+        // where the ego turns without lights the cross street's cars all come
+        // towards the main street: the ego meets them oncoming, and they give
+        // way to it like to the main street's other users
+        let only_lane = yielding_turn
+            .filter(|t| t.crossing == cross.crossing)
+            .and_then(|t| t.away_sign())
+            .map(|away| if away < 0.0 { 0 } else { 1 });
+        let traffic = cross_traffic(
+            &street,
+            cross,
+            plan,
+            only_lane,
+            next_id,
+            spec.duration_s,
+            rng,
+        );
         next_id += traffic.vehicles.len() as u32;
         let turns_into = street
             .turn
             .as_ref()
             .is_some_and(|t| t.crossing == cross.crossing && t.leaves_main_street());
-        if turns_into {
+        if turns_into && only_lane.is_none() {
             join_traffic(&mut lanes, &mut vehicles, &mut stop_lines, traffic);
         } else {
             cross_specs.push((cross.crossing, traffic));
@@ -362,14 +381,18 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
             ego
         }
     };
+    let ego_size = ego.size_lwh_m;
     vehicles.push(ego);
-    let traffic = TrafficSpec {
+    let mut traffic = TrafficSpec {
         lanes,
         vehicles,
         stop_lines,
         jam_fronts: Vec::new(),
         duration_s: spec.duration_s,
     };
+    if let Some(turn) = yielding_turn {
+        add_yield_line(spec, &street, turn, ego_size, &mut traffic)?;
+    }
     // ids: main street 1..=N, cross streets N+1..=M, parked cars from M+1
     // pedestrians walk on the raised sidewalks
     let (mut agents, ego) = run_traffic(spec, &ground, &|x, y| layout.raised_m(x, y), &traffic)?;
@@ -427,6 +450,46 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         agents,
         ego,
     })
+}
+
+/// The ego's yield line before its turn at a crossing without lights (on
+/// its route lane, the last of `traffic.lanes`): red while the main-street
+/// users its turn crosses are near its path, found by simulating them with
+/// the ego held at the line (see [`ego_yield`]).
+fn add_yield_line(
+    spec: &ScenarioSpec,
+    street: &Street,
+    turn: &EgoTurn,
+    ego_size_lwh_m: nalgebra::Vector3<f64>,
+    traffic: &mut TrafficSpec,
+) -> Result<(), ScenarioError> {
+    let route_lane = traffic.lanes.len() - 1;
+    traffic.stop_lines.push(StopLine {
+        lane: route_lane,
+        s_m: ego_yield::yield_line_s(street, turn),
+        red_intervals_s: vec![(0.0, spec.duration_s + 1.0)],
+    });
+    let held = simulate_traffic(traffic).map_err(|e| traffic_error(spec, e))?;
+    let lanes = ego_yield::conflicting_lanes(street, turn);
+    let crossers: Vec<ego_yield::Crosser> = traffic
+        .vehicles
+        .iter()
+        .zip(&held)
+        .filter(|(v, _)| lanes.contains(&v.lane))
+        .map(|(v, track)| ego_yield::Crosser {
+            track,
+            radius_m: 0.5 * v.size_lwh_m.x.hypot(v.size_lwh_m.y),
+        })
+        .collect();
+    let path = ego_yield::swept_path(street, turn, ego_size_lwh_m.x);
+    let ego_radius_m = 0.5 * ego_size_lwh_m.x.hypot(ego_size_lwh_m.y);
+    let red = ego_yield::yield_red_s(&path, ego_radius_m, &crossers, spec.duration_s);
+    traffic
+        .stop_lines
+        .last_mut()
+        .expect("the yield line was pushed")
+        .red_intervals_s = red;
+    Ok(())
 }
 
 /// Which crossings have no traffic lights: each with probability
@@ -874,7 +937,13 @@ fn layout(
         x_max,
         view_lo,
         view_hi,
-        give_way: give_way_crossings(crossings.len(), ego_crossing, u, spec.seed),
+        give_way: {
+            let mut give_way = give_way_crossings(crossings.len(), ego_crossing, u, spec.seed);
+            if u.ego_turn_give_way && turn.is_some() {
+                give_way[ego_crossing] = true;
+            }
+            give_way
+        },
         crossings,
         ego_crossing,
         cross_half_length_m: cross_half_length,
@@ -963,7 +1032,7 @@ fn moving_agents(street: &Street, ego_lane: usize, rng: &mut ChaCha8Rng) -> Vec<
 
 /// The traffic of one cross street: its two lanes, stop lines before the
 /// main street with the cross street's red, and its cars (ids from
-/// `first_id`). The cars start at rest queued before their stop line
+/// `first_id`; all in lane `only_lane` when given). The cars start at rest queued before their stop line
 /// (alternating directions, the first one's drawn) and depart at staggered
 /// times; at the ego's first intersection they depart so that they reach the
 /// stop line in the second half of the cross street's first green, when the
@@ -972,6 +1041,7 @@ fn cross_traffic(
     street: &Street,
     cross: &CrossStreet,
     plan: &SignalPlan,
+    only_lane: Option<usize>,
     first_id: u32,
     duration_s: f64,
     rng: &mut ChaCha8Rng,
@@ -992,7 +1062,7 @@ fn cross_traffic(
     };
     let mut cars = Vec::new();
     for i in 0..u.cross_cars_per_intersection {
-        let lane = (first_lane + i) % 2;
+        let lane = only_lane.unwrap_or((first_lane + i) % 2);
         let gap = if queue_m[lane] == 0.0 {
             uniform(rng, CROSS_FIRST_GAP_M.0, CROSS_FIRST_GAP_M.1)
         } else {
@@ -1210,7 +1280,7 @@ mod tests {
             for (n, cross) in street.cross_streets.iter().enumerate() {
                 let plan = signal_plan(10.0, &u, spec.duration_s, walk_clear);
                 let first_id = 100 + 5 * n as u32;
-                let traffic = cross_traffic(&street, cross, &plan, first_id, 60.0, &mut rng);
+                let traffic = cross_traffic(&street, cross, &plan, None, first_id, 60.0, &mut rng);
                 let ids: Vec<u32> = traffic.vehicles.iter().map(|v| v.id).collect();
                 assert_eq!(ids, (first_id..first_id + 5).collect::<Vec<_>>());
                 // both directions, 3 + 2 cars

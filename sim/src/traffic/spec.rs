@@ -361,6 +361,26 @@ pub struct PlanarSample {
     pub lane: usize,
 }
 
+impl PlanarSample {
+    /// A body standing at `(x, y)` with heading `yaw_rad` on lane 0.
+    pub fn at_rest(x: f64, y: f64, yaw_rad: f64) -> PlanarSample {
+        PlanarSample {
+            x,
+            y,
+            yaw: yaw_rad,
+            speed_mps: 0.0,
+            accel_mps2: 0.0,
+            yaw_rate_radps: 0.0,
+            yaw_accel_radps2: 0.0,
+            vx_mps: 0.0,
+            vy_mps: 0.0,
+            ax_mps2: 0.0,
+            ay_mps2: 0.0,
+            lane: 0,
+        }
+    }
+}
+
 /// Why a traffic spec was rejected or its simulation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum TrafficError {
