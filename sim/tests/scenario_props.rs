@@ -497,6 +497,13 @@ fn check_common(spec: &ScenarioSpec, scene: &Scene) {
                 let sink = 0.5 + 0.07 * e.x.hypot(e.y);
                 assert!((-sink..0.05).contains(&bottom), "{s:?} bottom {bottom}");
             }
+            // a bus shelter's panels hang 0.2 m above its floor, the raised
+            // sidewalk at the shelter's centre: the ground's slope under
+            // its 3.6 m moves a side panel's gap by up to ~0.15 m
+            StaticKind::Wall => assert!(
+                (-1.0..0.05).contains(&bottom) || bottom > 0.15,
+                "{s:?} bottom {bottom}"
+            ),
             _ => assert!(
                 (-1.0..0.05).contains(&bottom) || bottom > 0.25,
                 "{s:?} bottom {bottom}"
