@@ -476,14 +476,16 @@ fn noise_free_imu_dead_reckons_the_jam_and_the_exit() {
 /// The ego's right turn of the default urban scenario, its left turn in
 /// `urban-left` (quarter circles of 8 m at a few m/s, yaw rates near
 /// 30 deg/s) and its U-turn in `urban-uturn` (half a circle of 4.95 m, near
-/// 34 deg/s): its noise-free IMU dead-reckons from before the turn until well
-/// after it onto its own pose.
+/// 34 deg/s), and its left turn without lights in `urban-give-way` (from a
+/// stand at its yield line): its noise-free IMU dead-reckons from before the
+/// turn until well after it onto its own pose.
 #[test]
 fn noise_free_imu_dead_reckons_the_urban_turns() {
     for (name, route) in [
         ("urban", EgoRoute::TurnRight),
         ("urban-left", EgoRoute::TurnLeft),
         ("urban-uturn", EgoRoute::UTurn),
+        ("urban-give-way", EgoRoute::TurnLeft),
     ] {
         let spec = limot_sim::scenario::ScenarioSpec::builtin(name).unwrap();
         assert_eq!(spec.urban_params().ego_route, route);
