@@ -13,6 +13,7 @@
 use limot::io::Source;
 use limot::io::kitti::detections::ScoreMap;
 use limot_estimator::lidar::{FeatureConfig, FeatureExtractor, VoxelDownsampler};
+use limot_test_support::bench::{self, Fnv1a, mean_p95};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -22,24 +23,8 @@ const EDGE_VOXEL_M: f64 = 0.2;
 const PLANAR_VOXEL_M: f64 = 0.4;
 const REPS: usize = 7;
 
-/// FNV-1a step over 64-bit words.
-fn hash_words(hash: &mut u64, words: impl IntoIterator<Item = u64>) {
-    for word in words {
-        *hash = (*hash ^ word).wrapping_mul(0x0100_0000_01b3);
-    }
-}
-
-fn mean_p95(mut v: Vec<f64>) -> (f64, f64) {
-    v.sort_by(f64::total_cmp);
-    let mean = v.iter().sum::<f64>() / v.len() as f64;
-    (mean, v[((v.len() - 1) as f64 * 0.95).round() as usize])
-}
-
 fn main() {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let args = bench::args();
     let dir = PathBuf::from(
         args.first()
             .expect("usage: features DIR [--sequence N] [FRAMES]"),
@@ -72,7 +57,7 @@ fn main() {
     let mut downsampler = VoxelDownsampler::default();
     let (mut features_ms, mut downsample_ms) = (Vec::new(), Vec::new());
     let (mut planar_in, mut planar_out) = (0usize, 0usize);
-    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    let mut hash = Fnv1a::new();
     for scan in &scans {
         let positions: Vec<Vector3<f64>> = scan.points.iter().map(|p| p.position()).collect();
         let mut f_reps = Vec::new();
@@ -100,9 +85,9 @@ fn main() {
             planar_out = p.len();
             if f_reps.len() == 1 {
                 let indices = features.edge_indices.iter().chain(&features.planar_indices);
-                hash_words(&mut hash, indices.map(|&i| i as u64));
+                hash.write(indices.map(|&i| i as u64));
                 let coordinates = e.iter().chain(&p).flat_map(|v| v.iter().copied());
-                hash_words(&mut hash, coordinates.map(f64::to_bits));
+                hash.write(coordinates.map(f64::to_bits));
             }
             std::hint::black_box((e, &p));
         }
@@ -116,8 +101,9 @@ fn main() {
     let (fm, fp) = mean_p95(features_ms);
     let (dm, dp) = mean_p95(downsample_ms);
     println!(
-        "{} scans, {points} points each (last: {planar_in} planar -> {planar_out}), hash {hash:016x}",
-        scans.len()
+        "{} scans, {points} points each (last: {planar_in} planar -> {planar_out}), hash {:016x}",
+        scans.len(),
+        hash.finish()
     );
     println!("features   mean {fm:.3} ms  p95 {fp:.3} ms");
     println!("downsample mean {dm:.3} ms  p95 {dp:.3} ms");

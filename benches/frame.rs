@@ -18,22 +18,13 @@ use limot::io::Source;
 use limot::io::kitti::detections::ScoreMap;
 use limot::run::{RunOptions, kitti_tracking_config, run};
 use limot_estimator::pipeline::{EstimatorConfig, Variant};
+use limot_test_support::bench::{self, mean_p95};
 use std::path::PathBuf;
 use std::time::Duration;
 
 /// The allocator of the `limot` binary, so the figures are its figures.
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
-fn mean_p95(mut v: Vec<f64>) -> (f64, f64) {
-    v.sort_by(f64::total_cmp);
-    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let p95 = v
-        .get(((v.len().max(1) - 1) as f64 * 0.95).round() as usize)
-        .copied()
-        .unwrap_or(f64::NAN);
-    (mean, p95)
-}
 
 fn value_of<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
     args.iter()
@@ -44,10 +35,7 @@ fn value_of<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
 
 fn main() {
     limot::allocator::keep_freed_pages();
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let args = bench::args();
     let usage =
         "usage: frame DIR [--sequence N --detections D] [--variant V] [--runs R] [--grid-cell M]";
     let dir = PathBuf::from(args.first().expect(usage));

@@ -11,6 +11,7 @@ use limot::simulate::resolve_scenario;
 use limot_estimator::input::Frame;
 use limot_estimator::pipeline::{Estimator, EstimatorConfig, Footprint, Variant};
 use limot_sim::Simulation;
+use limot_test_support::bench;
 use std::time::Instant;
 
 /// `VmRSS` / `VmHWM` of this process in MiB (Linux), or NaN elsewhere.
@@ -42,10 +43,7 @@ fn row(t_s: f64, f: &Footprint) -> String {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let args = bench::args();
     let seconds: f64 = args.first().and_then(|a| a.parse().ok()).unwrap_or(600.0);
     let variant = match args.get(1).map_or("limot", String::as_str) {
         "lio" => Variant::Lio,

@@ -10,6 +10,7 @@
 
 use limot::io::Source;
 use limot::io::kitti::detections::ScoreMap;
+use limot_test_support::bench::{self, Fnv1a, mean_p95};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -17,19 +18,9 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-/// FNV-1a step over 64-bit words.
-fn hash_words(hash: &mut u64, words: impl IntoIterator<Item = u64>) {
-    for word in words {
-        *hash = (*hash ^ word).wrapping_mul(0x0100_0000_01b3);
-    }
-}
-
 fn main() {
     limot::allocator::keep_freed_pages();
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let args = bench::args();
     let dir = PathBuf::from(
         args.first()
             .expect("usage: read DIR [--sequence N] [--runs R]"),
@@ -47,7 +38,7 @@ fn main() {
     .expect("open the data");
     let frames = source.frame_count();
     let mut best_ms = vec![f64::INFINITY; frames];
-    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    let mut hash = Fnv1a::new();
     let mut points = 0usize;
     for run in 0..runs {
         for (i, best) in best_ms.iter_mut().enumerate() {
@@ -57,26 +48,21 @@ fn main() {
             *best = best.min(ms);
             if run == 0 {
                 points += frame.scan.points.len();
-                hash_words(
-                    &mut hash,
-                    frame.scan.points.iter().flat_map(|p| {
-                        [p.x, p.y, p.z, p.intensity, p.time_offset_s]
-                            .map(|v| u64::from(v.to_bits()))
-                            .into_iter()
-                            .chain([u64::from(p.ring)])
-                    }),
-                );
+                hash.write(frame.scan.points.iter().flat_map(|p| {
+                    [p.x, p.y, p.z, p.intensity, p.time_offset_s]
+                        .map(|v| u64::from(v.to_bits()))
+                        .into_iter()
+                        .chain([u64::from(p.ring)])
+                }));
             }
             std::hint::black_box(frame);
         }
     }
-    let mut sorted = best_ms.clone();
-    sorted.sort_by(f64::total_cmp);
-    let mean = sorted.iter().sum::<f64>() / frames.max(1) as f64;
-    let p95 = sorted[((frames.max(1) - 1) as f64 * 0.95).round() as usize];
+    let (mean, p95) = mean_p95(best_ms);
     println!(
-        "{frames} frames, {} points each, hash {hash:016x}",
-        points / frames.max(1)
+        "{frames} frames, {} points each, hash {:016x}",
+        points / frames.max(1),
+        hash.finish()
     );
     println!("read per frame (fastest of {runs}): mean {mean:.3} ms, p95 {p95:.3} ms");
 }

@@ -8,6 +8,7 @@
 //! scene build to the last file); MB/s the bytes it wrote per wall second.
 
 use limot::simulate::{resolve_scenario, simulate};
+use limot_test_support::bench;
 use std::path::Path;
 
 /// The allocator of the `limot` binary, so the figures are its figures.
@@ -39,9 +40,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     limot::allocator::keep_freed_pages();
-    let seconds: f64 = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
+    let seconds: f64 = bench::args()
+        .iter()
         .find_map(|a| a.parse().ok())
         .unwrap_or(20.0);
     let cases = [("urban", 2), ("highway", 1)];

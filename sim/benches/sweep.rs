@@ -9,20 +9,11 @@
 //! --bench simulate`; the LiDAR alone, `cargo bench -p limot-sim --bench lidar`.
 
 use limot_sim::{ScenarioSpec, Simulation};
+use limot_test_support::bench::{self, Fnv1a};
 use std::time::Instant;
 
-/// FNV-1a over the points' fields and labels, in sweep order.
-fn hash_points(hash: &mut u64, values: impl IntoIterator<Item = u32>) {
-    for value in values {
-        *hash = (*hash ^ u64::from(value)).wrapping_mul(0x0100_0000_01b3);
-    }
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let args = bench::args();
     let name = args.first().map_or("urban", String::as_str);
     let seed: u64 = args.get(1).map_or(Ok(2), |s| s.parse())?;
     let frames: usize = args.get(2).map_or(Ok(20), |s| s.parse())?;
@@ -39,19 +30,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut points = 0;
     for _ in 0..3 {
         let start = Instant::now();
-        let mut hash = 0xcbf2_9ce4_8422_2325;
+        let mut hash = Fnv1a::new();
         points = 0;
         for index in 0..sim.frame_count() {
             let frame = sim.frame(index)?;
             let recorded = &frame.recorded;
             for (p, label) in recorded.scan.points.iter().zip(&recorded.labels) {
                 let fields = [p.x, p.y, p.z, p.intensity].map(f32::to_bits);
-                hash_points(&mut hash, fields.into_iter().chain([*label]));
+                hash.write(fields.into_iter().chain([*label]).map(u64::from));
             }
             points += recorded.scan.points.len();
         }
         best_s = best_s.min(start.elapsed().as_secs_f64());
-        hashes.push(hash);
+        hashes.push(hash.finish());
     }
     if hashes.iter().any(|&h| h != hashes[0]) {
         return Err(format!("the runs' sweeps differ: {hashes:016x?}").into());

@@ -113,3 +113,72 @@ impl SplitMix64 {
         )
     }
 }
+
+/// What the workspace's benchmarks share: their arguments, a hash to tell
+/// whether a change kept their outputs bit for bit, and the mean and 95th
+/// percentile they report.
+pub mod bench {
+    /// The benchmark's own arguments: the process arguments without the
+    /// program name and the `--bench` that `cargo bench` appends.
+    pub fn args() -> Vec<String> {
+        std::env::args()
+            .skip(1)
+            .filter(|a| a != "--bench")
+            .collect()
+    }
+
+    /// 64-bit FNV-1a over 64-bit words.
+    ///
+    /// ```
+    /// use limot_test_support::bench::Fnv1a;
+    /// let mut a = Fnv1a::new();
+    /// a.write([1, 2]);
+    /// let mut b = Fnv1a::new();
+    /// b.write([2, 1]);
+    /// assert_ne!(a.finish(), b.finish());
+    /// ```
+    #[derive(Debug, Clone, Copy)]
+    pub struct Fnv1a(u64);
+
+    impl Default for Fnv1a {
+        fn default() -> Self {
+            Self::new()
+        }
+    }
+
+    impl Fnv1a {
+        /// The hash of nothing (FNV's offset basis).
+        pub fn new() -> Self {
+            Fnv1a(0xcbf2_9ce4_8422_2325)
+        }
+
+        /// Hashes `words` in order.
+        pub fn write(&mut self, words: impl IntoIterator<Item = u64>) {
+            for word in words {
+                self.0 = (self.0 ^ word).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+
+        /// The hash so far.
+        pub fn finish(&self) -> u64 {
+            self.0
+        }
+    }
+
+    /// Mean and 95th percentile (nearest rank) of `values` (0 and NaN for
+    /// none).
+    ///
+    /// ```
+    /// let (mean, p95) = limot_test_support::bench::mean_p95((1..=20).map(f64::from).collect());
+    /// assert_eq!((mean, p95), (10.5, 19.0));
+    /// ```
+    pub fn mean_p95(mut values: Vec<f64>) -> (f64, f64) {
+        values.sort_by(f64::total_cmp);
+        let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
+        let p95 = values
+            .get(((values.len().max(1) - 1) as f64 * 0.95).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN);
+        (mean, p95)
+    }
+}
