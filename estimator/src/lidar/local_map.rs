@@ -295,7 +295,6 @@ impl NeighbourGrid {
         out: &mut Vec<Neighbour>,
     ) {
         let r_sq = radius_m * radius_m;
-        let mut bound = r_sq;
         let c = self.cell_m;
         // Cells overlapping the box [q − r, q + r] on each axis.
         let span = |v: f64| {
@@ -346,17 +345,47 @@ impl NeighbourGrid {
                 }
             }
         }
-        // The top-k list as distances and point indices (sorted, closest
-        // first; a tie goes after the equal ones), moved as 12 bytes instead
-        // of a 32-byte `Neighbour` per shift; up to `MAX_STACK_K` on the stack.
+        // The top-k list as distances and point indices, moved as 12 bytes
+        // instead of a 32-byte `Neighbour` per shift; on the stack up to
+        // `MAX_STACK_K`.
         const MAX_STACK_K: usize = 16;
-        if k > MAX_STACK_K {
-            return self.nearest_k_within_heap(q, k, &near[..count], bound, out);
-        }
-        let mut dists = [0.0f64; MAX_STACK_K];
-        let mut indices = [0u32; MAX_STACK_K];
+        let (mut stack_dists, mut stack_indices) = ([0.0f64; MAX_STACK_K], [0u32; MAX_STACK_K]);
+        let (mut heap_dists, mut heap_indices) = (Vec::new(), Vec::new());
+        let (dists, indices) = if k <= MAX_STACK_K {
+            (&mut stack_dists[..k], &mut stack_indices[..k])
+        } else {
+            heap_dists.resize(k, 0.0);
+            heap_indices.resize(k, 0);
+            (&mut heap_dists[..], &mut heap_indices[..])
+        };
+        let len = self.top_k(q, &near[..count], r_sq, dists, indices);
+        out.extend(
+            dists[..len]
+                .iter()
+                .zip(&indices[..len])
+                .map(|(&d, &i)| Neighbour {
+                    point_world: self.points_world[i as usize],
+                    dist_sq_m2: d,
+                }),
+        );
+    }
+
+    /// The `dists.len()` nearest points within the squared distance `bound`
+    /// in the cells `near` (nearest first, with their gaps to the query),
+    /// written as squared distances and point indices into `dists` and
+    /// `indices`, closest first (a tie goes after the equal ones); returns
+    /// how many were found.
+    fn top_k(
+        &self,
+        q: &Vector3<f64>,
+        near: &[(f64, (i64, i64, i64))],
+        mut bound: f64,
+        dists: &mut [f64],
+        indices: &mut [u32],
+    ) -> usize {
+        let k = dists.len();
         let mut len = 0usize;
-        for &(gap, cell) in &near[..count] {
+        for &(gap, cell) in near {
             if gap > bound {
                 break;
             }
@@ -392,61 +421,7 @@ impl NeighbourGrid {
                 }
             }
         }
-        out.extend(
-            dists[..len]
-                .iter()
-                .zip(&indices[..len])
-                .map(|(&d, &i)| Neighbour {
-                    point_world: self.points_world[i as usize],
-                    dist_sq_m2: d,
-                }),
-        );
-    }
-
-    /// The search's cell loop with the list in `out` itself, for `k` beyond
-    /// the stack list.
-    fn nearest_k_within_heap(
-        &self,
-        q: &Vector3<f64>,
-        k: usize,
-        near: &[(f64, (i64, i64, i64))],
-        mut bound: f64,
-        out: &mut Vec<Neighbour>,
-    ) {
-        for &(gap, cell) in near {
-            if gap > bound {
-                break;
-            }
-            let Some((start, len)) = self.cells.get(pack_cell(cell)) else {
-                continue;
-            };
-            let cell = &self.points_world[start as usize..(start + len) as usize];
-            for p in cell {
-                let d_sq = (p - q).norm_squared();
-                if d_sq > bound {
-                    continue;
-                }
-                let found = Neighbour {
-                    point_world: *p,
-                    dist_sq_m2: d_sq,
-                };
-                if out.len() < k {
-                    out.push(found);
-                } else if d_sq < bound {
-                    out[k - 1] = found;
-                } else {
-                    continue;
-                }
-                let mut at = out.len() - 1;
-                while at > 0 && out[at - 1].dist_sq_m2 > d_sq {
-                    out.swap(at - 1, at);
-                    at -= 1;
-                }
-                if out.len() == k {
-                    bound = out[k - 1].dist_sq_m2;
-                }
-            }
-        }
+        len
     }
 }
 
@@ -539,7 +514,8 @@ impl MapCloud {
     /// The `k` nearest points within `radius_m` of `query_world`, closest
     /// first, written into `out` (cleared first; fewer than `k` when fewer
     /// lie within the radius). Exact; uses the hash grid when `radius_m` is
-    /// at most one grid cell (no allocation once `out` has capacity `k`),
+    /// at most one grid cell (no allocation for `k` up to 16 once `out` has
+    /// capacity `k`),
     /// the k-d tree otherwise.
     pub fn nearest_k_within(
         &self,
