@@ -550,7 +550,6 @@ fn give_way_red_s(
     main_street: &[Occupant<'_>],
     spec: &ScenarioSpec,
 ) -> Vec<(f64, f64)> {
-    const STEP_S: f64 = 0.1;
     let u = &street.u;
     let half_y = street.kerb_m() + u.sidewalk_width_m;
     let across_m = STOP_LINE_SETBACK_M + 2.0 * half_y + 5.0;
@@ -567,23 +566,41 @@ fn give_way_red_s(
         let dy = (p.y.abs() - half_y).max(0.0);
         dx.hypot(dy) <= r
     };
-    let steps = (spec.duration_s / STEP_S).ceil() as usize;
-    let mut red: Vec<(f64, f64)> = Vec::new();
-    for k in 0..=steps {
-        let t = (k as f64 * STEP_S).min(spec.duration_s);
-        if !main_street
+    red_while(spec.duration_s, clear_s, |t| {
+        main_street
             .iter()
             .any(|o| in_strip(o.center_at(t), o.radius_m))
-        {
-            continue;
-        }
-        let (from, to) = ((t - clear_s).max(0.0), t + STEP_S);
-        match red.last_mut() {
+    })
+}
+
+/// Sample spacing of the red intervals of give-way and yield lines, s.
+const RED_STEP_S: f64 = 0.1;
+
+/// Red intervals of a line that must be red while `occupied(t)` holds and
+/// `lead_s` before, sampled every [`RED_STEP_S`] over [0, `duration_s`]
+/// (the first interval from t = 0 when it holds already), merged.
+fn red_while(duration_s: f64, lead_s: f64, occupied: impl Fn(f64) -> bool) -> Vec<(f64, f64)> {
+    let steps = (duration_s / RED_STEP_S).ceil() as usize;
+    let red = (0..=steps)
+        .map(|k| (k as f64 * RED_STEP_S).min(duration_s))
+        .filter(|&t| occupied(t))
+        .map(|t| ((t - lead_s).max(0.0), t + RED_STEP_S))
+        .collect();
+    merged(red)
+}
+
+/// `intervals`' union as disjoint intervals, ascending (overlapping or
+/// touching ones joined).
+fn merged(mut intervals: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    intervals.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut union: Vec<(f64, f64)> = Vec::new();
+    for (from, to) in intervals {
+        match union.last_mut() {
             Some(last) if from <= last.1 => last.1 = last.1.max(to),
-            _ => red.push((from, to)),
+            _ => union.push((from, to)),
         }
     }
-    red
+    union
 }
 
 /// Adds `other`'s lanes, vehicles and stop lines to the joint traffic

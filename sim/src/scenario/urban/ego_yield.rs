@@ -12,7 +12,7 @@
 //! the time the ego needs from a standstill to get past a user's line before
 //! that user comes within reach of its path until it has passed.
 
-use super::{EgoTurn, earliest_travel_time_s};
+use super::{EgoTurn, earliest_travel_time_s, merged, red_while};
 use super::{GIVE_WAY_MARGIN_S, LaneKind, Street, TURN_LATERAL_ACCEL_MPS2, TURN_RADIUS_M};
 use crate::traffic::{DriverParams, PlanarTrack};
 use nalgebra::Point2;
@@ -21,8 +21,6 @@ use nalgebra::Point2;
 const PATH_STEP_M: f64 = 0.5;
 /// Clearance kept between the ego's and a user's bounding circles, m.
 const CLEARANCE_M: f64 = 0.5;
-/// Time step of the red intervals, s.
-const STEP_S: f64 = 0.1;
 
 /// Arc length on the ego's route where its turn begins: its yield line.
 pub(super) fn yield_line_s(street: &Street, turn: &EgoTurn) -> f64 {
@@ -133,31 +131,18 @@ pub(super) fn yield_red_s(
     crossers: &[Crosser<'_>],
     duration_s: f64,
 ) -> Vec<(f64, f64)> {
-    let steps = (duration_s / STEP_S).ceil() as usize;
-    let mut red: Vec<(f64, f64)> = Vec::new();
-    for c in crossers {
-        let clear_s = c.clear_s(path, ego_radius_m);
-        let reach = c.radius_m + ego_radius_m + CLEARANCE_M;
-        for k in 0..=steps {
-            let t = (k as f64 * STEP_S).min(duration_s);
-            let p = c.centre_at(t);
-            if path
-                .iter()
-                .any(|q| (p - q.point).norm_squared() <= reach * reach)
-            {
-                red.push(((t - clear_s).max(0.0), t + STEP_S));
-            }
-        }
-    }
-    red.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut merged: Vec<(f64, f64)> = Vec::new();
-    for (from, to) in red {
-        match merged.last_mut() {
-            Some(last) if from <= last.1 => last.1 = last.1.max(to),
-            _ => merged.push((from, to)),
-        }
-    }
-    merged
+    let red = crossers
+        .iter()
+        .flat_map(|c| {
+            let reach = c.radius_m + ego_radius_m + CLEARANCE_M;
+            red_while(duration_s, c.clear_s(path, ego_radius_m), |t| {
+                let p = c.centre_at(t);
+                path.iter()
+                    .any(|q| (p - q.point).norm_squared() <= reach * reach)
+            })
+        })
+        .collect();
+    merged(red)
 }
 
 #[cfg(test)]
