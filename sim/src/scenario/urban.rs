@@ -342,6 +342,8 @@ pub(crate) fn build(spec: &ScenarioSpec, rng: &mut ChaCha8Rng) -> Result<Scene, 
         let only_lane = yielding_turn
             .filter(|t| t.crossing == cross.crossing)
             .and_then(|t| t.away_sign())
+            // from the half it turns into: along +y (lane 0, `cross_forward`)
+            // from the -y half
             .map(|away| if away < 0.0 { 0 } else { 1 });
         let traffic = cross_traffic(
             &street,
@@ -671,6 +673,18 @@ fn u_turn_end(street: &Street, turn: &EgoTurn) -> (f64, f64) {
     (start_x - street.x_min + PI * radius, start_x)
 }
 
+/// Where a turn into the cross street at x = `c` leaves its main-street lane
+/// (its arc's start): `TURN_RADIUS_M` before the cross-street lane it turns
+/// into, at `c + w/2` turning left (the +y lane) or `c - w/2` turning right.
+fn turn_arc_start_x(c: f64, lane_width_m: f64, left: bool) -> f64 {
+    let lane_x = if left {
+        c + 0.5 * lane_width_m
+    } else {
+        c - 0.5 * lane_width_m
+    };
+    lane_x - TURN_RADIUS_M
+}
+
 /// A U-turn's radius: from the kerb lane's centre to the oncoming one's.
 fn u_turn_radius_m(u: &UrbanParams) -> f64 {
     (u.lanes_per_direction as f64 - 0.5) * u.lane_width_m
@@ -922,11 +936,16 @@ fn layout(
             let (lane_y, turn_x, curvature, after_arc_m) = if left {
                 let lane_y = -0.5 * w;
                 let after = cross_half_length - (lane_y + TURN_RADIUS_M);
-                (lane_y, crossings[k] + 0.5 * w - TURN_RADIUS_M, 1.0, after)
+                (lane_y, turn_arc_start_x(crossings[k], w, true), 1.0, after)
             } else {
                 let lane_y = -(n as f64 - 0.5) * w;
                 let after = cross_half_length + lane_y - TURN_RADIUS_M;
-                (lane_y, crossings[k] - 0.5 * w - TURN_RADIUS_M, -1.0, after)
+                (
+                    lane_y,
+                    turn_arc_start_x(crossings[k], w, false),
+                    -1.0,
+                    after,
+                )
             };
             let pieces = [
                 PathPiece::Straight {

@@ -12,7 +12,7 @@
 //! the time the ego needs from a standstill to get past a user's line before
 //! that user comes within reach of its path until it has passed.
 
-use super::{EgoTurn, earliest_travel_time_s, merged, red_while};
+use super::{EgoTurn, earliest_travel_time_s, merged, red_while, turn_arc_start_x};
 use super::{GIVE_WAY_MARGIN_S, LaneKind, Street, TURN_LATERAL_ACCEL_MPS2, TURN_RADIUS_M};
 use crate::traffic::{DriverParams, PlanarTrack};
 use nalgebra::Point2;
@@ -24,15 +24,9 @@ const CLEARANCE_M: f64 = 0.5;
 
 /// Arc length on the ego's route where its turn begins: its yield line.
 pub(super) fn yield_line_s(street: &Street, turn: &EgoTurn) -> f64 {
-    let u = &street.u;
+    let left = turn.away_sign().is_some_and(|away| away > 0.0);
     let c = street.crossings[turn.crossing];
-    let w = u.lane_width_m;
-    // the arc starts R before the cross-street lane it turns into
-    let turn_x = match turn.away_sign() {
-        Some(away) if away > 0.0 => c + 0.5 * w - TURN_RADIUS_M,
-        _ => c - 0.5 * w - TURN_RADIUS_M,
-    };
-    street.s_of(true, turn_x)
+    street.s_of(true, turn_arc_start_x(c, street.u.lane_width_m, left))
 }
 
 /// The main-street lanes whose users the ego's turn crosses: the bike lane
