@@ -283,7 +283,7 @@ impl Default for EstimatorConfig {
             // from the truth in a 0.1 s sweep, inside the 1 m match distance
             start_max_speed_mps: 40.0,
             start_speed_step_mps: 5.0,
-            // a speed within half a step of the truth settles in 6-9 on
+            // a speed within half a step of the truth settled in 6-10 on
             // KITTI 0000; the far ones would run to the matcher's 30
             start_speed_max_iterations: 10,
             solver: SolverConfig {
