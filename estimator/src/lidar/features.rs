@@ -8,9 +8,7 @@
 //! changes with the viewpoint) and points on surfaces nearly parallel to the
 //! beam (both neighbours far in range) are rejected. Edges are picked per
 //! sector of a ring by decreasing curvature above a threshold, at most a few
-//! per sector, each suppressing its `±w` neighbours; unlike LIO-SAM's, an
-//! edge must also bend the ring in space (so the near side of a depth jump,
-//! a silhouette, is none: [`FeatureConfig::edge_min_bend_ratio`]); planar points are the
+//! per sector, each suppressing its `±w` neighbours; planar points are the
 //! accepted points of low curvature (the pipeline voxel-downsamples them).
 //!
 //! Everything is order-independent: the same points in any storage order
@@ -34,17 +32,6 @@ pub struct FeatureConfig {
     pub sectors_per_ring: usize,
     /// Edges kept per sector (LIO-SAM: 20).
     pub max_edges_per_sector: usize,
-    /// An edge point must bend its ring in space: its distance from the
-    /// chord between the two ends of its curvature window is at least this
-    /// fraction of the chord's length (0 turns the test off: LIO-SAM's
-    /// edges). The curvature is computed from ranges, so it is large wherever
-    /// the range changes fast, not only where the surface bends: at the near
-    /// side of a depth jump (a silhouette) too, which lies close to the chord
-    /// from the far side to its own surface and so does not pass. A corner
-    /// of 90° passes (0.5 with equal spacing on both sides) while the spacing
-    /// on one side is below about six times the other's. Why silhouettes are
-    /// left out: docs/estimator-notes.md.
-    pub edge_min_bend_ratio: f64,
     /// Points closer than this are ignored (ego vehicle returns; LIO-SAM: 1 m).
     pub min_range_m: f64,
     /// Points farther than this are ignored (LIO-SAM: 1000 m).
@@ -71,7 +58,6 @@ impl Default for FeatureConfig {
             surface_curvature_threshold: 0.1,
             sectors_per_ring: 6,
             max_edges_per_sector: 20,
-            edge_min_bend_ratio: 0.15,
             min_range_m: 1.0,
             max_range_m: 1000.0,
             occlusion_depth_jump_m: 0.3,
@@ -114,7 +100,6 @@ impl FeatureConfig {
                 "surface_curvature_threshold",
                 self.surface_curvature_threshold,
             ),
-            ("edge_min_bend_ratio", self.edge_min_bend_ratio),
             ("min_range_m", self.min_range_m),
             ("occlusion_depth_jump_m", self.occlusion_depth_jump_m),
             ("parallel_beam_ratio", self.parallel_beam_ratio),
@@ -318,16 +303,6 @@ impl Rejection {
     }
 }
 
-/// Whether `p` lies off the chord from `a` to `b` by at least `min_ratio`
-/// times the chord's length (see [`FeatureConfig::edge_min_bend_ratio`]).
-#[inline]
-fn bends(a: &Vector3<f64>, p: &Vector3<f64>, b: &Vector3<f64>, min_ratio: f64) -> bool {
-    let chord = b - a;
-    // |(p - a) × chord| is the distance times the chord's length
-    let min_cross = min_ratio * chord.norm_squared();
-    (p - a).cross(&chord).norm_squared() >= min_cross * min_cross
-}
-
 /// Maps an f32 to a u32 with the same order as `f32::total_cmp`.
 #[inline]
 fn time_key(t: f32) -> u32 {
@@ -407,7 +382,6 @@ impl FeatureExtractor {
         };
         let sectors = self.config.sectors_per_ring.max(1);
         let edge_threshold = self.config.edge_curvature_threshold;
-        let edge_min_bend = self.config.edge_min_bend_ratio;
         let surface_threshold = self.config.surface_curvature_threshold;
         for ordered in &mut self.rings[..num_rings] {
             let len = ordered.len();
@@ -494,11 +468,6 @@ impl FeatureExtractor {
                     }
                     let k = k as usize;
                     if self.flags[k] & SUPPRESSED != 0 {
-                        continue;
-                    }
-                    // (the window lies in the segment: the point has a curvature)
-                    let at = |j: usize| &points_lidar[ordered[j].key as u32 as usize];
-                    if !bends(at(k - w), at(k), at(k + w), edge_min_bend) {
                         continue;
                     }
                     self.flags[k] |= EDGE | SUPPRESSED;
@@ -672,7 +641,7 @@ mod tests {
     }
 
     #[test]
-    fn occluded_far_side_is_rejected_and_near_side_is_no_edge() {
+    fn occluded_far_side_is_rejected_and_near_side_is_an_edge() {
         // wall x = 10 from -20° to 20°, a pole in front (range 5) at ±1°
         let az0 = -20.0;
         let mut ranges = wall_x(10.0, az0, 201);
@@ -681,14 +650,8 @@ mod tests {
             ranges[k] = 5.0;
         }
         let f = run(&ring(0, az0, &ranges), &FeatureConfig::default());
-        // near side: the pole's silhouette points bend nothing in space
-        assert!(f.edge_indices.is_empty(), "{:?}", f.edge_indices);
-        // (by the range curvature alone they are the edges)
-        let curvature_only = FeatureConfig {
-            edge_min_bend_ratio: 0.0,
-            ..FeatureConfig::default()
-        };
-        let mut edges = run(&ring(0, az0, &ranges), &curvature_only).edge_indices;
+        // near side: the pole's two silhouette points
+        let mut edges = f.edge_indices.clone();
         edges.sort_unstable();
         assert_eq!(edges, vec![pole.start, pole.end - 1]);
         // far side: the 6 wall points next to each silhouette are rejected
@@ -698,42 +661,6 @@ mod tests {
         // wall farther away is planar again
         assert!(f.planar_indices.contains(&(pole.start - 8)));
         assert!(f.planar_indices.contains(&(pole.end + 8)));
-    }
-
-    #[test]
-    fn a_convex_corner_facing_the_sensor_is_an_edge() {
-        // a building's corner 12 m ahead, its walls x = 12 - |y| going away
-        let az0 = -20.0;
-        let ranges: Vec<f64> = (0..201)
-            .map(|k| {
-                let az = (az0 + k as f64 * STEP_DEG).to_radians();
-                12.0 / (az.cos() + az.sin().abs())
-            })
-            .collect();
-        let f = run(&ring(0, az0, &ranges), &FeatureConfig::default());
-        assert_eq!(f.edge_indices.len(), 1, "{:?}", f.edge_indices);
-        assert!(f.edge_indices[0].abs_diff(100) <= 1, "{:?}", f.edge_indices);
-    }
-
-    #[test]
-    fn a_corner_with_one_oblique_side_is_an_edge() {
-        // walls x = 10 and y = 5 meet at azimuth 26.6°: the second is seen
-        // at 63° off its normal, its points twice as far apart
-        let az0 = 10.0;
-        let ranges: Vec<f64> = (0..150)
-            .map(|k| {
-                let az = (az0 + k as f64 * STEP_DEG).to_radians();
-                (10.0 / az.cos()).min(5.0 / az.sin())
-            })
-            .collect();
-        let f = run(&ring(0, az0, &ranges), &FeatureConfig::default());
-        let corner = ((0.5f64.atan().to_degrees() - az0) / STEP_DEG).round() as usize;
-        assert_eq!(f.edge_indices.len(), 1, "{:?}", f.edge_indices);
-        assert!(
-            f.edge_indices[0].abs_diff(corner) <= 1,
-            "{:?}",
-            f.edge_indices
-        );
     }
 
     #[test]
@@ -772,10 +699,8 @@ mod tests {
         // two segments, each losing w points at both ends
         assert_eq!(f.planar_indices.len(), 200 - 4 * 5);
         // without splitting, the depth step makes an edge at the near side
-        // (to the range curvature)
         let no_split = FeatureConfig {
             max_azimuth_gap_rad: std::f64::consts::PI,
-            edge_min_bend_ratio: 0.0,
             ..FeatureConfig::default()
         };
         let f = run(&points, &no_split);
@@ -910,14 +835,6 @@ mod tests {
                 .to_string()
                 .contains("edge_curvature_threshold")
         );
-        for ratio in [-0.1, f64::NAN, f64::INFINITY] {
-            let bad = FeatureConfig {
-                edge_min_bend_ratio: ratio,
-                ..FeatureConfig::default()
-            };
-            let why = bad.validate().unwrap_err().to_string();
-            assert!(why.contains("edge_min_bend_ratio"), "{why}");
-        }
         let bad = FeatureConfig {
             max_range_m: 0.5,
             ..FeatureConfig::default()
