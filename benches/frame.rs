@@ -1,7 +1,7 @@
 //! Per-frame time of `limot run`, stage by stage, one core, steady on a
 //! loaded machine:
 //! `cargo bench -p limot --bench frame -- DIR [--sequence N --detections D]
-//! [--variant V] [--runs R] [--grid-cell M]`.
+//! [--variant V] [--runs R] [--grid-cell M] [--no-cell-planes]`.
 //!
 //! DIR is any source `limot run` reads (a limot dataset, or a KITTI tracking
 //! `training` directory with `--sequence`; then the settings are those of
@@ -12,7 +12,9 @@
 //! the mean and p95 over frames of each stage and of the frame's total (the
 //! sum of its stages' best times), and the fastest whole run's mean total
 //! for comparison. `--grid-cell M` overrides the local map's grid cell
-//! (`local_map.grid_cell_m`), to measure the map's layout against its cost.
+//! (`local_map.grid_cell_m`), to measure the map's layout against its cost;
+//! `--no-cell-planes` matches every planar point by k-NN
+//! (`local_map.cell_planes = None`).
 
 use limot::io::Source;
 use limot::io::kitti::detections::ScoreMap;
@@ -36,8 +38,7 @@ fn value_of<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
 fn main() {
     limot::allocator::keep_freed_pages();
     let args = bench::args();
-    let usage =
-        "usage: frame DIR [--sequence N --detections D] [--variant V] [--runs R] [--grid-cell M]";
+    let usage = "usage: frame DIR [--sequence N --detections D] [--variant V] [--runs R] [--grid-cell M] [--no-cell-planes]";
     let dir = PathBuf::from(args.first().expect(usage));
     let variant: Variant = value_of(&args, "--variant")
         .unwrap_or("limot")
@@ -67,6 +68,9 @@ fn main() {
     let mut config = config;
     if let Some(cell) = value_of(&args, "--grid-cell") {
         config.local_map.grid_cell_m = cell.parse().expect("--grid-cell is a number");
+    }
+    if args.iter().any(|a| a == "--no-cell-planes") {
+        config.local_map.cell_planes = None;
     }
     let options = RunOptions {
         variant,

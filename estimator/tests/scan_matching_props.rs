@@ -12,7 +12,9 @@ use limot_estimator::lidar::{
     point_to_plane_residual, voxel_downsample, voxel_key,
 };
 use limot_estimator::lie::{numerical_jacobian, oplus, xi_phi, xi_rho};
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    Isometry3, Matrix3, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+};
 use proptest::prelude::*;
 
 use limot_test_support::SplitMix64 as Rng;
@@ -196,8 +198,12 @@ fn sample_scan(
 }
 
 fn map_of(world: &World) -> LocalMap {
+    map_with(world, LocalMapConfig::default())
+}
+
+fn map_with(world: &World, config: LocalMapConfig) -> LocalMap {
     let (edge, planar) = sample_map(world, 0.15, 0.05);
-    let mut map = LocalMap::new(LocalMapConfig::default());
+    let mut map = LocalMap::new(config);
     map.add_keyframe(&Isometry3::identity(), &edge, &planar)
         .unwrap();
     map
@@ -335,6 +341,19 @@ proptest! {
     }
 }
 
+/// A sensor pose in the structured world: 1.8 m up, any heading, tilted
+/// by up to 0.05 rad.
+fn random_sensor_pose(rng: &mut Rng) -> Isometry3<f64> {
+    pose_from(
+        rng.range(-12.0, 12.0),
+        rng.range(-3.0, 3.0),
+        1.8,
+        rng.range(-0.05, 0.05),
+        rng.range(-0.05, 0.05),
+        rng.range(-3.1, 3.1),
+    )
+}
+
 /// Runs `n` noisy matches and returns the worst translation / rotation error.
 fn noisy_matches(
     n: u64,
@@ -347,14 +366,7 @@ fn noisy_matches(
     let (mut worst_t, mut worst_r, mut sum_t) = (0.0f64, 0.0f64, 0.0);
     for seed in 0..n {
         let mut rng = Rng(1000 + seed);
-        let t_true = pose_from(
-            rng.range(-12.0, 12.0),
-            rng.range(-3.0, 3.0),
-            1.8,
-            rng.range(-0.05, 0.05),
-            rng.range(-0.05, 0.05),
-            rng.range(-3.1, 3.1),
-        );
+        let t_true = random_sensor_pose(&mut rng);
         let (mut edge, mut planar) =
             sample_scan(&world, &t_true, 400, 3000, 30.0, noise_m, &mut rng);
         // Outliers: uniform in a box around the sensor (LiDAR frame), mixed
@@ -385,6 +397,26 @@ fn noisy_matches(
         sum_t += dt;
     }
     (worst_t, worst_r, sum_t / n as f64)
+}
+
+/// (estimate, truth) of ten matches with 2 cm noise from 0.5 m / 3 deg off,
+/// against a map built with `map_config`.
+fn noisy_match_poses(map_config: LocalMapConfig) -> Vec<(Isometry3<f64>, Isometry3<f64>)> {
+    let world = structured_world(40.0);
+    let map = map_with(&world, map_config);
+    (0..10u64)
+        .map(|seed| {
+            let mut rng = Rng(2000 + seed);
+            let t_true = random_sensor_pose(&mut rng);
+            let (edge, planar) = sample_scan(&world, &t_true, 400, 3000, 30.0, 0.02, &mut rng);
+            let dir_t = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+            let dir_r = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+            let t_init = oplus(&t_true, &perturbation(dir_t, 0.5, dir_r, 3.0));
+            let config = ScanMatchConfig::default();
+            let result = match_scan(&map, &edge, &planar, &t_init, &config).unwrap();
+            (result.t_world_lidar, t_true)
+        })
+        .collect()
 }
 
 #[test]
@@ -662,6 +694,102 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Every octant's plane is the PCA plane of the planar map's points in
+    /// it, present exactly when they are enough, spread over two directions
+    /// (a spread below 1 mm counting as 1 mm) and all within the residual
+    /// bound (fits near a threshold skipped).
+    #[test]
+    fn cell_planes_are_the_pca_planes_of_their_octants(
+        patches in proptest::collection::vec(
+            ((-6.0..6.0f64, -6.0..6.0f64, -1.5..1.5f64), unit_strategy(), 0.0..0.15f64, 20usize..300),
+            1..5,
+        ),
+        scattered in proptest::collection::vec((-6.0..6.0f64, -6.0..6.0f64, -1.5..1.5f64), 0..200),
+        seed in any::<u64>(),
+    ) {
+        let mut rng = Rng(seed);
+        let mut points = Vec::new();
+        for &((x, y, z), normal, noise_m, count) in &patches {
+            let centre = Vector3::new(x, y, z);
+            let u = normal.cross(&Vector3::new(0.3, 0.5, 0.8)).normalize();
+            let v = normal.cross(&u);
+            for _ in 0..count {
+                let (s, t) = (rng.range(-2.5, 2.5), rng.range(-2.5, 2.5));
+                points.push(centre + u * s + v * t + normal * rng.range(-noise_m, noise_m));
+            }
+        }
+        points.extend(scattered.iter().map(|&(x, y, z)| Vector3::new(x, y, z)));
+        let config = LocalMapConfig::default();
+        let planes = config.cell_planes.unwrap();
+        let mut map = LocalMap::new(config);
+        map.add_keyframe(&Isometry3::identity(), &[], &points).unwrap();
+        let cloud = map.planar_cloud();
+        let octant_m = config.grid_cell_m / 2.0;
+        let mut octants: HashMap<(i64, i64, i64), Vec<Vector3<f64>>> = HashMap::new();
+        for p in cloud.points_world() {
+            octants.entry(voxel_key(p, octant_m)).or_default().push(*p);
+        }
+        let mut with_plane = 0;
+        for pts in octants.values() {
+            let got = cloud.plane_at(&pts[0]);
+            for p in pts {
+                prop_assert_eq!(cloud.plane_at(p), got, "one plane per octant");
+            }
+            let n = pts.len() as f64;
+            let mean = pts.iter().sum::<Vector3<f64>>() / n;
+            let cov = pts.iter().map(|p| (p - mean) * (p - mean).transpose()).sum::<Matrix3<f64>>() / n;
+            let eigen = SymmetricEigen::new(cov);
+            let mut order = [0, 1, 2];
+            order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+            let (l0, l1) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
+            let normal = eigen.eigenvectors.column(order[0]).normalize();
+            let offset = -normal.dot(&mean);
+            let worst = pts.iter().map(|p| (normal.dot(p) + offset).abs()).fold(0.0, f64::max);
+            let margin = 1e-6;
+            if (l1 - planes.min_eigenvalue_ratio * l0.max(1e-6)).abs() < margin * l1.abs().max(1e-12)
+                || (worst - planes.max_residual_m).abs() < margin
+            {
+                continue;
+            }
+            let expected = pts.len() >= planes.min_points
+                && l1 >= planes.min_eigenvalue_ratio * l0.max(1e-6)
+                && worst <= planes.max_residual_m;
+            prop_assert_eq!(got.is_some(), expected, "octant of {} points: l0 {}, l1 {}, worst {}", pts.len(), l0, l1, worst);
+            if let Some(plane) = got {
+                with_plane += 1;
+                let sign = plane.normal_world.dot(&normal).signum();
+                prop_assert!((plane.normal_world * sign - normal).norm() < 1e-6);
+                prop_assert!((plane.offset_m * sign - offset).abs() < 1e-6);
+            }
+        }
+        prop_assert_eq!(with_plane, cloud.plane_count());
+        // Queries outside every octant find no plane.
+        prop_assert_eq!(cloud.plane_at(&Vector3::new(100.0, 100.0, 100.0)), None);
+    }
+}
+
+/// Cell planes change which plane a planar point is matched to, not where
+/// a match converges: with and without them the noisy matches agree within
+/// a centimetre and both are near the truth.
+#[test]
+fn cell_planes_match_like_nearest_neighbour_fits() {
+    let with = noisy_match_poses(LocalMapConfig::default());
+    let without = noisy_match_poses(LocalMapConfig {
+        cell_planes: None,
+        ..LocalMapConfig::default()
+    });
+    assert_eq!(with.len(), without.len());
+    for ((t_with, truth), (t_without, _)) in with.iter().zip(&without) {
+        let (dt, dr) = pose_error(t_with, t_without);
+        assert!(dt < 0.01 && dr < 0.2, "{dt} m, {dr} deg apart");
+        let (et, _) = pose_error(t_with, truth);
+        assert!(et < 0.05, "{et} m from the truth");
     }
 }
 

@@ -1,8 +1,9 @@
 //! LOAM / LIO-SAM scan-to-map matching on SE(3).
 //!
 //! Edge points of the scan are matched to lines fitted to their `k` nearest
-//! edge-map points, planar points to planes fitted to their `k` nearest
-//! planar-map points. The pose `T = t_world_lidar` is refined by robust
+//! edge-map points, planar points to the plane of the planar map's grid
+//! octant they fall in when they lie on it or else to a plane fitted to
+//! their `k` nearest planar-map points. The pose `T = t_world_lidar` is refined by robust
 //! Gauss–Newton in OUR right-perturbation tangent `T·Exp(ξ)`, `ξ = (ρ, φ)`.
 //!
 //! Residuals (metres, unit variance; the pipeline scales the information):
@@ -20,7 +21,11 @@
 //! Gauss–Newton step restricted to the well-conditioned subspace (see
 //! `restricted_gauss_newton_step`).
 //!
-//! Speed: neighbours come from the local map's hash grid
+//! Speed: a planar point takes the plane of the map's grid octant it falls
+//! in ([`MapCloud::plane_at`], fitted once per keyframe) where that octant
+//! has one and the point lies on it, and searches its `k` neighbours only
+//! otherwise;
+//! neighbours come from the local map's hash grid
 //! ([`MapCloud::nearest_k_within`], faster than the k-d tree on these clouds);
 //! correspondences are cached per scan point and re-searched only when the
 //! point's world position moved more than
@@ -33,7 +38,8 @@ use std::num::NonZeroUsize;
 use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SymmetricEigen, Vector3, Vector6};
 use thiserror::Error;
 
-use super::local_map::{LocalMap, MapCloud, Neighbour};
+use super::local_map::{LocalMap, MapCloud};
+use super::neighbour_grid::Neighbour;
 use crate::eigen3::Decomposition;
 use crate::graph::RobustKernel;
 use crate::lie::{self, skew};
@@ -503,7 +509,12 @@ impl Matcher<'_> {
             let q = rot * p + trans;
             let assoc = self.planar_assoc[i];
             let feature = if needs_search(&q, &assoc, reassoc_sq) {
-                let feature = if self.neighbours_ok(map.planar_cloud(), &q) {
+                let feature = if let Some(plane) = map.planar_cloud().plane_at(&q) {
+                    Some(MapFeature::Plane {
+                        normal_world: plane.normal_world,
+                        offset_m: plane.offset_m,
+                    })
+                } else if self.neighbours_ok(map.planar_cloud(), &q) {
                     fit_plane(&self.scratch, self.config.max_plane_fit_residual_m)
                 } else {
                     None
