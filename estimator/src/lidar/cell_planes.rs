@@ -38,13 +38,23 @@ impl Default for CellPlaneConfig {
     }
 }
 
-/// A plane `normal · x + offset_m = 0` (world frame, unit normal).
+/// A plane of the map, `normal_world · x + offset_m = 0` (world frame,
+/// unit normal): an octant's, or one fitted to a scan point's neighbours.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CellPlane {
+pub struct MapPlane {
     /// Unit normal, world frame.
     pub normal_world: Vector3<f64>,
     /// Offset, m.
     pub offset_m: f64,
+}
+
+impl MapPlane {
+    /// Signed distance of `x_world` from the plane, m (positive on the
+    /// normal's side).
+    #[inline]
+    pub fn signed_distance_m(&self, x_world: &Vector3<f64>) -> f64 {
+        self.normal_world.dot(x_world) + self.offset_m
+    }
 }
 
 /// The planes of a grid's octants (edge half the grid's cell).
@@ -57,7 +67,7 @@ pub(super) struct CellPlanes {
     /// Packed octant key -> (index into `planes`, 1), for the octants with
     /// a plane.
     index: CellTable,
-    planes: Vec<CellPlane>,
+    planes: Vec<MapPlane>,
 }
 
 /// Running moments of one octant's points, relative to a nearby origin so
@@ -76,7 +86,7 @@ impl CellPlanes {
     /// `floor(x / (c / 2))` is `2·floor(x / c)` or one more for every `x`.
     pub(super) fn build(grid: &NeighbourGrid, config: &CellPlaneConfig) -> Self {
         let octant_m = grid.cell_m / 2.0;
-        let mut fitted: Vec<(u64, Option<CellPlane>)> = Vec::new();
+        let mut fitted: Vec<(u64, Option<MapPlane>)> = Vec::new();
         let mut octants: Vec<Moments> = Vec::with_capacity(8);
         // Each point's index into `octants`, for the residual pass.
         let mut octant_of: Vec<u8> = Vec::new();
@@ -114,14 +124,12 @@ impl CellPlanes {
             // Every point within the residual bound of its octant's plane.
             for (p, &at) in points.iter().zip(&octant_of) {
                 let plane = &mut cell_fits[usize::from(at)].1;
-                if plane.is_some_and(|pl| {
-                    (pl.normal_world.dot(p) + pl.offset_m).abs() > config.max_residual_m
-                }) {
+                if plane.is_some_and(|pl| pl.signed_distance_m(p).abs() > config.max_residual_m) {
                     *plane = None;
                 }
             }
         }
-        let planes: Vec<(u64, CellPlane)> = fitted
+        let planes: Vec<(u64, MapPlane)> = fitted
             .into_iter()
             .filter_map(|(key, plane)| Some((key, plane?)))
             .collect();
@@ -147,15 +155,14 @@ impl CellPlanes {
     /// wall on the octant's face, a car not in the map) is not matched to
     /// the octant's surface.
     #[inline]
-    pub(super) fn plane_at(&self, q_world: &Vector3<f64>) -> Option<CellPlane> {
+    pub(super) fn plane_at(&self, q_world: &Vector3<f64>) -> Option<MapPlane> {
         if self.planes.is_empty() {
             return None;
         }
         match self.index.get(pack_cell(voxel_key(q_world, self.octant_m))) {
             Some((at, 1)) => {
                 let plane = self.planes[at as usize];
-                let distance_m = (plane.normal_world.dot(q_world) + plane.offset_m).abs();
-                (distance_m <= self.max_residual_m).then_some(plane)
+                (plane.signed_distance_m(q_world).abs() <= self.max_residual_m).then_some(plane)
             }
             _ => None,
         }
@@ -170,7 +177,7 @@ impl CellPlanes {
 /// The plane through an octant's points (PCA normal through the centroid)
 /// if they are enough and spread over two directions; the residual bound is
 /// checked by the caller.
-fn fit(m: &Moments, origin: &Vector3<f64>, config: &CellPlaneConfig) -> Option<CellPlane> {
+fn fit(m: &Moments, origin: &Vector3<f64>, config: &CellPlaneConfig) -> Option<MapPlane> {
     if m.count < config.min_points.max(3) {
         return None;
     }
@@ -196,7 +203,7 @@ fn fit(m: &Moments, origin: &Vector3<f64>, config: &CellPlaneConfig) -> Option<C
         return None;
     }
     let centroid = origin + mean;
-    Some(CellPlane {
+    Some(MapPlane {
         normal_world,
         offset_m: -normal_world.dot(&centroid),
     })
@@ -237,7 +244,7 @@ mod tests {
                 found += 1;
                 let sign = plane.normal_world.dot(&normal).signum();
                 assert!((plane.normal_world * sign - normal).norm() < 1e-9);
-                assert!((plane.normal_world.dot(p) + plane.offset_m).abs() < 1e-9);
+                assert!(plane.signed_distance_m(p).abs() < 1e-9);
             }
         }
         // Only octants cut by a corner of the plane hold fewer than 5 points.

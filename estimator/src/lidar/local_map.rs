@@ -30,7 +30,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Isometry3, Vector3};
 use thiserror::Error;
 
-use super::cell_planes::{CellPlane, CellPlaneConfig, CellPlanes};
+use super::cell_planes::{CellPlaneConfig, CellPlanes, MapPlane};
 use super::neighbour_grid::{Neighbour, NeighbourGrid};
 use super::voxel::{VoxelMap, voxel_downsample, voxel_key};
 
@@ -192,7 +192,7 @@ impl MapCloud {
     /// points make one and `query_world` lies within
     /// [`CellPlaneConfig::max_residual_m`] of it.
     #[inline]
-    pub fn plane_at(&self, query_world: &Vector3<f64>) -> Option<CellPlane> {
+    pub fn plane_at(&self, query_world: &Vector3<f64>) -> Option<MapPlane> {
         self.planes.plane_at(query_world)
     }
 

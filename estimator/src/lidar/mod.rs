@@ -9,7 +9,7 @@
 //! Points are in metres; `_lidar` names the sensor frame, `_world` the map
 //! frame.
 
-pub use cell_planes::{CellPlane, CellPlaneConfig};
+pub use cell_planes::{CellPlaneConfig, MapPlane};
 pub use deskew::{DESKEW_RELATIVE_TOLERANCE, DeskewError, Deskewer, SweepMotion, deskew};
 pub use features::{
     FeatureConfig, FeatureConfigError, FeatureExtractor, ScanFeatures, extract_features,

@@ -38,6 +38,7 @@ use std::num::NonZeroUsize;
 use nalgebra::{Isometry3, Matrix3, Matrix3x6, Matrix6, SymmetricEigen, Vector3, Vector6};
 use thiserror::Error;
 
+use super::cell_planes::MapPlane;
 use super::local_map::{LocalMap, MapCloud};
 use super::neighbour_grid::Neighbour;
 use crate::eigen3::Decomposition;
@@ -255,11 +256,8 @@ pub(crate) enum MapFeature {
         point_world: Vector3<f64>,
         direction_world: Vector3<f64>,
     },
-    /// Plane `{x : normalᵀx + offset_m = 0}` with unit normal.
-    Plane {
-        normal_world: Vector3<f64>,
-        offset_m: f64,
-    },
+    /// A plane.
+    Plane(MapPlane),
 }
 
 /// Point-to-line residual `r = u × (T·p − a)` and its Jacobian wrt the right
@@ -381,17 +379,17 @@ pub(crate) fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapF
     if !normal.iter().all(|v| v.is_finite()) {
         return None;
     }
-    let offset_m = -normal.dot(&mean);
+    let plane = MapPlane {
+        normal_world: normal,
+        offset_m: -normal.dot(&mean),
+    };
     if neigh
         .iter()
-        .any(|n| (normal.dot(&n.point_world) + offset_m).abs() > max_residual_m)
+        .any(|n| plane.signed_distance_m(&n.point_world).abs() > max_residual_m)
     {
         return None;
     }
-    Some(MapFeature::Plane {
-        normal_world: normal,
-        offset_m,
-    })
+    Some(MapFeature::Plane(plane))
 }
 
 /// Cached correspondence of one scan point.
@@ -510,10 +508,7 @@ impl Matcher<'_> {
             let assoc = self.planar_assoc[i];
             let feature = if needs_search(&q, &assoc, reassoc_sq) {
                 let feature = if let Some(plane) = map.planar_cloud().plane_at(&q) {
-                    Some(MapFeature::Plane {
-                        normal_world: plane.normal_world,
-                        offset_m: plane.offset_m,
-                    })
+                    Some(MapFeature::Plane(plane))
                 } else if self.neighbours_ok(map.planar_cloud(), &q) {
                     fit_plane(&self.scratch, self.config.max_plane_fit_residual_m)
                 } else {
@@ -527,14 +522,11 @@ impl Matcher<'_> {
             } else {
                 assoc.feature
             };
-            let Some(MapFeature::Plane {
-                normal_world,
-                offset_m,
-            }) = feature
-            else {
+            let Some(MapFeature::Plane(plane)) = feature else {
                 continue;
             };
-            let (r, j) = plane_residual_with_rot(&rot, &trans, &p, &normal_world, offset_m);
+            let (r, j) =
+                plane_residual_with_rot(&rot, &trans, &p, &plane.normal_world, plane.offset_m);
             let w = weight(r.abs());
             let jjt = j * j.transpose();
             ne.h_unweighted += jjt;
@@ -759,10 +751,10 @@ mod tests {
             [0.4, 0.4, 1.0],
             [0.2, 0.1, 1.0],
         ]);
-        let Some(MapFeature::Plane {
+        let Some(MapFeature::Plane(MapPlane {
             normal_world,
             offset_m,
-        }) = fit_plane(&flat, 0.2)
+        })) = fit_plane(&flat, 0.2)
         else {
             panic!("coplanar points must give a plane");
         };
