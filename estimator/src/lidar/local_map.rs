@@ -532,6 +532,39 @@ mod tests {
                 ..
             }
         ));
+        let planes = CellPlaneConfig::default();
+        for (bad, field) in [
+            (
+                CellPlaneConfig {
+                    min_points: 2,
+                    ..planes
+                },
+                "cell_planes.min_points",
+            ),
+            (
+                CellPlaneConfig {
+                    max_residual_m: f64::NAN,
+                    ..planes
+                },
+                "cell_planes.max_residual_m",
+            ),
+            (
+                CellPlaneConfig {
+                    min_eigenvalue_ratio: 1.0,
+                    ..planes
+                },
+                "cell_planes.min_eigenvalue_ratio",
+            ),
+        ] {
+            let config = LocalMapConfig {
+                cell_planes: Some(bad),
+                ..Default::default()
+            };
+            match config.validate() {
+                Err(LocalMapError::InvalidConfig { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
         let mut map = LocalMap::new(LocalMapConfig::default());
         let bad = Isometry3::translation(f64::NAN, 0.0, 0.0);
         assert_eq!(
