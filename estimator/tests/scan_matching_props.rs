@@ -354,7 +354,54 @@ fn random_sensor_pose(rng: &mut Rng) -> Isometry3<f64> {
     )
 }
 
-/// Runs `n` noisy matches and returns the worst translation / rotation error.
+/// (estimate, truth) of `n` matches against `map` of `world`, one per seed
+/// from `first_seed`: a random sensor pose, a scan of it with `noise_m`
+/// Gaussian noise and `outlier_fraction` outliers, matched from 0.5 m /
+/// 3 deg off.
+fn noisy_match_poses(
+    world: &World,
+    map: &LocalMap,
+    first_seed: u64,
+    n: u64,
+    noise_m: f64,
+    outlier_fraction: f64,
+    config: &ScanMatchConfig,
+) -> Vec<(Isometry3<f64>, Isometry3<f64>)> {
+    (first_seed..first_seed + n)
+        .map(|seed| {
+            let mut rng = Rng(seed);
+            let t_true = random_sensor_pose(&mut rng);
+            let (mut edge, mut planar) =
+                sample_scan(world, &t_true, 400, 3000, 30.0, noise_m, &mut rng);
+            // Outliers: uniform in a box around the sensor (LiDAR frame), mixed
+            // into both feature sets.
+            let n_out_e = (edge.len() as f64 * outlier_fraction) as usize;
+            let n_out_p = (planar.len() as f64 * outlier_fraction) as usize;
+            for _ in 0..n_out_e {
+                edge.push(Vector3::new(
+                    rng.range(-25.0, 25.0),
+                    rng.range(-25.0, 25.0),
+                    rng.range(-2.0, 6.0),
+                ));
+            }
+            for _ in 0..n_out_p {
+                planar.push(Vector3::new(
+                    rng.range(-25.0, 25.0),
+                    rng.range(-25.0, 25.0),
+                    rng.range(-2.0, 6.0),
+                ));
+            }
+            let dir_t = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+            let dir_r = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+            let t_init = oplus(&t_true, &perturbation(dir_t, 0.5, dir_r, 3.0));
+            let result = match_scan(map, &edge, &planar, &t_init, config).unwrap();
+            (result.t_world_lidar, t_true)
+        })
+        .collect()
+}
+
+/// Runs `n` noisy matches and returns the worst translation / rotation error
+/// and the mean translation error.
 fn noisy_matches(
     n: u64,
     noise_m: f64,
@@ -364,59 +411,15 @@ fn noisy_matches(
     let world = structured_world(40.0);
     let map = map_of(&world);
     let (mut worst_t, mut worst_r, mut sum_t) = (0.0f64, 0.0f64, 0.0);
-    for seed in 0..n {
-        let mut rng = Rng(1000 + seed);
-        let t_true = random_sensor_pose(&mut rng);
-        let (mut edge, mut planar) =
-            sample_scan(&world, &t_true, 400, 3000, 30.0, noise_m, &mut rng);
-        // Outliers: uniform in a box around the sensor (LiDAR frame), mixed
-        // into both feature sets.
-        let n_out_e = (edge.len() as f64 * outlier_fraction) as usize;
-        let n_out_p = (planar.len() as f64 * outlier_fraction) as usize;
-        for _ in 0..n_out_e {
-            edge.push(Vector3::new(
-                rng.range(-25.0, 25.0),
-                rng.range(-25.0, 25.0),
-                rng.range(-2.0, 6.0),
-            ));
-        }
-        for _ in 0..n_out_p {
-            planar.push(Vector3::new(
-                rng.range(-25.0, 25.0),
-                rng.range(-25.0, 25.0),
-                rng.range(-2.0, 6.0),
-            ));
-        }
-        let dir_t = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-        let dir_r = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-        let t_init = oplus(&t_true, &perturbation(dir_t, 0.5, dir_r, 3.0));
-        let result = match_scan(&map, &edge, &planar, &t_init, config).unwrap();
-        let (dt, dr) = pose_error(&result.t_world_lidar, &t_true);
+    for (estimate, truth) in
+        noisy_match_poses(&world, &map, 1000, n, noise_m, outlier_fraction, config)
+    {
+        let (dt, dr) = pose_error(&estimate, &truth);
         worst_t = worst_t.max(dt);
         worst_r = worst_r.max(dr);
         sum_t += dt;
     }
     (worst_t, worst_r, sum_t / n as f64)
-}
-
-/// (estimate, truth) of ten matches with 2 cm noise from 0.5 m / 3 deg off,
-/// against a map built with `map_config`.
-fn noisy_match_poses(map_config: LocalMapConfig) -> Vec<(Isometry3<f64>, Isometry3<f64>)> {
-    let world = structured_world(40.0);
-    let map = map_with(&world, map_config);
-    (0..10u64)
-        .map(|seed| {
-            let mut rng = Rng(2000 + seed);
-            let t_true = random_sensor_pose(&mut rng);
-            let (edge, planar) = sample_scan(&world, &t_true, 400, 3000, 30.0, 0.02, &mut rng);
-            let dir_t = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-            let dir_r = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-            let t_init = oplus(&t_true, &perturbation(dir_t, 0.5, dir_r, 3.0));
-            let config = ScanMatchConfig::default();
-            let result = match_scan(&map, &edge, &planar, &t_init, &config).unwrap();
-            (result.t_world_lidar, t_true)
-        })
-        .collect()
 }
 
 #[test]
@@ -779,8 +782,21 @@ proptest! {
 /// a centimetre and both are near the truth.
 #[test]
 fn cell_planes_match_like_nearest_neighbour_fits() {
-    let with = noisy_match_poses(LocalMapConfig::default());
-    let without = noisy_match_poses(LocalMapConfig {
+    let world = structured_world(40.0);
+    let matches = |map_config| {
+        let map = map_with(&world, map_config);
+        noisy_match_poses(
+            &world,
+            &map,
+            2000,
+            10,
+            0.02,
+            0.0,
+            &ScanMatchConfig::default(),
+        )
+    };
+    let with = matches(LocalMapConfig::default());
+    let without = matches(LocalMapConfig {
         cell_planes: None,
         ..LocalMapConfig::default()
     });

@@ -65,7 +65,7 @@ pub(super) struct CellPlanes {
     /// to count as on the plane.
     max_residual_m: f64,
     /// Packed octant key -> (index into `planes`, 1), for the octants with
-    /// a plane.
+    /// a plane only.
     index: CellTable,
     planes: Vec<MapPlane>,
 }
@@ -86,8 +86,9 @@ impl CellPlanes {
     /// `floor(x / (c / 2))` is `2·floor(x / c)` or one more for every `x`.
     pub(super) fn build(grid: &NeighbourGrid, config: &CellPlaneConfig) -> Self {
         let octant_m = grid.cell_m / 2.0;
-        let mut fitted: Vec<(u64, Option<MapPlane>)> = Vec::new();
+        let mut planes: Vec<(u64, MapPlane)> = Vec::new();
         let mut octants: Vec<Moments> = Vec::with_capacity(8);
+        let mut fits: Vec<Option<MapPlane>> = Vec::with_capacity(8);
         // Each point's index into `octants`, for the residual pass.
         let mut octant_of: Vec<u8> = Vec::new();
         for points in grid.cells() {
@@ -115,24 +116,25 @@ impl CellPlanes {
                 m.sum += d;
                 m.sum_outer += d * d.transpose();
             }
-            let first = fitted.len();
-            fitted.extend(octants.iter().map(|m| (m.key, fit(m, &origin, config))));
-            let cell_fits = &mut fitted[first..];
-            if cell_fits.iter().all(|(_, plane)| plane.is_none()) {
+            fits.clear();
+            fits.extend(octants.iter().map(|m| fit(m, &origin, config)));
+            if fits.iter().all(Option::is_none) {
                 continue;
             }
             // Every point within the residual bound of its octant's plane.
             for (p, &at) in points.iter().zip(&octant_of) {
-                let plane = &mut cell_fits[usize::from(at)].1;
+                let plane = &mut fits[usize::from(at)];
                 if plane.is_some_and(|pl| pl.signed_distance_m(p).abs() > config.max_residual_m) {
                     *plane = None;
                 }
             }
+            planes.extend(
+                octants
+                    .iter()
+                    .zip(&fits)
+                    .filter_map(|(m, plane)| Some((m.key, (*plane)?))),
+            );
         }
-        let planes: Vec<(u64, MapPlane)> = fitted
-            .into_iter()
-            .filter_map(|(key, plane)| Some((key, plane?)))
-            .collect();
         let mut index = CellTable::with_cells(planes.len());
         for (at, &(key, _)) in planes.iter().enumerate() {
             let slot = index.entry(key);
@@ -156,16 +158,11 @@ impl CellPlanes {
     /// the octant's surface.
     #[inline]
     pub(super) fn plane_at(&self, q_world: &Vector3<f64>) -> Option<MapPlane> {
-        if self.planes.is_empty() {
-            return None;
-        }
-        match self.index.get(pack_cell(voxel_key(q_world, self.octant_m))) {
-            Some((at, 1)) => {
-                let plane = self.planes[at as usize];
-                (plane.signed_distance_m(q_world).abs() <= self.max_residual_m).then_some(plane)
-            }
-            _ => None,
-        }
+        let (at, _) = self
+            .index
+            .get(pack_cell(voxel_key(q_world, self.octant_m)))?;
+        let plane = self.planes[at as usize];
+        (plane.signed_distance_m(q_world).abs() <= self.max_residual_m).then_some(plane)
     }
 
     /// Number of octants with a plane.

@@ -123,23 +123,25 @@ impl LocalMapConfig {
                     reason: "a plane needs at least 3 points",
                 });
             }
-            for (field, value, least) in [
-                ("cell_planes.max_residual_m", planes.max_residual_m, 0.0),
+            for (field, value, least, reason) in [
+                (
+                    "cell_planes.max_residual_m",
+                    planes.max_residual_m,
+                    0.0,
+                    "must be positive and finite",
+                ),
                 (
                     "cell_planes.min_eigenvalue_ratio",
                     planes.min_eigenvalue_ratio,
                     1.0,
+                    "must be finite and above 1",
                 ),
             ] {
                 if !(value.is_finite() && value > least) {
                     return Err(LocalMapError::InvalidConfig {
                         field,
                         value,
-                        reason: if least > 0.0 {
-                            "must be finite and above 1"
-                        } else {
-                            "must be positive and finite"
-                        },
+                        reason,
                     });
                 }
             }

@@ -3,8 +3,9 @@
 //! Edge points of the scan are matched to lines fitted to their `k` nearest
 //! edge-map points, planar points to the plane of the planar map's grid
 //! octant they fall in when they lie on it or else to a plane fitted to
-//! their `k` nearest planar-map points. The pose `T = t_world_lidar` is refined by robust
-//! Gauss–Newton in OUR right-perturbation tangent `T·Exp(ξ)`, `ξ = (ρ, φ)`.
+//! their `k` nearest planar-map points. The pose `T = t_world_lidar` is
+//! refined by robust Gauss–Newton in OUR right-perturbation tangent
+//! `T·Exp(ξ)`, `ξ = (ρ, φ)`.
 //!
 //! Residuals (metres, unit variance; the pipeline scales the information):
 //! * point-to-line: `r = u × (T·p − a)` (3-vector, norm = distance to the
@@ -24,8 +25,7 @@
 //! Speed: a planar point takes the plane of the map's grid octant it falls
 //! in ([`MapCloud::plane_at`], fitted once per keyframe) where that octant
 //! has one and the point lies on it, and searches its `k` neighbours only
-//! otherwise;
-//! neighbours come from the local map's hash grid
+//! otherwise; neighbours come from the local map's hash grid
 //! ([`MapCloud::nearest_k_within`], faster than the k-d tree on these clouds);
 //! correspondences are cached per scan point and re-searched only when the
 //! point's world position moved more than
