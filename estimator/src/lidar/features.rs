@@ -481,17 +481,24 @@ impl FeatureExtractor {
             }
 
             // 5. collect, in ring then time order
+            // Most points are planar, but not predictably: each is written
+            // and the list's end advanced only when it is one (no branch).
+            let planar = &mut out.planar_indices;
+            let mut end = planar.len();
+            planar.resize(end + len, 0);
             for (k, o) in ordered.iter().enumerate() {
                 let f = self.flags[k];
                 let index = o.key as u32 as usize;
                 if f & EDGE != 0 {
                     out.edge_indices.push(index);
-                } else if f & (HAS_CURVATURE | REJECTED) == HAS_CURVATURE
-                    && self.curvature[k] < surface_threshold
-                {
-                    out.planar_indices.push(index);
                 }
+                planar[end] = index;
+                end += usize::from(
+                    (f & (HAS_CURVATURE | REJECTED | EDGE) == HAS_CURVATURE)
+                        & (self.curvature[k] < surface_threshold),
+                );
             }
+            planar.truncate(end);
         }
     }
 

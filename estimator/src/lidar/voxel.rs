@@ -23,14 +23,25 @@ pub type VoxelKey = (i64, i64, i64);
 /// `floor(v)` as an integer. `f64::floor` is a libm call on baseline x86-64
 /// (no SSE4.1 `roundsd`); truncation plus a
 /// correction is exact for every `v` in the `i64` range and saturates
-/// beyond it (NaN gives 0).
+/// beyond it (NaN gives 0). Magnitudes below 2^62, every coordinate a map
+/// holds, skip the saturating cast's range checks: they were a fifth of the
+/// voxel downsampling's time.
 #[inline]
 pub(crate) fn floor_to_i64(v: f64) -> i64 {
-    let t = v as i64;
-    // Without a branch: half the coordinates of a scan are negative, which
-    // makes "truncation rounded up" unpredictable.
-    t.saturating_sub(i64::from((t as f64) > v))
+    if v.abs() < TRUNCATION_EXACT_BELOW {
+        // SAFETY: |v| < 2^62, so its truncation is an i64.
+        let t: i64 = unsafe { v.to_int_unchecked() };
+        // Without a branch: half the coordinates of a scan are negative,
+        // which makes "truncation rounded up" unpredictable.
+        t - i64::from((t as f64) > v)
+    } else {
+        let t = v as i64;
+        t.saturating_sub(i64::from((t as f64) > v))
+    }
 }
+
+/// Below this magnitude (2^62) a truncation needs no saturation.
+const TRUNCATION_EXACT_BELOW: f64 = 4_611_686_018_427_387_904.0;
 
 /// Voxel key of `p` for voxel edge `voxel_m` (> 0). Coordinates beyond the
 /// `i64` range saturate, which only merges voxels at absurd distances.
@@ -179,7 +190,25 @@ mod tests {
     #[test]
     fn floor_to_i64_matches_floor() {
         for v in [
-            -2.5, -2.0, -1.0, -0.5, -1e-300, 0.0, 1e-300, 0.5, 1.0, 2.999, 1e15, -1e15,
+            -2.5,
+            -2.0,
+            -1.0,
+            -0.5,
+            -1e-300,
+            0.0,
+            1e-300,
+            0.5,
+            1.0,
+            2.999,
+            1e15,
+            -1e15,
+            // either side of the unsaturated path's bound, 2^62
+            4.0e18,
+            -4.0e18,
+            4.611686018427388e18,
+            -4.611686018427388e18,
+            9.2e18,
+            -9.2e18,
         ] {
             assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
         }
