@@ -341,7 +341,10 @@ impl BoxCells {
         if !(fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64) {
             return None;
         }
-        let cell = (fy as usize) * self.nx + fx as usize;
+        // SAFETY: 0 <= fx < nx and 0 <= fy < ny, so both truncate to usize
+        // (the saturating `as` costs a range check per point).
+        let (ix, iy): (usize, usize) = unsafe { (fx.to_int_unchecked(), fy.to_int_unchecked()) };
+        let cell = iy * self.nx + ix;
         let words = &self.bits[cell * self.words..][..self.words];
         words.iter().any(|&w| w != 0).then_some(words)
     }
