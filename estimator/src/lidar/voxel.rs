@@ -189,27 +189,13 @@ mod tests {
 
     #[test]
     fn floor_to_i64_matches_floor() {
-        for v in [
-            -2.5,
-            -2.0,
-            -1.0,
-            -0.5,
-            -1e-300,
-            0.0,
-            1e-300,
-            0.5,
-            1.0,
-            2.999,
-            1e15,
-            -1e15,
-            // either side of the unsaturated path's bound, 2^62
-            4.0e18,
-            -4.0e18,
-            4.611686018427388e18,
-            -4.611686018427388e18,
-            9.2e18,
-            -9.2e18,
-        ] {
+        let small = [
+            -2.5, -2.0, -1.0, -0.5, -1e-300, 0.0, 1e-300, 0.5, 1.0, 2.999, 1e15, -1e15,
+        ];
+        // either side of the unsaturated path's bound, 2^62, both signs
+        let near_bound = [4.0e18, 4.611686018427388e18, 9.2e18];
+        let near_bound = near_bound.into_iter().flat_map(|v| [v, -v]);
+        for v in small.into_iter().chain(near_bound) {
             assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
         }
         assert_eq!(floor_to_i64(f64::NAN), 0);
