@@ -15,6 +15,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+mod common;
+
 /// A 3 s urban dataset (with its KITTI copy), simulated once per test binary.
 fn dataset() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
@@ -22,7 +24,7 @@ fn dataset() -> &'static Path {
         let mut spec = resolve_scenario("urban").unwrap();
         spec.duration_s = 3.0;
         // under target/ (replaced by the next run) rather than leaked into /tmp
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("eval-cli-urban-3s");
+        let dir = common::process_dir().join("eval-cli-urban-3s");
         let _ = fs::remove_dir_all(&dir);
         let summary = simulate(&spec, &dir, true, false).unwrap();
         assert_eq!(summary.frames, 30);

@@ -30,7 +30,7 @@ fn training_dir(data: &Path) -> PathBuf {
 fn run_all_variants() -> Option<KittiSuiteResults> {
     let data = common::data_root("real KITTI scans (sequence 0000)")?;
     let training = training_dir(&data);
-    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_real_0000");
+    let out = common::process_dir().join("kitti_real_0000");
     let _ = std::fs::remove_dir_all(&out);
     let spec = KittiSuiteSpec {
         training,
@@ -207,7 +207,7 @@ fn check_tracks(variant: Variant, t: &TrackScores) {
 
 /// A copy of sequence 0000 with its first `scans` scans, for damaging.
 fn partial_copy(training: &Path, name: &str, scans: usize) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let dir = common::process_dir().join(name);
     let _ = std::fs::remove_dir_all(&dir);
     for sub in ["calib", "oxts", "label_02"] {
         std::fs::create_dir_all(dir.join(sub)).unwrap();

@@ -33,9 +33,7 @@ fn data() -> Option<Data> {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("kitti_twin_suite")
-        .join(name);
+    let dir = common::process_dir().join("kitti_twin_suite").join(name);
     let _ = fs::remove_dir_all(&dir);
     dir
 }

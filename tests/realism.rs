@@ -22,7 +22,7 @@ fn sim_dataset() -> PathBuf {
         let mut spec = resolve_scenario("urban").unwrap();
         spec.duration_s = SIM_FRAMES as f64 * 0.1;
         spec.seed = 2;
-        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("realism-urban-3s");
+        let dir = common::process_dir().join("realism-urban-3s");
         let _ = fs::remove_dir_all(&dir);
         simulate(&spec, &dir, true, false).unwrap();
         dir

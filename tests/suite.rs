@@ -18,9 +18,7 @@ mod common;
 use common::without_timings;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("suite")
-        .join(name);
+    let dir = common::process_dir().join("suite").join(name);
     let _ = fs::remove_dir_all(&dir);
     dir
 }

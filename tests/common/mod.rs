@@ -25,7 +25,13 @@ pub fn data_root(what: &str) -> Option<PathBuf> {
 /// unpacked by `DATA/unpack-kitti.sh` under the test target's temporary
 /// directory; a failing unpack fails the test.
 pub fn kitti_training(data: &std::path::Path) -> PathBuf {
-    let dest = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("kitti_training");
+    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let dest = root.join("kitti_training");
+    // One unpack at a time across test processes (`cargo nextest` runs each
+    // test in its own); the script leaves a complete directory as it is.
+    std::fs::create_dir_all(&root).unwrap();
+    let lock = std::fs::File::create(root.join("kitti_training.lock")).unwrap();
+    lock.lock().unwrap();
     let script = data.join("unpack-kitti.sh");
     let status = std::process::Command::new("bash")
         .arg(&script)
@@ -39,6 +45,50 @@ pub fn kitti_training(data: &std::path::Path) -> PathBuf {
         dest.display()
     );
     dest
+}
+
+#[allow(dead_code)] // not every test binary keeps a fixture
+/// This test process's own directory under the test target's temporary
+/// directory, for fixtures built once per process: `cargo test` runs a
+/// binary's tests in one process, which shares them; `cargo nextest` runs
+/// each test in a process of its own, which must not remove and rebuild a
+/// fixture under another one's feet. Each process holds a lock on its
+/// directory's lock file while it runs, so the directories of processes
+/// that have ended (their lock free) are removed here.
+pub fn process_dir() -> PathBuf {
+    use std::fs::{self, File};
+    static DIR: std::sync::OnceLock<(PathBuf, File)> = std::sync::OnceLock::new();
+    let (dir, _lock) = DIR.get_or_init(|| {
+        let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+        fs::create_dir_all(&root).unwrap();
+        for entry in fs::read_dir(&root).unwrap().flatten() {
+            let path = entry.path();
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            let Some(pid) = name
+                .strip_prefix("process-")
+                .and_then(|n| n.strip_suffix(".lock"))
+            else {
+                continue;
+            };
+            if let Ok(lock) = File::open(&path)
+                && lock.try_lock().is_ok()
+            {
+                let _ = fs::remove_dir_all(root.join(format!("process-{pid}")));
+                let _ = fs::remove_file(&path);
+            }
+        }
+        let pid = std::process::id();
+        // locked before it appears under the name the loop above looks for
+        let pending = root.join(format!("process-{pid}.lock.new"));
+        let lock = File::create(&pending).unwrap();
+        lock.lock().unwrap();
+        fs::rename(&pending, root.join(format!("process-{pid}.lock"))).unwrap();
+        let dir = root.join(format!("process-{pid}"));
+        let _ = fs::remove_dir_all(&dir); // left by an ended process of the same id
+        fs::create_dir_all(&dir).unwrap();
+        (dir, lock)
+    });
+    dir.clone()
 }
 
 /// Simulates `spec` into a fresh temporary dataset directory named after
