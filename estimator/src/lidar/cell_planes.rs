@@ -49,6 +49,20 @@ pub struct MapPlane {
 }
 
 impl MapPlane {
+    /// The plane through `point_world` normal to `normal_world` (any
+    /// length); `None` when the direction does not normalize to finite
+    /// components (zero or non-finite).
+    pub fn through(point_world: &Vector3<f64>, normal_world: &Vector3<f64>) -> Option<MapPlane> {
+        let normal_world = normal_world.normalize();
+        normal_world
+            .iter()
+            .all(|v| v.is_finite())
+            .then(|| MapPlane {
+                normal_world,
+                offset_m: -normal_world.dot(point_world),
+            })
+    }
+
     /// Signed distance of `x_world` from the plane, m (positive on the
     /// normal's side).
     #[inline]
@@ -195,15 +209,7 @@ fn fit(m: &Moments, origin: &Vector3<f64>, config: &CellPlaneConfig) -> Option<M
     {
         return None;
     }
-    let normal_world = eigen.extreme_vector(false).normalize();
-    if !normal_world.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let centroid = origin + mean;
-    Some(MapPlane {
-        normal_world,
-        offset_m: -normal_world.dot(&centroid),
-    })
+    MapPlane::through(&(origin + mean), &eigen.extreme_vector(false))
 }
 
 #[cfg(test)]

@@ -375,14 +375,7 @@ pub(crate) fn fit_plane(neigh: &[Neighbour], max_residual_m: f64) -> Option<MapF
     }
     let (mean, cov) = mean_and_covariance(neigh);
     // eigenvalues ascending: the normal is the first eigenvector
-    let normal = Decomposition::of(&cov).extreme_vector(false).normalize();
-    if !normal.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let plane = MapPlane {
-        normal_world: normal,
-        offset_m: -normal.dot(&mean),
-    };
+    let plane = MapPlane::through(&mean, &Decomposition::of(&cov).extreme_vector(false))?;
     if neigh
         .iter()
         .any(|n| plane.signed_distance_m(&n.point_world).abs() > max_residual_m)
