@@ -37,7 +37,7 @@ use std::cell::Cell;
 mod ground;
 mod shapes;
 
-use ground::intersect_ground;
+use ground::{FAST_PATH_MIN_DESCENT, clears_ground, intersect_ground};
 use shapes::{Placement, intersect_offset_cuboid, intersect_shape};
 
 /// What a ray hit.
@@ -184,13 +184,20 @@ pub struct WorldAt<'w> {
     world: &'w World,
     t_s: f64,
     agents: Vec<AgentPose>,
-    /// The ground (height, gradient) under the last ray origin: a column's
-    /// 64 beams share their origin.
-    ground_under_origin: Cell<Option<(Point3<f64>, GroundSample)>>,
+    /// The ground under the last ray origin, the whole surface's and the
+    /// terrain's alone: a column's 64 beams share their origin.
+    ground_under_origin: Cell<Option<(Point3<f64>, GroundUnder)>>,
 }
 
 /// Height and gradient (dh/dx, dh/dy) of the ground at one point.
 type GroundSample = (f64, f64, f64);
+
+/// The ground under a ray origin: the whole surface and the terrain alone.
+#[derive(Debug, Clone, Copy)]
+struct GroundUnder {
+    whole: GroundSample,
+    terrain: GroundSample,
+}
 
 #[derive(Debug, Clone, Copy)]
 struct AgentPose {
@@ -703,10 +710,15 @@ impl WorldAt<'_> {
         hit
     }
 
-    /// Both casts: statics from the BVH, skipped when `candidates` are given
-    /// and none of them is hit; the ground's search starts at
-    /// `ground_start_m` (NaN: from the tangent plane under the origin).
-    /// With the ground's own range (NaN if none).
+    /// Ground, statics and agents: statics from the BVH, skipped when
+    /// `candidates` are given and none of them is hit; the ground's search
+    /// starts at `ground_start_m` (NaN: from the tangent plane under the
+    /// origin). A steep ray (most of them end on the ground) meets the
+    /// ground first, whose range then prunes the objects; any other ray
+    /// meets the objects first, and the ground is searched only when the ray
+    /// may reach it before the nearest object ([`clears_ground`]): the hit
+    /// is the same either way (the ground wins a tie). With the ground's own
+    /// range (NaN if none, or not searched).
     fn cast(
         &self,
         origin_world: &Point3<f64>,
@@ -715,37 +727,64 @@ impl WorldAt<'_> {
         candidates: Option<&[usize]>,
         ground_start_m: f64,
     ) -> (Option<RayHit>, f64) {
-        let mut ground_range_m = f64::NAN;
         if max_range_m.is_nan() || max_range_m <= 0.0 {
-            return (None, ground_range_m);
+            return (None, f64::NAN);
         }
         let world = self.world;
         let dir = dir_world.as_ref();
-        let mut best: Option<RayHit> = None;
-        let mut limit = max_range_m;
-        let under_origin = match self.ground_under_origin.get() {
-            Some((o, sample)) if o == *origin_world => sample,
+        let under = match self.ground_under_origin.get() {
+            Some((o, under)) if o == *origin_world => under,
             _ => {
-                let sample = world
-                    .ground
-                    .height_and_gradient(origin_world.x, origin_world.y);
-                self.ground_under_origin.set(Some((*origin_world, sample)));
-                sample
+                let (x, y) = (origin_world.x, origin_world.y);
+                let under = GroundUnder {
+                    whole: world.ground.height_and_gradient(x, y),
+                    terrain: world.ground.terrain_height_and_gradient(x, y),
+                };
+                self.ground_under_origin.set(Some((*origin_world, under)));
+                under
             }
         };
-        // ground first: cheap, and its range prunes the static BVH
-        if let Some((range_m, normal_world)) =
-            world.cast_ground(origin_world, &under_origin, dir, limit, ground_start_m)
-        {
-            ground_range_m = range_m;
-            limit = range_m;
-            best = Some(RayHit {
-                range_m,
-                normal_world,
-                instance_id: STATIC_INSTANCE_ID,
-                surface: Surface::Ground,
-            });
+        let ground_hit = |ground_start_m: f64| {
+            world
+                .cast_ground(origin_world, &under.whole, dir, max_range_m, ground_start_m)
+                .map(|(range_m, normal_world)| RayHit {
+                    range_m,
+                    normal_world,
+                    instance_id: STATIC_INSTANCE_ID,
+                    surface: Surface::Ground,
+                })
+        };
+        if dir.z < -FAST_PATH_MIN_DESCENT {
+            let ground = ground_hit(ground_start_m);
+            let limit = ground.map_or(max_range_m, |hit| hit.range_m);
+            let best = self.nearest_object(origin_world, dir, limit, candidates);
+            (best.or(ground), ground.map_or(f64::NAN, |hit| hit.range_m))
+        } else {
+            let object = self.nearest_object(origin_world, dir, max_range_m, candidates);
+            let limit = object.map_or(max_range_m, |hit| hit.range_m);
+            if clears_ground(&world.ground, &under.terrain, origin_world, dir, limit) {
+                return (object, f64::NAN);
+            }
+            let ground = ground_hit(ground_start_m);
+            let ground_range_m = ground.map_or(f64::NAN, |hit| hit.range_m);
+            match ground {
+                Some(hit) if hit.range_m <= limit => (Some(hit), ground_range_m),
+                _ => (object, ground_range_m),
+            }
         }
+    }
+
+    /// The nearest static or agent hit closer than `limit_m` (statics first:
+    /// an agent replaces a static only when strictly nearer).
+    fn nearest_object(
+        &self,
+        origin_world: &Point3<f64>,
+        dir: &Vector3<f64>,
+        mut limit: f64,
+        candidates: Option<&[usize]>,
+    ) -> Option<RayHit> {
+        let world = self.world;
+        let mut best = None;
         let static_hit =
             match candidates.map(|c| world.nearest_listed_static(c, origin_world, dir, limit)) {
                 Some(ListedHit::Sure(hit)) => hit,
@@ -794,7 +833,7 @@ impl WorldAt<'_> {
                 }
             }
         }
-        (best, ground_range_m)
+        best
     }
 }
 

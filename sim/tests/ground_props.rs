@@ -3,11 +3,15 @@
 //! the range the ray caster finds, from the tangent plane under the sensor
 //! (`cast_ray`) or from a neighbouring ray's range (`cast_ray_next_to`), is
 //! the first crossing of the ray with the surface to within
-//! `GROUND_RANGE_TOLERANCE_M`.
+//! `GROUND_RANGE_TOLERANCE_M`; and with a wall across a shallow ray (which
+//! meets the objects first and the ground only when it may be nearer), the
+//! hit is the nearer of the two.
 
-use limot_sim::scene::{Crown, Ground, Roughness, Undulation};
+use limot_sim::scene::{
+    Crown, Ground, Roughness, Scene, Shape, StaticKind, StaticObject, Undulation,
+};
 use limot_sim::sensors::{GROUND_RANGE_TOLERANCE_M, Surface, World};
-use nalgebra::{Isometry3, Point3, Unit, Vector2, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector2, Vector3};
 use proptest::prelude::*;
 use rand::SeedableRng;
 
@@ -112,6 +116,22 @@ fn reference_range(
     (s <= max_range_m).then_some(s)
 }
 
+/// A scene of `ground` and `statics` alone.
+fn scene(ground: &Ground, statics: Vec<StaticObject>) -> Scene {
+    Scene {
+        duration_s: 1.0,
+        ground: ground.clone(),
+        statics,
+        agents: Vec::new(),
+        ego: limot_sim::scene::Ego {
+            trajectory: limot_sim::scene::Trajectory::stationary(0.0, 1.0, &Isometry3::identity()),
+            size_lwh_m: Vector3::new(4.5, 1.8, 1.5),
+            box_center_lidar_m: Vector3::zeros(),
+            t_lidar_imu: Isometry3::identity(),
+        },
+    }
+}
+
 fn unit(azimuth: f64, elevation: f64) -> Unit<Vector3<f64>> {
     Unit::new_normalize(Vector3::new(
         elevation.cos() * azimuth.cos(),
@@ -133,23 +153,7 @@ proptest! {
         elevations in prop::collection::vec(-0.44..-0.001f64, 24),
         start_offsets_m in prop::collection::vec(-3.0..3.0f64, 24),
     ) {
-        let scene = limot_sim::scene::Scene {
-            duration_s: 1.0,
-            ground: ground.clone(),
-            statics: Vec::new(),
-            agents: Vec::new(),
-            ego: limot_sim::scene::Ego {
-                trajectory: limot_sim::scene::Trajectory::stationary(
-                    0.0,
-                    1.0,
-                    &Isometry3::identity(),
-                ),
-                size_lwh_m: Vector3::new(4.5, 1.8, 1.5),
-                box_center_lidar_m: Vector3::zeros(),
-                t_lidar_imu: Isometry3::identity(),
-            },
-        };
-        let world = World::new(&scene);
+        let world = World::new(&scene(&ground, Vec::new()));
         let snap = world.snapshot(0.0);
         let (x, y) = origin_xy;
         let origin = Point3::new(x, y, ground.height(x, y) + height_m);
@@ -192,6 +196,57 @@ proptest! {
                         "origin {origin:?}, elevation {elevation}: reference, from {start_m}, cold: {other:?}"
                     ),
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn a_shallow_ray_meets_the_nearer_of_the_ground_and_a_wall(
+        ground in ground_spec(),
+        origin_xy in (-3000.0..3000.0f64, -3000.0..3000.0f64),
+        height_m in 1.2..2.5f64,
+        azimuth in -3.2..3.2f64,
+        // shallow: descending less steeply than STEEP_DESCENT, or rising
+        elevations in prop::collection::vec(-0.05..0.02f64, 8),
+        // the wall's distance, as a multiple of the ground crossing's
+        wall_factors in prop::collection::vec(0.5..1.5f64, 8),
+    ) {
+        let (x, y) = origin_xy;
+        let origin = Point3::new(x, y, ground.height(x, y) + height_m);
+        for (&elevation, &factor) in elevations.iter().zip(&wall_factors) {
+            let dir = unit(azimuth, elevation);
+            let exact = reference_range(&ground, &origin, &dir, MAX_RANGE_M);
+            // a wall across the ray, 1 m thick, far taller and wider than
+            // the ray's reach, its front face `horizontal_m` ahead
+            let horizontal_m = exact.map_or(80.0, |e| e * dir.xy().norm()) * factor;
+            let centre = origin.xy() + Vector2::new(azimuth.cos(), azimuth.sin()) * (horizontal_m + 0.5);
+            let wall = StaticObject {
+                kind: StaticKind::Wall,
+                shape: Shape::Cuboid { half_extents_m: Vector3::new(0.5, 20.0, 60.0) },
+                t_world_object: Isometry3::from_parts(
+                    Translation3::new(centre.x, centre.y, origin.z),
+                    UnitQuaternion::from_euler_angles(0.0, 0.0, azimuth),
+                ),
+            };
+            let wall_range_m = horizontal_m / dir.xy().norm();
+            let world = World::new(&scene(&ground, vec![wall]));
+            let hit = world.snapshot(0.0).cast_ray(&origin, &dir, MAX_RANGE_M);
+            let ground_nearer = exact.is_some_and(|e| e < wall_range_m);
+            if exact.is_some_and(|e| (e - wall_range_m).abs() < 1e-6) {
+                continue; // a tie to the tolerance: either is right
+            }
+            match hit {
+                Some(hit) if ground_nearer => {
+                    let e = exact.unwrap();
+                    prop_assert_eq!(hit.surface, Surface::Ground);
+                    prop_assert!((hit.range_m - e).abs() <= GROUND_RANGE_TOLERANCE_M, "{} vs {}", hit.range_m, e);
+                }
+                Some(hit) if wall_range_m <= MAX_RANGE_M => {
+                    prop_assert_eq!(hit.surface, Surface::Static(StaticKind::Wall));
+                    prop_assert!((hit.range_m - wall_range_m).abs() < 1e-9, "{} vs {}", hit.range_m, wall_range_m);
+                }
+                None => prop_assert!(wall_range_m > MAX_RANGE_M - 1e-6 && !ground_nearer),
+                other => prop_assert!(false, "elevation {}: reference {:?}, wall {}: {:?}", elevation, exact, wall_range_m, other),
             }
         }
     }

@@ -7,7 +7,46 @@ use nalgebra::{Point3, Unit, Vector3};
 /// Rays descending at least this steeply (sin of the depression) trust the
 /// fast path's crossing beyond the maximum range; shallower ones, and all
 /// the fast path leaves unsettled, go the safe way.
-const FAST_PATH_MIN_DESCENT: f64 = 0.05;
+pub(super) const FAST_PATH_MIN_DESCENT: f64 = 0.05;
+
+/// Clearance [`clears_ground`] asks beyond its bound, m: far above the
+/// rounding of the bound's few operations.
+const CLEARANCE_MARGIN_M: f64 = 1e-6;
+
+/// A bound of |d²h/ds²| of the terrain (plane and undulations) along the
+/// ray's horizontal direction.
+fn curvature_bound_along(ground: &Ground, dir: &Vector3<f64>) -> f64 {
+    ground
+        .undulations
+        .iter()
+        .map(|w| {
+            let k_dot_d = w.wave_vector.x * dir.x + w.wave_vector.y * dir.y;
+            w.amplitude_m.abs() * k_dot_d * k_dot_d
+        })
+        .sum()
+}
+
+/// Whether the ray surely stays above the ground over `[0, range_m]`, from
+/// the terrain's (plane and undulations, no detail) height and gradient
+/// under the origin: along the ray the terrain lies below its tangent at
+/// the origin plus `m s² / 2` (`m` bounds the undulations' curvature along
+/// the ray), and the detail raises it by at most its bound, so the ray's
+/// height over that concave bound is checked at both ends. False when
+/// unsure, never false-positive.
+pub(super) fn clears_ground(
+    ground: &Ground,
+    terrain_under_origin: &GroundSample,
+    origin: &Point3<f64>,
+    dir: &Vector3<f64>,
+    range_m: f64,
+) -> bool {
+    let (t0, tx, ty) = *terrain_under_origin;
+    let curvature_bound = curvature_bound_along(ground, dir);
+    let at_origin = origin.z - t0 - ground.detail_bound_m() - CLEARANCE_MARGIN_M;
+    let at_range = at_origin + (dir.z - tx * dir.x - ty * dir.y) * range_m
+        - 0.5 * curvature_bound * range_m * range_m;
+    at_origin > 0.0 && at_range > 0.0
+}
 
 /// Nearest ground hit within `max_range_m` and the upward normal there.
 /// The terrain (plane, undulations) is intersected by
@@ -237,14 +276,7 @@ fn intersect_terrain(
     let a = origin.z - ground.base_height_m - ground.slope.x * origin.x - ground.slope.y * origin.y;
     let b = dir.z - ground.slope.x * dir.x - ground.slope.y * dir.y;
     let u = undulation_bound_m;
-    let curvature_bound: f64 = ground
-        .undulations
-        .iter()
-        .map(|w| {
-            let k_dot_d = w.wave_vector.x * dir.x + w.wave_vector.y * dir.y;
-            w.amplitude_m.abs() * k_dot_d * k_dot_d
-        })
-        .sum();
+    let curvature_bound = curvature_bound_along(ground, dir);
     let surface = |s: f64| {
         let p = origin + dir * s;
         let hg = ground.terrain_height_and_gradient(p.x, p.y);

@@ -545,3 +545,80 @@ fn cyclists_and_pedestrians_are_thinner_than_their_boxes() {
     // a car fills its box
     assert!((hit(agent(5, ObjectClass::Car, size), 0.35, 0.3).unwrap() - 9.1).abs() < 1e-9);
 }
+
+#[test]
+fn clears_ground_is_tight_on_flat_ground_and_sound_on_undulations() {
+    use super::ground::clears_ground;
+    let origin = Point3::new(5.0, -2.0, 1.73);
+    // flat: a ray descending 2 % meets the ground at 86.5 m
+    let flat = Ground::flat(0.0);
+    let sample = flat.terrain_height_and_gradient(origin.x, origin.y);
+    let dir = unit(1.0, 0.0, -0.02);
+    let crossing_m = 1.73 / -dir.z;
+    assert!(clears_ground(
+        &flat,
+        &sample,
+        &origin,
+        &dir,
+        crossing_m - 1e-3
+    ));
+    assert!(!clears_ground(
+        &flat,
+        &sample,
+        &origin,
+        &dir,
+        crossing_m + 1e-3
+    ));
+    assert!(clears_ground(
+        &flat,
+        &sample,
+        &origin,
+        &unit(1.0, 0.5, 0.01),
+        1e4
+    ));
+    // undulations and a crown: whenever it clears, the ray stays above
+    let ground = Ground {
+        undulations: vec![
+            Undulation {
+                amplitude_m: 0.4,
+                wave_vector: Vector2::new(0.05, 0.02),
+                phase_rad: 0.3,
+            },
+            Undulation {
+                amplitude_m: 0.2,
+                wave_vector: Vector2::new(-0.01, 0.04),
+                phase_rad: -1.1,
+            },
+        ],
+        crown: Some(crate::scene::Crown {
+            axis_point: Vector2::new(0.0, 1.0),
+            lateral: Vector2::new(0.0, 1.0),
+            height_m: -0.3,
+            width_m: 2.0,
+        }),
+        ..Ground::flat(0.0)
+    };
+    let sample = ground.terrain_height_and_gradient(origin.x, origin.y);
+    let mut bounded = 0;
+    for k in 0..100 {
+        let azimuth = 0.37 * k as f64;
+        let dir = unit(azimuth.cos(), azimuth.sin(), -0.05 + 0.0007 * k as f64);
+        // the farthest range (whole metres) it clears: the ray must stay
+        // above the surface up to there
+        let Some(cleared_m) = (1..=150)
+            .map(f64::from)
+            .take_while(|&r| clears_ground(&ground, &sample, &origin, &dir, r))
+            .last()
+        else {
+            continue;
+        };
+        bounded += usize::from(cleared_m < 150.0);
+        let steps = (cleared_m / 0.01) as usize;
+        for i in 0..=steps {
+            let p = origin + dir.as_ref() * (cleared_m * i as f64 / steps as f64);
+            assert!(p.z > ground.height(p.x, p.y), "ray {k} crosses at {p}");
+        }
+    }
+    // most rays meet the bound within 150 m, so the check above is not vacuous
+    assert!(bounded > 50, "{bounded}");
+}
