@@ -22,7 +22,9 @@
 //! - A ray starting inside a solid sees nothing of that solid.
 //! - Ground: the analytic height field of [`Ground`], intersected exactly by
 //!   safe (never-overshooting) steps from a curvature bound, which converge
-//!   like Newton's method (to 1e-9 m) and take one step on a plane.
+//!   like Newton's method (to 1e-9 m) and take one step on a plane. A steep
+//!   ray meets the ground first; any other meets the objects first and
+//!   searches the ground only if a bound says it may reach it before them.
 
 use crate::scene::{Ground, Presence, STATIC_INSTANCE_ID, Scene, Shape, StaticKind};
 use crate::trajectory::Trajectory;
