@@ -3,15 +3,15 @@
 //! builder that turns it into a [`Scene`].
 //!
 //! - the ego follows a C2 [`Trajectory`] smoothed through its poses
-//!   ([`fit`]: a penalised least-squares fit whose residual is reported), so
+//!   (`fit`: a penalised least-squares fit whose residual is reported), so
 //!   the simulated IMU is that of a physically smooth motion;
-//! - every track becomes an [`Agent`] present while it was labelled
-//!   ([`tracks`]: interpolated between labelled frames, parked when its own
+//! - every track becomes an [`Agent`](crate::scene::Agent) present while it was labelled
+//!   (`tracks`: interpolated between labelled frames, parked when its own
 //!   motion stays within a few decimetres); parked ones stay for the whole
 //!   drive where that overlaps nothing (labels end with the camera's view,
 //!   the car does not);
 //! - the ground follows the road height under the ego and a seeded static
-//!   scene lines the driven corridor ([`corridor`]).
+//!   scene lines the driven corridor (`corridor`).
 //!
 //! Reading a recording's files (KITTI's OXTS, labels, calibration) is the
 //! caller's job: the `limot` CLI converts them into a [`ReplayInput`].

@@ -660,8 +660,8 @@ impl WorldAt<'_> {
     /// give the BVH's answer, so the hit is always [`WorldAt::cast_ray`]'s.
     /// (The BVH culls in f32 and can miss a hit that grazes the edge of a
     /// box, and it resolves near ties by its own order: a nearest hit
-    /// within [`BVH_EDGE_MARGIN_M`] of its static's AABB boundary, or
-    /// another hit within [`NEAR_TIE_M`] behind it, goes to the BVH.)
+    /// within `BVH_EDGE_MARGIN_M` (1 mm) of its static's AABB boundary, or
+    /// another hit within `NEAR_TIE_M` (1 mm) behind it, goes to the BVH.)
     ///
     /// # Panics
     /// If an index is out of range.

@@ -46,7 +46,7 @@ pub struct AteResult {
     /// Largest translation error, m.
     pub max_m: f64,
     /// RMSE of the translation errors' component along the true direction
-    /// of travel ([`travel_directions`]), m; `None` when the truth never
+    /// of travel (`travel_directions`), m; `None` when the truth never
     /// moves. Its square and the cross-track errors' add up to ATE_T².
     pub along_rmse_m: Option<f64>,
     /// Number of associated pose pairs used.

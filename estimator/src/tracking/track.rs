@@ -189,7 +189,7 @@ impl Track {
     }
 
     /// Whether the track has ever been dynamic with its box more than
-    /// [`MOVED_DISTANCE_M`] from where it started: a car standing in a queue
+    /// `MOVED_DISTANCE_M` from where it started: a car standing in a queue
     /// or at a red light after driving is one that moves again, while a
     /// parked car judged dynamic for a moment by its boxes' noise has not
     /// gone anywhere.

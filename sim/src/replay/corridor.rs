@@ -115,10 +115,10 @@ const HIGHWAY_RAIL_WIDTH_M: f64 = 0.3;
 
 impl Corridor {
     /// The corridor of a drive with no corridor named: highway when the ego's
-    /// mean speed exceeds [`HIGHWAY_SPEED_MPS`] or at least
-    /// [`HIGHWAY_VEHICLE_TRACKS`] vehicles and no pedestrian or cyclist are
+    /// mean speed exceeds `HIGHWAY_SPEED_MPS` or at least
+    /// `HIGHWAY_VEHICLE_TRACKS` vehicles and no pedestrian or cyclist are
     /// labelled, city when at least
-    /// [`CITY_VULNERABLE_TRACKS`] pedestrians or cyclists are labelled,
+    /// `CITY_VULNERABLE_TRACKS` pedestrians or cyclists are labelled,
     /// residential otherwise.
     pub fn choose(input: &ReplayInput) -> Corridor {
         let path_m: f64 = input

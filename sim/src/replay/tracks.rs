@@ -54,7 +54,7 @@ pub struct TrackSummary {
     pub bridged_frames: usize,
     /// Repeated (track, frame) boxes dropped.
     pub duplicates: usize,
-    /// Parked agents kept for the whole drive (see [`park_for_the_drive`]).
+    /// Parked agents kept for the whole drive (see `park_for_the_drive`).
     pub parked_for_the_drive: usize,
 }
 

@@ -9,7 +9,7 @@ mod imu;
 mod lidar;
 mod lidar_scan;
 
-pub use crate::world::{GROUND_RANGE_TOLERANCE_M, RayHit, Surface, World};
+pub use crate::world::{GROUND_RANGE_TOLERANCE_M, RayHit, Surface, World, WorldAt};
 pub use detector::{ClassNoise, DetectionWithTruth, Detector, DetectorConfig, DetectorError};
 pub use imu::{ImuConfig, ImuError, ImuSimulator, ImuStream};
 pub use lidar::LidarConfig;

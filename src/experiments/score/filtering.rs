@@ -98,7 +98,7 @@ impl FilterEvaluation {
 
     /// `features removed … % of …; on moving objects … % of …; on standing
     /// objects … % of …` (no precision: for labels that cover part of the
-    /// sweep, [`super::kitti_filter`]).
+    /// sweep, `super::kitti_filter`).
     pub fn labelled_summary_line(&self) -> String {
         let pct = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{:.1} %", 100.0 * x));
         format!(

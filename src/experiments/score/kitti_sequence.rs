@@ -299,7 +299,7 @@ pub struct KittiRunScores {
     /// `None` when the sequence has no `label_02` file or the variant does
     /// not track (lio).
     pub tracks: Option<TrackScores>,
-    /// The filter judged by the labelled boxes ([`super::kitti_filter`]);
+    /// The filter judged by the labelled boxes (`super::kitti_filter`);
     /// `None` without `label_02`, for lio, or when the run recorded no
     /// features.
     #[serde(default)]

@@ -12,7 +12,7 @@ use limot_estimator::geometry::OrientedBox;
 use limot_estimator::tracking::{Lifecycle, Motion, TrackOutput};
 use nalgebra::{Isometry3, UnitQuaternion};
 
-/// Bytes per point of [`point_cloud`]: `x`, `y`, `z` as f32 (LiDAR frame, m)
+/// Bytes per point of `point_cloud`: `x`, `y`, `z` as f32 (LiDAR frame, m)
 /// and the `removed` flag as u8.
 pub const POINT_STRIDE_BYTES: usize = 13;
 

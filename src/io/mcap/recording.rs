@@ -54,7 +54,7 @@ pub struct McapRequest {
     /// The MCAP file to write.
     pub path: PathBuf,
     /// At most this many cloud points per sweep besides the removed ones
-    /// (see [`point_cloud`](super::messages::point_cloud)); `None`: every point.
+    /// (see `point_cloud`); `None`: every point.
     pub max_cloud_points: Option<usize>,
 }
 
