@@ -1,5 +1,7 @@
 //! Small geometric vocabulary shared by the estimator, the simulator and the
-//! metrics: angle wrapping and the one oriented-box type, [`OrientedBox`].
+//! metrics: angle wrapping, the floor of a coordinate as an integer (grid
+//! and voxel keys, texture cells) and the one oriented-box type,
+//! [`OrientedBox`].
 
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -24,6 +26,29 @@ pub fn wrap_angle_rad(angle_rad: f64) -> f64 {
     let wrapped = angle_rad.rem_euclid(TAU);
     if wrapped > PI { wrapped - TAU } else { wrapped }
 }
+
+/// `floor(v)` as an integer. `f64::floor` is a libm call on baseline x86-64
+/// (no SSE4.1 `roundsd`); truncation plus a
+/// correction is exact for every `v` in the `i64` range and saturates
+/// beyond it (NaN gives 0). Magnitudes below 2^62 (every voxel, grid and
+/// texture coordinate) skip the saturating cast's range checks: they were a
+/// fifth of the voxel downsampling's time.
+#[inline]
+pub fn floor_to_i64(v: f64) -> i64 {
+    if v.abs() < TRUNCATION_EXACT_BELOW {
+        // SAFETY: |v| < 2^62, so its truncation is an i64.
+        let t: i64 = unsafe { v.to_int_unchecked() };
+        // Without a branch: half the coordinates of a scan are negative,
+        // which makes "truncation rounded up" unpredictable.
+        t - i64::from((t as f64) > v)
+    } else {
+        let t = v as i64;
+        t.saturating_sub(i64::from((t as f64) > v))
+    }
+}
+
+/// Below this magnitude (2^62) a truncation needs no saturation.
+const TRUNCATION_EXACT_BELOW: f64 = 4_611_686_018_427_387_904.0;
 
 /// An upright 3D box: centre, size and heading about the z axis of its frame.
 ///
@@ -144,6 +169,22 @@ impl OrientedBox {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_to_i64_matches_floor() {
+        let small = [
+            -2.5, -2.0, -1.0, -0.5, -1e-300, 0.0, 1e-300, 0.5, 1.0, 2.999, 1e15, -1e15,
+        ];
+        // either side of the unsaturated path's bound, 2^62, both signs
+        let near_bound = [4.0e18, 4.611686018427388e18, 9.2e18];
+        let near_bound = near_bound.into_iter().flat_map(|v| [v, -v]);
+        for v in small.into_iter().chain(near_bound) {
+            assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
+        }
+        assert_eq!(floor_to_i64(f64::NAN), 0);
+        assert_eq!(floor_to_i64(1e300), i64::MAX);
+        assert_eq!(floor_to_i64(-1e300), i64::MIN);
+    }
 
     #[test]
     fn wrapped_angles_land_in_the_half_open_interval() {

@@ -13,6 +13,7 @@
 //! ISO 8608 classes by `Gd(n0)` (geometric mean, m³): A 16e-6, B 64e-6,
 //! C 256e-6, D 1024e-6.
 
+use limot_estimator::geometry::floor_to_i64;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rustfft::num_complex::Complex;
@@ -163,7 +164,7 @@ impl Roughness {
     pub fn height_and_gradient(&self, x: f64, y: f64) -> (f64, f64, f64) {
         let n = TILE_CELLS;
         let (u, v) = (x / CELL_M, y / CELL_M);
-        let (iu, iv) = (floor(u), floor(v));
+        let (iu, iv) = (floor_to_i64(u), floor_to_i64(v));
         let (tx, ty) = (u - iu as f64, v - iv as f64);
         // n is a power of two: the mask is the Euclidean remainder
         let ix = (iu & (n as i64 - 1)) as usize;
@@ -178,14 +179,6 @@ impl Roughness {
         let dhdy = (top - bottom) / CELL_M;
         (height, dhdx, dhdy)
     }
-}
-
-/// `x.floor()` as an integer, for finite |x| < 2^52, without the libm call
-/// it is on baseline x86-64.
-#[inline]
-fn floor(x: f64) -> i64 {
-    let t = x as i64;
-    if t as f64 > x { t - 1 } else { t }
 }
 
 #[cfg(test)]

@@ -4,7 +4,8 @@
 
 use nalgebra::Vector3;
 
-use super::voxel::{VoxelKey, floor_to_i64, voxel_key};
+use super::voxel::{VoxelKey, voxel_key};
+use crate::geometry::floor_to_i64;
 
 /// A nearest-neighbour result: a map point and its squared distance (m²).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -15,33 +15,11 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
+use crate::geometry::floor_to_i64;
 use nalgebra::Vector3;
 
 /// Integer voxel coordinates `(floor(x/v), floor(y/v), floor(z/v))`.
 pub type VoxelKey = (i64, i64, i64);
-
-/// `floor(v)` as an integer. `f64::floor` is a libm call on baseline x86-64
-/// (no SSE4.1 `roundsd`); truncation plus a
-/// correction is exact for every `v` in the `i64` range and saturates
-/// beyond it (NaN gives 0). Magnitudes below 2^62, every coordinate a map
-/// holds, skip the saturating cast's range checks: they were a fifth of the
-/// voxel downsampling's time.
-#[inline]
-pub(crate) fn floor_to_i64(v: f64) -> i64 {
-    if v.abs() < TRUNCATION_EXACT_BELOW {
-        // SAFETY: |v| < 2^62, so its truncation is an i64.
-        let t: i64 = unsafe { v.to_int_unchecked() };
-        // Without a branch: half the coordinates of a scan are negative,
-        // which makes "truncation rounded up" unpredictable.
-        t - i64::from((t as f64) > v)
-    } else {
-        let t = v as i64;
-        t.saturating_sub(i64::from((t as f64) > v))
-    }
-}
-
-/// Below this magnitude (2^62) a truncation needs no saturation.
-const TRUNCATION_EXACT_BELOW: f64 = 4_611_686_018_427_387_904.0;
 
 /// Voxel key of `p` for voxel edge `voxel_m` (> 0). Coordinates beyond the
 /// `i64` range saturate, which only merges voxels at absurd distances.
@@ -185,22 +163,6 @@ mod tests {
         assert_eq!(out.len(), 2);
         assert!((out[0] - Vector3::new(0.05, 0.03, 0.02)).norm() < 1e-12);
         assert_eq!(out[1], pts[2]);
-    }
-
-    #[test]
-    fn floor_to_i64_matches_floor() {
-        let small = [
-            -2.5, -2.0, -1.0, -0.5, -1e-300, 0.0, 1e-300, 0.5, 1.0, 2.999, 1e15, -1e15,
-        ];
-        // either side of the unsaturated path's bound, 2^62, both signs
-        let near_bound = [4.0e18, 4.611686018427388e18, 9.2e18];
-        let near_bound = near_bound.into_iter().flat_map(|v| [v, -v]);
-        for v in small.into_iter().chain(near_bound) {
-            assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
-        }
-        assert_eq!(floor_to_i64(f64::NAN), 0);
-        assert_eq!(floor_to_i64(1e300), i64::MAX);
-        assert_eq!(floor_to_i64(-1e300), i64::MIN);
     }
 
     #[test]
