@@ -5,8 +5,12 @@ use crate::scene::Ground;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// Rays descending at least this steeply (sin of the depression) trust the
-/// fast path's crossing beyond the maximum range; shallower ones, and all
-/// the fast path leaves unsettled, go the safe way.
+/// fast path's crossing beyond the maximum range and start from a
+/// neighbouring ray's range; shallower ones, and all the fast path leaves
+/// unsettled, go the safe way. The cast uses the same bound to meet the
+/// ground before the objects: a shallower ray may skip its ground search
+/// (and hand the next column no range) because its search ignores the
+/// start anyway.
 pub(super) const FAST_PATH_MIN_DESCENT: f64 = 0.05;
 
 /// Clearance [`clears_ground`] asks beyond its bound, m: far above the
