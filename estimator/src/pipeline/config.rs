@@ -134,6 +134,13 @@ pub struct EstimatorConfig {
     /// moves again; its speed alone makes it static). `false` filters by the
     /// tracks' present state only (the paper's rule).
     pub filter_stopped_movers: bool,
+    /// `dynafilt` / `limot` also drop the edge features inside the boxes of
+    /// confirmed static tracks (parked cars), keeping their planar ones. A
+    /// vehicle's edges are mostly silhouettes, whose points the viewpoint and
+    /// the sampling move over its body, so they bias the match along the
+    /// street as the ego drives past (docs/estimator-notes.md). `false` keeps
+    /// every feature of a static track (the paper's rule).
+    pub filter_static_edges: bool,
     /// Report every feature index per frame (for filter evaluation).
     pub record_feature_indices: bool,
     /// Ego states in the sliding window (the paper uses 5).
@@ -245,6 +252,7 @@ impl Default for EstimatorConfig {
             filter_confirmed_only: false,
             filter_unsettled_detections: true,
             filter_stopped_movers: true,
+            filter_static_edges: true,
             window_size: 5,
             gravity_mps2: 9.80511,
             estimate_gravity: true,

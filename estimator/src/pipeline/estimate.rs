@@ -33,6 +33,9 @@ pub struct FrameEstimate {
     /// points), only with `EstimatorConfig::record_feature_indices`: what
     /// filter precision/recall are measured against.
     pub feature_indices: Vec<u32>,
+    /// The edge features among `feature_indices` (ascending), under the
+    /// same setting.
+    pub edge_feature_indices: Vec<u32>,
     /// Every live track after this frame (world frame), sorted by id.
     pub tracks: Vec<TrackOutput>,
     /// Time spent per stage on this frame.

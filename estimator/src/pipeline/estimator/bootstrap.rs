@@ -279,6 +279,7 @@ impl Estimator {
             scan_match: None,
             removed_feature_indices: features.removed.clone(),
             feature_indices: features.all_indices.clone(),
+            edge_feature_indices: features.all_edge_indices.clone(),
             tracks: Vec::new(),
             timings,
         })

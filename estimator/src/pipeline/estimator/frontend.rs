@@ -24,12 +24,17 @@ struct TrackBox(Track);
 
 impl BoxAtTime for TrackBox {
     fn box_at(&self, t_s: f64) -> OrientedBox {
-        let p = self.0.predict(t_s);
-        OrientedBox {
-            center: p.center_world,
-            yaw_rad: p.yaw_rad,
-            size_lwh: self.0.size_lwh(),
-        }
+        box_at(&self.0, t_s)
+    }
+}
+
+/// `track`'s predicted box at `t_s`, world frame.
+fn box_at(track: &Track, t_s: f64) -> OrientedBox {
+    let p = track.predict(t_s);
+    OrientedBox {
+        center: p.center_world,
+        yaw_rad: p.yaw_rad,
+        size_lwh: track.size_lwh(),
     }
 }
 
@@ -67,6 +72,8 @@ pub(super) struct SweepFeatures {
     pub(super) removed: Vec<u32>,
     /// Every feature index before the filter, when `record_feature_indices`.
     pub(super) all_indices: Vec<u32>,
+    /// The edge features among `all_indices`, ascending.
+    pub(super) all_edge_indices: Vec<u32>,
 }
 
 /// What [`Estimator::deskewed_sweep`] shows of the last sweep besides the
@@ -85,8 +92,14 @@ pub(super) enum FeatureFilter {
     Keep,
     /// `allfilt`: every detected box, fixed, in the world frame.
     AllBoxes(Vec<OrientedBox>),
-    /// `dynafilt`: boxes of dynamic tracks, each at the point's own time.
-    Moving(Vec<Box<dyn BoxAtTime>>),
+    /// `dynafilt`: boxes of dynamic tracks, each at the point's own time,
+    /// and the boxes whose edge points alone are dropped (confirmed static
+    /// tracks at the sweep's middle, with
+    /// [`EstimatorConfig::filter_static_edges`]).
+    Moving {
+        boxes: Vec<Box<dyn BoxAtTime>>,
+        edges_only: Vec<OrientedBox>,
+    },
 }
 
 impl Estimator {
@@ -154,17 +167,18 @@ impl Estimator {
         let mut features = self.feature_extractor.extract(&self.deskewed, scan);
         timings.features = clock.elapsed();
 
-        let all_indices = if self.config.record_feature_indices {
-            let mut all: Vec<u32> = features
-                .edge_indices
-                .iter()
-                .chain(&features.planar_indices)
-                .map(|&i| i as u32)
-                .collect();
-            all.sort_unstable();
-            all
+        let (all_indices, all_edge_indices) = if self.config.record_feature_indices {
+            let sorted = |indices: &mut dyn Iterator<Item = &usize>| {
+                let mut all: Vec<u32> = indices.map(|&i| i as u32).collect();
+                all.sort_unstable();
+                all
+            };
+            (
+                sorted(&mut features.edge_indices.iter().chain(&features.planar_indices)),
+                sorted(&mut features.edge_indices.iter()),
+            )
         } else {
-            Vec::new()
+            (Vec::new(), Vec::new())
         };
         let clock = Instant::now();
         let removed = self.filter_features(scan, motion, filter, &mut features);
@@ -196,6 +210,7 @@ impl Estimator {
             planar_lidar,
             removed,
             all_indices,
+            all_edge_indices,
         };
         timings.downsample = clock.elapsed();
         result
@@ -230,7 +245,21 @@ impl Estimator {
                 if self.config.filter_unsettled_detections {
                     boxes.extend(self.unsettled_detection_boxes(scan, motion));
                 }
-                FeatureFilter::Moving(boxes)
+                let edges_only = if self.config.filter_static_edges {
+                    let middle_s = scan.t_s + 0.5 * scan.sweep_duration_s;
+                    self.tracker
+                        .tracks()
+                        .iter()
+                        .filter(|t| {
+                            t.lifecycle() == Lifecycle::Confirmed
+                                && !filters_as_moving(t, self.config.filter_stopped_movers)
+                        })
+                        .map(|t| box_at(t, middle_s))
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                FeatureFilter::Moving { boxes, edges_only }
             }
         }
     }
@@ -291,7 +320,8 @@ impl Estimator {
 
     /// Drops the feature points that lie in the variant's object boxes,
     /// testing each RAW point at its own time against the box then (the
-    /// ego pose comes from the sweep motion). Returns the dropped indices.
+    /// ego pose comes from the sweep motion), and the edge points in the
+    /// edge-only boxes. Returns the dropped indices, ascending.
     fn filter_features(
         &self,
         scan: &LidarScan,
@@ -299,30 +329,62 @@ impl Estimator {
         filter: &FeatureFilter,
         features: &mut ScanFeatures,
     ) -> Vec<u32> {
-        if matches!(filter, FeatureFilter::Keep) {
+        let (boxes, edges_only): (Vec<&dyn BoxAtTime>, Vec<&dyn BoxAtTime>) = match filter {
+            FeatureFilter::Keep => return Vec::new(),
+            FeatureFilter::AllBoxes(boxes) => (
+                boxes.iter().map(|b| b as &dyn BoxAtTime).collect(),
+                Vec::new(),
+            ),
+            FeatureFilter::Moving { boxes, edges_only } => (
+                boxes.iter().map(|b| b.as_ref()).collect(),
+                edges_only.iter().map(|b| b as &dyn BoxAtTime).collect(),
+            ),
+        };
+        let mut flags = vec![false; scan.points.len()];
+        let mut removed = if boxes.is_empty() {
+            Vec::new()
+        } else {
+            let in_scan_order = features_in_scan_order(features, &mut flags);
+            self.points_in_boxes(scan, motion, &boxes, &in_scan_order)
+        };
+        for &i in &removed {
+            flags[i as usize] = true;
+        }
+        if !edges_only.is_empty() {
+            let mut edges: Vec<u32> = features
+                .edge_indices
+                .iter()
+                .filter(|&&i| !flags[i])
+                .map(|&i| i as u32)
+                .collect();
+            edges.sort_unstable();
+            let more = self.points_in_boxes(scan, motion, &edges_only, &edges);
+            for &i in &more {
+                flags[i as usize] = true;
+            }
+            if !more.is_empty() {
+                removed = merged(&removed, &more);
+            }
+        }
+        if !removed.is_empty() {
+            features.edge_indices.retain(|&i| !flags[i]);
+            features.planar_indices.retain(|&i| !flags[i]);
+        }
+        removed
+    }
+
+    /// The points `in_scan_order` (ascending indices into the scan) that lie
+    /// in `boxes`, each tested at its own time, ascending.
+    fn points_in_boxes(
+        &self,
+        scan: &LidarScan,
+        motion: &SweepMotion,
+        boxes: &[&dyn BoxAtTime],
+        in_scan_order: &[u32],
+    ) -> Vec<u32> {
+        if boxes.is_empty() {
             return Vec::new();
         }
-        let boxes: Vec<&dyn BoxAtTime> = match filter {
-            FeatureFilter::Keep => return Vec::new(),
-            FeatureFilter::AllBoxes(boxes) => boxes.iter().map(|b| b as &dyn BoxAtTime).collect(),
-            FeatureFilter::Moving(boxes) => boxes.iter().map(|b| b.as_ref()).collect(),
-        };
-        // The feature points in scan order: the lists are in ring order, and
-        // a scan stored by firing column (the simulator's) read in ring
-        // order would touch a new cache line per point.
-        let mut is_feature = vec![false; scan.points.len()];
-        for &i in features.edge_indices.iter().chain(&features.planar_indices) {
-            is_feature[i] = true;
-        }
-        // Three in four points are features, in no predictable pattern:
-        // every index is written and the end advanced only for a feature.
-        let mut in_scan_order = vec![0u32; scan.points.len()];
-        let mut end = 0;
-        for (i, &feature) in is_feature.iter().enumerate() {
-            in_scan_order[end] = i as u32;
-            end += usize::from(feature);
-        }
-        in_scan_order.truncate(end);
         let point = |k: usize| &scan.points[in_scan_order[k] as usize];
         let pose_at = |t: f64| motion.pose_at(t);
         let mut mask = vec![false; in_scan_order.len()];
@@ -333,30 +395,20 @@ impl Estimator {
             |k| point(k).position(),
             |k| scan.t_s + f64::from(point(k).time_offset_s),
             &pose_at,
-            &boxes,
+            boxes,
             &self.config.filter,
             &mut mask,
         )
         .is_err()
-            || !mask.contains(&true)
         {
             return Vec::new();
         }
-        // ascending, as `in_scan_order` is
-        let removed: Vec<u32> = in_scan_order
+        in_scan_order
             .iter()
             .zip(&mask)
             .filter(|(_, drop)| **drop)
             .map(|(&i, _)| i)
-            .collect();
-        let mut dropped = is_feature;
-        dropped.fill(false);
-        for &i in &removed {
-            dropped[i as usize] = true;
-        }
-        features.edge_indices.retain(|&i| !dropped[i]);
-        features.planar_indices.retain(|&i| !dropped[i]);
-        removed
+            .collect()
     }
 
     pub(super) fn match_features(
@@ -432,6 +484,45 @@ impl Estimator {
         self.last_keyframe_t_world_lidar = Some(*t_world_lidar);
         Ok(())
     }
+}
+
+/// The feature points of `features` in scan order (ascending indices): the
+/// lists are in ring order, and a scan stored by firing column (the
+/// simulator's) read in ring order would touch a new cache line per point.
+/// `flags` holds one flag per scan point, all false on entry and on return.
+fn features_in_scan_order(features: &ScanFeatures, flags: &mut [bool]) -> Vec<u32> {
+    for &i in features.edge_indices.iter().chain(&features.planar_indices) {
+        flags[i] = true;
+    }
+    // Three in four points are features, in no predictable pattern: every
+    // index is written and the end advanced only for a feature.
+    let mut in_scan_order = vec![0u32; flags.len()];
+    let mut end = 0;
+    for (i, &feature) in flags.iter().enumerate() {
+        in_scan_order[end] = i as u32;
+        end += usize::from(feature);
+    }
+    in_scan_order.truncate(end);
+    flags.fill(false);
+    in_scan_order
+}
+
+/// The union of two ascending, disjoint index lists, ascending.
+fn merged(a: &[u32], b: &[u32]) -> Vec<u32> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if a[i] < b[j] {
+            out.push(a[i]);
+            i += 1;
+        } else {
+            out.push(b[j]);
+            j += 1;
+        }
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out
 }
 
 /// Whether the trajectory-based filter treats a track as moving: dynamic

@@ -73,6 +73,7 @@ impl Estimator {
             scan_match: matched.as_ref().map(|m| summary(m, &features)),
             removed_feature_indices: features.removed.clone(),
             feature_indices: features.all_indices.clone(),
+            edge_feature_indices: features.all_edge_indices.clone(),
             tracks,
             timings,
         })
