@@ -80,6 +80,13 @@ pub struct FilterEvaluation {
     /// Of those, removed.
     #[serde(default)]
     pub removed_parked: usize,
+    /// The parked objects' edge features (a subset of `parked_features`;
+    /// absent from results written before it existed).
+    #[serde(default)]
+    pub parked_edge_features: usize,
+    /// Of those, removed.
+    #[serde(default)]
+    pub removed_parked_edges: usize,
     /// Why the kept features on moving objects were kept (trajectory-based
     /// filters only; absent from results written before it existed).
     #[serde(default)]
@@ -129,6 +136,20 @@ impl FilterEvaluation {
     pub fn parked_removed_fraction(&self) -> Option<f64> {
         (self.parked_features > 0).then(|| self.removed_parked as f64 / self.parked_features as f64)
     }
+
+    /// Share of the parked objects' edge features removed
+    /// (`EstimatorConfig::filter_static_edges` drops them).
+    pub fn parked_edge_removed_fraction(&self) -> Option<f64> {
+        (self.parked_edge_features > 0)
+            .then(|| self.removed_parked_edges as f64 / self.parked_edge_features as f64)
+    }
+
+    /// Share of the parked objects' planar features removed.
+    pub fn parked_planar_removed_fraction(&self) -> Option<f64> {
+        let features = self.parked_features - self.parked_edge_features;
+        let removed = self.removed_parked - self.removed_parked_edges;
+        (features > 0).then(|| removed as f64 / features as f64)
+    }
 }
 
 /// What a filter is judged against at one frame.
@@ -156,6 +177,8 @@ impl FilterEvaluation {
             removed_static_object: 0,
             parked_features: 0,
             removed_parked: 0,
+            parked_edge_features: 0,
+            removed_parked_edges: 0,
             kept_moving_causes: None,
         }
     }
@@ -180,7 +203,7 @@ impl FilterEvaluation {
         self.removed += s.true_positives + s.false_positives;
         self.moving_features += s.true_positives + s.false_negatives;
         self.removed_moving += s.true_positives;
-        for (&label, &r) in labels.iter().zip(&removed_mask) {
+        for ((&label, &r), i) in labels.iter().zip(&removed_mask).zip(&e.feature_indices) {
             if objects.standing.contains(&label) {
                 self.static_object_features += 1;
                 self.removed_static_object += usize::from(r);
@@ -188,6 +211,10 @@ impl FilterEvaluation {
             if objects.parked.contains(&label) {
                 self.parked_features += 1;
                 self.removed_parked += usize::from(r);
+                if e.edge_feature_indices.binary_search(i).is_ok() {
+                    self.parked_edge_features += 1;
+                    self.removed_parked_edges += usize::from(r);
+                }
             }
         }
         labels.into_iter().zip(removed_mask).collect()

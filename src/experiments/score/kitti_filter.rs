@@ -8,7 +8,8 @@
 //! than [`FILTER_MOVING_SPEED_MPS`] between the first and the last of its
 //! labelled frames within [`SPEED_WINDOW_FRAMES`] of that frame (a window
 //! that averages the labels' decimetre scatter); an object labelled at that
-//! one frame only is neither moving nor standing.
+//! one frame only is neither moving nor standing. An object standing at
+//! every labelled frame where its speed is known is parked.
 //!
 //! Labels cover the camera's view only, so the figures describe the labelled
 //! objects: the share of moving objects' features removed (recall) and of
@@ -29,7 +30,7 @@ use crate::io::kitti::raw::RawDrive;
 use crate::run::RunOutput;
 use limot_estimator::geometry::OrientedBox;
 use nalgebra::Vector3;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// A labelled box is grown by this on its sides and top to take in the
@@ -96,6 +97,18 @@ pub fn score_filter_on_labels(
     for c in centres.values_mut() {
         c.sort_by_key(|(frame, _)| *frame);
     }
+    // parked: standing at every labelled frame where its speed is known
+    let parked: BTreeSet<u32> = centres
+        .iter()
+        .filter(|(_, c)| {
+            let speeds: Vec<f64> = c
+                .iter()
+                .filter_map(|&(frame, _)| speed_mps(c, frame, &times_s))
+                .collect();
+            !speeds.is_empty() && speeds.iter().all(|&v| v <= FILTER_MOVING_SPEED_MPS)
+        })
+        .map(|(&id, _)| id)
+        .collect();
     let mut total = FilterEvaluation::empty();
     for e in output
         .estimates
@@ -132,6 +145,9 @@ pub fn score_filter_on_labels(
                 Some(_) => objects.standing.insert(b.id),
                 None => false,
             };
+            if parked.contains(&b.id) && objects.standing.contains(&b.id) {
+                objects.parked.insert(b.id);
+            }
         }
         total.add_frame(e, &objects);
     }

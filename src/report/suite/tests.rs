@@ -228,6 +228,8 @@ fn filtering_table_scores_the_variants_that_filter() {
         removed_static_object: 3,
         parked_features: 20,
         removed_parked: 1,
+        parked_edge_features: 2,
+        removed_parked_edges: 1,
         kept_moving_causes: Some(KeptMovingCauses {
             untracked: 2,
             tentative_static: 1,
