@@ -110,7 +110,13 @@ fn every_run_tracks_the_ego_to_half_a_metre_and_is_scored() {
                 assert!(f.features > 10_000 && f.moving_features > 0, "{f:?}");
                 let score = f.score();
                 assert!(score.recall.is_some_and(|r| r > 0.5), "{v}: {score:?}");
-                assert!(score.precision.is_some_and(|p| p > 0.5), "{v}: {score:?}");
+                // what it removes lies on objects: moving ones, and the
+                // parked cars' edges it drops by design
+                // (`EstimatorConfig::filter_static_edges`)
+                let on_objects = (f.removed_moving + f.removed_static_object) as f64;
+                let object_precision = on_objects / f.removed.max(1) as f64;
+                eprintln!("{v}: filter {score:?}, object precision {object_precision:.3}");
+                assert!(object_precision > 0.8, "{v}: {object_precision} {f:?}");
             }
             (_, None) => panic!("{v}: no filter figures"),
         }
