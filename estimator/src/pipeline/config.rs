@@ -294,11 +294,14 @@ impl Default for EstimatorConfig {
             // a speed within half a step of the truth settled in 6-10 on
             // KITTI 0000; the far ones would run to the matcher's 30
             start_speed_max_iterations: 10,
+            // Gauss-Newton from the IMU prediction converges quadratically:
+            // a step that gains less than 1e-5 of the cost leaves the next
+            // one sub-millimetre (docs/speed.md)
             solver: SolverConfig {
                 max_iterations: 10,
-                function_tolerance: 1e-6,
+                function_tolerance: 1e-5,
                 gradient_tolerance: 1e-9,
-                step_tolerance: 1e-7,
+                step_tolerance: 1e-6,
                 ..SolverConfig::default()
             },
         }
